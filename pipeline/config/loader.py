@@ -1,0 +1,114 @@
+"""Load a pydantic config model from defaults, a YAML file, the environment and CLI flags.
+
+Environment variables are named ``<PREFIX><FIELD>`` in upper case, nested fields joined
+by ``__`` (``PIPELINE_SIMULATE_ENGINE__DT_S=5e-5``). Values from the environment are
+parsed as YAML scalars, so numbers and booleans arrive typed.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping, TypeVar
+
+import yaml
+from pydantic import BaseModel, ValidationError
+
+from pipeline.errors import UserError
+
+ModelT = TypeVar("ModelT", bound=BaseModel)
+
+
+@dataclass
+class ConfigSource:
+    """Where each resolved value came from, for error messages and provenance."""
+
+    path: Path | None = None
+    origins: dict[tuple[str, ...], str] = field(default_factory=dict)
+
+    def origin_of(self, loc: tuple[str, ...]) -> str:
+        for cut in range(len(loc), 0, -1):
+            if loc[:cut] in self.origins:
+                return self.origins[loc[:cut]]
+        return "default"
+
+
+def _read_yaml(path: Path) -> dict[str, Any]:
+    if not path.is_file():
+        raise UserError(f"config file not found: {path}")
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" (line {mark.line + 1})" if mark is not None else ""
+        raise UserError(f"{path}: not valid YAML{where}: {getattr(exc, 'problem', exc)}") from None
+    if not isinstance(data, dict):
+        raise UserError(f"{path}: expected a mapping of field: value at the top level")
+    return data
+
+
+def env_overrides(prefix: str, environ: Mapping[str, str] | None = None) -> dict[str, Any]:
+    """Nested dict of the variables starting with ``prefix`` (``A__B`` → ``{"a": {"b": ...}}``)."""
+    environ = os.environ if environ is None else environ
+    result: dict[str, Any] = {}
+    for name, raw in environ.items():
+        if not name.startswith(prefix) or name == prefix:
+            continue
+        keys = name[len(prefix):].lower().split("__")
+        node = result
+        for key in keys[:-1]:
+            node = node.setdefault(key, {})
+        node[keys[-1]] = yaml.safe_load(raw) if raw.strip() else raw
+    return result
+
+
+def _merge(base: dict[str, Any], top: Mapping[str, Any], origin: str,
+           origins: dict[tuple[str, ...], str], prefix: tuple[str, ...] = ()) -> None:
+    for key, value in top.items():
+        if value is None:
+            continue
+        loc = prefix + (key,)
+        if isinstance(value, Mapping) and isinstance(base.get(key), dict):
+            _merge(base[key], value, origin, origins, loc)
+        else:
+            base[key] = dict(value) if isinstance(value, Mapping) else value
+            origins[loc] = origin
+
+
+def _describe(error: dict[str, Any], source: ConfigSource) -> str:
+    loc = tuple(str(part) for part in error["loc"])
+    dotted = ".".join(loc) or "(top level)"
+    where = source.origin_of(loc)
+    if error["type"] == "extra_forbidden":
+        return f"{where}: unknown field '{dotted}'"
+    value = error.get("input")
+    shown = "" if isinstance(value, (dict, list)) or value is None else f" = {value!r}"
+    return f"{where}: field '{dotted}'{shown}: {error['msg']}"
+
+
+def load_config(model: type[ModelT], path: str | Path | None = None, *, env_prefix: str = "",
+                overrides: Mapping[str, Any] | None = None,
+                environ: Mapping[str, str] | None = None) -> tuple[ModelT, ConfigSource]:
+    """Resolve ``model`` from defaults < YAML ``path`` < environment < ``overrides``.
+
+    ``overrides`` holds CLI flags (``None`` means "flag not given"). Returns the validated
+    model and the origin of every value; a bad value raises :class:`UserError` whose single
+    line names the source (file, variable or flag), the field and the allowed range.
+    """
+    source = ConfigSource(path=Path(path) if path else None)
+    merged: dict[str, Any] = {}
+    if path is not None:
+        _merge(merged, _read_yaml(Path(path)), str(path), source.origins)
+    if env_prefix:
+        _merge(merged, env_overrides(env_prefix, environ), f"environment ({env_prefix}*)",
+               source.origins)
+    if overrides:
+        _merge(merged, overrides, "command-line flag", source.origins)
+    try:
+        return model.model_validate(merged), source
+    except ValidationError as exc:
+        errors = exc.errors()
+        first = _describe(errors[0], source)
+        more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
+        raise UserError(first + more) from None

@@ -1,0 +1,69 @@
+"""Physics configuration: whisker material, follicle, damping model, engine and whisking drive.
+
+Lengths in configs follow their field names (``_mm``, ``_um``); everything is converted
+to SI once, where the model is built.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+
+class StrictModel(BaseModel):
+    """Base for config models: unknown fields are errors, not silently ignored."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class FollicleConfig(StrictModel):
+    """Follicle: ``rigid`` (paper default) or a torsional spring-damper about base y and z."""
+
+    kind: Literal["rigid", "compliant"] = "rigid"
+    stiffness_nm_per_rad: float = Field(1e-4, gt=0, le=1.0,
+                                        description="k_f, N·m/rad (compliant only)")
+    damping_nms_per_rad: float = Field(1e-7, ge=0, le=1e-2,
+                                       description="c_f, N·m·s/rad (compliant only)")
+
+
+class MaterialConfig(StrictModel):
+    """Material and discretisation of every whisker (MODEL.md §2)."""
+
+    youngs_modulus_gpa: float = Field(7.0, gt=0.1, le=20.0, description="E, GPa")
+    damping_ratio: float = Field(0.33, ge=0.0, le=2.0, description="ζ of eq. 3 (or per mode)")
+    damping_model: Literal["paper", "kelvin_voigt"] = Field(
+        "paper", description="'paper': eq. 3 per joint (depends on N); "
+                             "'kelvin_voigt': c_n = β·k_n with β set so mode 1 has ζ (converges in N)")
+    density_base_kg_m3: float = Field(1260.0, gt=100, le=5000)
+    density_tip_kg_m3: float = Field(1690.0, gt=100, le=5000)
+    links: int = Field(20, ge=2, le=120, description="N, links per whisker")
+    gravity: bool = False
+    follicle: FollicleConfig = FollicleConfig()
+
+
+class EngineConfig(StrictModel):
+    """Which engine and how it steps. Outputs are always sampled at ``output_rate_hz``."""
+
+    name: Literal["bullet"] = "bullet"
+    dt_s: float = Field(1e-4, gt=1e-7, le=1e-3, description="integration step, s")
+    output_rate_hz: float = Field(1000.0, gt=0, le=100_000)
+
+
+class WhiskConfig(StrictModel):
+    """Default sinusoidal whisk (MODEL.md §4): protraction θ(t) about the head's z axis."""
+
+    frequency_hz: float = Field(8.0, gt=0, le=30)
+    protraction_deg: float = Field(35.0, ge=0, le=90)
+    retraction_deg: float = Field(15.0, ge=0, le=90)
+    duration_s: float = Field(0.25, gt=0, le=10)
+
+
+class ModelConfig(StrictModel):
+    """Everything that defines the simulated animal and how it is integrated."""
+
+    morphology: str = Field("model_rat", description="a shipped table name or a CSV path")
+    whiskers: str = Field("all", description="'all', 'R', 'L' or comma-separated names")
+    material: MaterialConfig = MaterialConfig()
+    engine: EngineConfig = EngineConfig()
+    whisk: WhiskConfig = WhiskConfig()

@@ -1,0 +1,92 @@
+"""Run a workflow file: stages in order, each skipped when its inputs and config are unchanged.
+
+A workflow YAML names stages; each stage has a ``config`` file, ``inputs`` (files or
+folders whose content is hashed) and ``args`` passed to the stage function. The hash of
+all of it (plus the package version) is stored in ``outputs/.workflow/<name>/<stage>.json``
+after the stage succeeds; a later run with the same hash skips the stage.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+from typing import Any, Callable
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+import pipeline
+from pipeline.errors import UserError
+
+STATE_DIR = Path("outputs/.workflow")
+
+
+class StageSpec(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    stage: str
+    config: Path | None = None
+    inputs: list[Path] = Field(default_factory=list)
+    args: dict[str, Any] = Field(default_factory=dict)
+
+
+class WorkflowSpec(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    name: str
+    stages: list[StageSpec]
+
+
+def _stage_functions() -> dict[str, Callable[..., Any]]:
+    """Stage name → function(config_path, **args) -> summary dict. Imported lazily."""
+    from pipeline.stages import STAGES
+
+    return STAGES
+
+
+def hash_paths(paths: list[Path]) -> str:
+    """sha256 over the names and bytes of every file under ``paths`` (sorted, deterministic)."""
+    digest = hashlib.sha256()
+    for root in paths:
+        files = sorted(p for p in root.rglob("*") if p.is_file()) if root.is_dir() else [root]
+        if not root.exists():
+            digest.update(f"missing:{root}".encode())
+        for file in files:
+            digest.update(str(file).encode())
+            with open(file, "rb") as handle:
+                for block in iter(lambda: handle.read(1 << 20), b""):
+                    digest.update(block)
+    return digest.hexdigest()
+
+
+def load_workflow(path: Path) -> WorkflowSpec:
+    if not path.is_file():
+        raise UserError(f"workflow file not found: {path}")
+    try:
+        return WorkflowSpec.model_validate(yaml.safe_load(path.read_text()) or {})
+    except (yaml.YAMLError, ValidationError) as exc:
+        first = str(exc).splitlines()
+        raise UserError(f"{path}: invalid workflow: {' '.join(first[:3])}") from None
+
+
+def run_workflow(path: Path, *, force: bool = False, echo: Callable[[str], None] = print) -> None:
+    """Run every stage of the workflow at ``path`` in order."""
+    spec = load_workflow(path)
+    functions = _stage_functions()
+    for stage in spec.stages:
+        if stage.stage not in functions:
+            raise UserError(f"{path}: unknown stage '{stage.stage}' "
+                            f"(known: {', '.join(sorted(functions))})")
+    for stage in spec.stages:
+        hashed = list(stage.inputs) + ([stage.config] if stage.config else [])
+        key = hashlib.sha256(json.dumps(
+            {"inputs": hash_paths(hashed), "args": stage.args, "version": pipeline.__version__},
+            sort_keys=True, default=str).encode()).hexdigest()
+        state_file = STATE_DIR / spec.name / f"{stage.stage}.json"
+        if not force and state_file.is_file() and json.loads(state_file.read_text()).get("key") == key:
+            echo(f"[{stage.stage}] unchanged, skipped")
+            continue
+        echo(f"[{stage.stage}] running")
+        summary = functions[stage.stage](stage.config, **stage.args)
+        state_file.parent.mkdir(parents=True, exist_ok=True)
+        state_file.write_text(json.dumps({"key": key, "summary": summary}, indent=2, default=str))
+        echo(f"[{stage.stage}] done: {json.dumps(summary, default=str)}")
