@@ -1,0 +1,141 @@
+"""Whisking drives and head poses (paper eq. 8–9, MODEL.md §4), SI units (rad, s, m).
+
+Every whisker base is rotated from its rest orientation by protraction θ(t) about the head's
+z axis, elevation φ(t) = Δφ_row·θ(t) and torsion ζ(t) = Δζ_row·θ(t), composed in the
+reference's Euler convention R = Rz(θ_w + θ − π/2)·Ry(−(φ_w + φ))·Rx(ζ_w + ζ). The whisker
+frame (y toward the concave side) is R·Rx(−π/2). Left whiskers are mirrored (x → −x).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from pipeline.errors import UserError
+
+# Knutsen, Biess & Ahissar 2008 as used by the paper (eq. 8–9), rows A–E.
+ELEVATION_PER_PROTRACTION = (0.398, 0.591, 0.578, 0.393, 0.217)
+TORSION_PER_PROTRACTION = (-0.900, -0.284, 0.243, 0.449, 0.744)
+
+
+def rot_x(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def rot_y(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def rot_z(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+MIRROR_X = np.diag([-1.0, 1.0, 1.0])
+# Constant rotation from the last driven Euler joint to the whisker frame, per side.
+WHISKER_FRAME_OFFSET = {1: rot_x(-np.pi / 2), -1: rot_x(-np.pi / 2) @ rot_y(np.pi)}
+
+
+@dataclass(frozen=True)
+class ProtractionDrive:
+    """Protraction θ(t) (rad) as samples at times t (s); C² cubic-spline interpolation.
+
+    Before the first sample θ holds its first value, after the last its last value.
+    """
+
+    time_s: np.ndarray
+    angle_rad: np.ndarray
+    _spline: CubicSpline = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        t, a = np.asarray(self.time_s, float), np.asarray(self.angle_rad, float)
+        if t.ndim != 1 or t.shape != a.shape or t.size < 2:
+            raise UserError("a protraction table needs matching 1-D time and angle columns "
+                            "with at least 2 samples")
+        if not np.all(np.isfinite(t)) or not np.all(np.isfinite(a)) or np.any(np.diff(t) <= 0):
+            raise UserError("protraction table times must be finite and strictly increasing")
+        object.__setattr__(self, "time_s", t)
+        object.__setattr__(self, "angle_rad", a)
+        object.__setattr__(self, "_spline", CubicSpline(t, a))
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.time_s[-1])
+
+    def __call__(self, t: np.ndarray | float, derivative: int = 0) -> np.ndarray:
+        t = np.asarray(t, float)
+        inside = (t >= self.time_s[0]) & (t <= self.time_s[-1])
+        clipped = np.clip(t, self.time_s[0], self.time_s[-1])
+        value = self._spline(clipped, derivative)
+        return value if derivative == 0 else np.where(inside, value, 0.0)
+
+
+def sinusoidal_whisk(frequency_hz: float = 8.0, protraction_deg: float = 35.0,
+                     retraction_deg: float = 15.0, duration_s: float = 0.25,
+                     rate_hz: float = 10_000.0) -> ProtractionDrive:
+    """θ(t) oscillating between −retraction and +protraction, starting at full retraction at rest."""
+    t = np.arange(0.0, duration_s + 0.5 / rate_hz, 1.0 / rate_hz)
+    mid = np.radians(protraction_deg - retraction_deg) / 2
+    amplitude = np.radians(protraction_deg + retraction_deg) / 2
+    return ProtractionDrive(t, mid - amplitude * np.cos(2 * np.pi * frequency_hz * t))
+
+
+def still(duration_s: float) -> ProtractionDrive:
+    """No whisking: θ(t) = 0."""
+    return ProtractionDrive(np.array([0.0, duration_s]), np.zeros(2))
+
+
+def euler_joint_angles(rest_angles_rad, row: int, side: int, theta: np.ndarray) -> np.ndarray:
+    """[..., 3] angles of the driven Z–Y–X joints whose product, times WHISKER_FRAME_OFFSET[side],
+    is the whisker frame in the head frame while protraction is ``theta`` (rad)."""
+    theta = np.asarray(theta, float)
+    th_w, ph_w, ze_w = rest_angles_rad
+    yaw = th_w + theta - np.pi / 2
+    pitch = -(ph_w + ELEVATION_PER_PROTRACTION[row - 1] * theta)
+    roll = ze_w + TORSION_PER_PROTRACTION[row - 1] * theta
+    if side < 0:
+        yaw, pitch = -yaw, -pitch
+    return np.stack(np.broadcast_arrays(yaw, pitch, roll), axis=-1)
+
+
+def euler_joint_rates(row: int, side: int) -> np.ndarray:
+    """d(joint angles)/dθ: the driven joints move in proportion to θ."""
+    rates = np.array([1.0, -ELEVATION_PER_PROTRACTION[row - 1], TORSION_PER_PROTRACTION[row - 1]])
+    return rates * (np.array([-1.0, -1.0, 1.0]) if side < 0 else 1.0)
+
+
+def whisker_frame(rest_angles_rad, row: int, side: int, theta: float = 0.0) -> np.ndarray:
+    """3×3 rotation: whisker frame axes (columns) in the head frame at protraction ``theta``."""
+    yaw, pitch, roll = euler_joint_angles(rest_angles_rad, row, side, theta)
+    return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll) @ WHISKER_FRAME_OFFSET[side]
+
+
+@dataclass(frozen=True)
+class Pose:
+    """A rigid transform: head frame → world. Position (m) and yaw–pitch–roll (rad, Z–Y–X)."""
+
+    position_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    yaw_pitch_roll_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @property
+    def rotation(self) -> np.ndarray:
+        yaw, pitch, roll = self.yaw_pitch_roll_rad
+        return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
+
+    def apply(self, points: np.ndarray) -> np.ndarray:
+        return np.asarray(points) @ self.rotation.T + np.asarray(self.position_m)
+
+    @classmethod
+    def parse(cls, text: str) -> "Pose":
+        """'x,y,z,yaw,pitch,roll' with x, y, z in mm and angles in degrees."""
+        try:
+            values = [float(v) for v in text.split(",")]
+        except ValueError:
+            values = []
+        if len(values) != 6 or not np.all(np.isfinite(values)):
+            raise UserError(f"pose '{text}' must be six numbers: x,y,z (mm),yaw,pitch,roll (deg)")
+        return cls(tuple(v * 1e-3 for v in values[:3]), tuple(np.radians(values[3:]).tolist()))

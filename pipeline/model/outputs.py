@@ -1,0 +1,60 @@
+"""What a simulated trial produces, engine-independent, SI units.
+
+Axes: ``time`` (output samples, 1 kHz by default), ``whisker`` (array order), ``link``
+(0 = base link, N−1 = tip link), ``node`` (0 = base point … N = tip), ``signal``
+(Fx, Fy, Fz, Mx, My, Mz). Base signals are the force (N) and moment about the base point
+(N·m) that the follicle exerts on the whisker, in the whisker frame (MODEL.md §1).
+Positions are in the world frame (m).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+SIGNALS = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
+SIGNAL_UNITS = ("N", "N", "N", "N*m", "N*m", "N*m")
+
+
+@dataclass
+class TrialOutput:
+    """Arrays of one trial. Shapes: T samples, W whiskers, N links."""
+
+    time_s: np.ndarray               # [T] float64, s
+    base_wrench: np.ndarray          # [T, W, 6] float32, N and N·m, whisker frame
+    contact: np.ndarray              # [T, W, N] bool, link touched during the sample interval
+    node_positions_m: np.ndarray     # [T, W, N+1, 3] float32, world frame
+    whisker_names: list[str]
+    metadata: dict = field(default_factory=dict)   # engine, dt, timings, counts
+
+    @property
+    def sample_rate_hz(self) -> float:
+        return float(1.0 / np.median(np.diff(self.time_s))) if len(self.time_s) > 1 else 0.0
+
+    @property
+    def links(self) -> int:
+        return self.contact.shape[2]
+
+    def index(self, name: str) -> int:
+        from pipeline.model.morphology import canonical_name
+
+        return self.whisker_names.index(canonical_name(name))
+
+    def point_of_contact(self) -> np.ndarray:
+        """[T, W] most proximal link in contact / N (0 base … 1 tip); NaN without contact."""
+        touching = self.contact.any(axis=2)
+        first = np.argmax(self.contact, axis=2).astype(np.float32) / self.links
+        return np.where(touching, first, np.nan).astype(np.float32)
+
+    def moment_magnitude(self) -> np.ndarray:
+        """[T, W] M = √(Mx² + My² + Mz²) (eq. 10), N·m."""
+        return np.linalg.norm(self.base_wrench[..., 3:], axis=-1)
+
+    def bending_moment(self) -> np.ndarray:
+        """[T, W] √(My² + Mz²) (eq. 6), N·m."""
+        return np.linalg.norm(self.base_wrench[..., 4:], axis=-1)
+
+    def transverse_force(self) -> np.ndarray:
+        """[T, W] √(Fy² + Fz²) (eq. 7), N."""
+        return np.linalg.norm(self.base_wrench[..., 1:3], axis=-1)

@@ -1,0 +1,183 @@
+"""One whisker as a chain of N conical-frustum links (paper §4.1, MODEL.md §2), SI units.
+
+Whisker frame: origin at the base point, x along the tangent at the base toward the tip,
+y in the plane of the intrinsic curvature toward the concave side, z = x × y. The rest shape
+y = A·x² lies in the x–y plane; every link's frame has its x along the link (proximal → distal
+node) and its z equal to the whisker frame's z.
+
+Joints 2..N each carry two bending degrees of freedom (about the link's y and z axes; no
+twist) with stiffness k_n = E·I_n/l (eq. 2, l = S/N the link length, I_n = π r_n⁴/4) and
+damping from :mod:`pipeline.model.damping`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import brentq
+
+from pipeline.errors import UserError
+
+# 4-point Gauss–Legendre integrates the degree-6 polynomials of a linear-radius frustum exactly.
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(4)
+
+
+@dataclass(frozen=True)
+class WhiskerGeometry:
+    """Shape and size of one whisker: arc length S (m), base/tip radius (m), curvature A (1/m)."""
+
+    arc_length_m: float
+    base_radius_m: float
+    tip_radius_m: float
+    curvature_per_m: float = 0.0
+
+    def __post_init__(self):
+        if not (self.arc_length_m > 0 and self.base_radius_m > 0 and self.tip_radius_m > 0):
+            raise UserError("whisker arc length and radii must be positive")
+        if self.tip_radius_m > self.base_radius_m:
+            raise UserError("whisker tip radius must not exceed the base radius")
+        if self.arc_length_m > 0.2 or self.base_radius_m > 1e-3:
+            raise UserError(f"whisker of {self.arc_length_m * 1e3:.0f} mm / "
+                            f"{self.base_radius_m * 2e6:.0f} µm is not a rodent whisker "
+                            "(check units: lengths in m here)")
+
+
+def parabola_arc_length(x: float, a: float) -> float:
+    """Arc length of y = a·x² from 0 to x (m)."""
+    if abs(a) < 1e-12:
+        return x
+    u = 2 * a * x
+    return (u * np.sqrt(1 + u * u) + np.arcsinh(u)) / (4 * a)
+
+
+def rest_nodes(geometry: WhiskerGeometry, links: int) -> np.ndarray:
+    """N+1 node positions (m, whisker frame) equidistant along the arc of y = A·x²."""
+    a, s_total = geometry.curvature_per_m, geometry.arc_length_m
+    xs = [0.0]
+    for n in range(1, links + 1):
+        target = s_total * n / links
+        xs.append(brentq(lambda x: parabola_arc_length(x, a) - target, xs[-1], target + 1e-12))
+    xs = np.array(xs)
+    return np.stack([xs, a * xs ** 2, np.zeros_like(xs)], axis=1)
+
+
+def frustum_mass_properties(r1: float, r2: float, length: float, density: float):
+    """Mass (kg), centre of mass along the axis from the r1 end (m), and the principal inertia
+    (axial, transverse, transverse) about the centre of mass (kg·m²) of a solid conical frustum."""
+    z = 0.5 * length * (_GL_X + 1)
+    w = 0.5 * length * _GL_W
+    r = r1 + (r2 - r1) * z / length
+    area = np.pi * r ** 2
+    mass = density * np.sum(w * area)
+    com = density * np.sum(w * area * z) / mass
+    axial = density * np.sum(w * 0.5 * area * r ** 2)
+    transverse = density * np.sum(w * area * (r ** 2 / 4 + (z - com) ** 2))
+    return mass, com, np.array([axial, transverse, transverse])
+
+
+@dataclass(frozen=True)
+class WhiskerChain:
+    """The discretised whisker: everything an engine needs to build it (SI, whisker frame).
+
+    Index conventions: nodes 0..N (node 0 = base, paper's node 1), links 0..N−1, bending
+    joints 0..N−2 at nodes 1..N−1 (paper's nodes 2..N).
+    """
+
+    geometry: WhiskerGeometry
+    nodes_m: np.ndarray            # [N+1, 3] rest node positions
+    node_radii_m: np.ndarray       # [N+1]
+    link_length_m: float           # S/N, the l of eq. 2
+    link_lengths_m: np.ndarray     # [N] chord lengths between rest nodes
+    link_angles_rad: np.ndarray    # [N] direction of each link in the x–y plane
+    link_mass_kg: np.ndarray       # [N]
+    link_com_m: np.ndarray         # [N] centre of mass along the link from its proximal node
+    link_inertia_kg_m2: np.ndarray  # [N, 3] principal (axial, transverse, transverse) about COM
+    stiffness_nm_per_rad: np.ndarray  # [N-1] k_n, same for both bending axes
+    damping_nms_per_rad: np.ndarray   # [N-1] c_n, same for both bending axes
+
+    @property
+    def links(self) -> int:
+        return len(self.link_mass_kg)
+
+    @property
+    def rest_bend_rad(self) -> np.ndarray:
+        """[N-1] rest angle of each bending joint about its z axis (the intrinsic curvature)."""
+        return np.diff(self.link_angles_rad)
+
+    @property
+    def mass_kg(self) -> float:
+        return float(self.link_mass_kg.sum())
+
+
+def build_chain(geometry: WhiskerGeometry, links: int, youngs_modulus_pa: float,
+                density_base: float, density_tip: float, damping) -> WhiskerChain:
+    """Discretise ``geometry`` into ``links`` frustums (eq. 1 radii, density ramp, eq. 2 stiffness).
+
+    ``damping`` is a :class:`pipeline.model.damping.DampingModel` mapping the undamped chain
+    to joint damping coefficients.
+    """
+    if links < 2:
+        raise UserError("a whisker needs at least 2 links")
+    n = np.arange(links + 1)
+    radii = geometry.base_radius_m - (n / links) * (geometry.base_radius_m - geometry.tip_radius_m)
+    density = density_base - (n[:-1] / links) * (density_base - density_tip)
+    nodes = rest_nodes(geometry, links)
+    chords = np.diff(nodes, axis=0)
+    lengths = np.linalg.norm(chords, axis=1)
+    angles = np.arctan2(chords[:, 1], chords[:, 0])
+    props = [frustum_mass_properties(radii[i], radii[i + 1], lengths[i], density[i])
+             for i in range(links)]
+    link_length = geometry.arc_length_m / links
+    second_moment = np.pi * radii[1:links] ** 4 / 4          # I_n at nodes 2..N
+    stiffness = youngs_modulus_pa * second_moment / link_length
+    chain = WhiskerChain(
+        geometry=geometry, nodes_m=nodes, node_radii_m=radii, link_length_m=link_length,
+        link_lengths_m=lengths, link_angles_rad=angles,
+        link_mass_kg=np.array([p[0] for p in props]), link_com_m=np.array([p[1] for p in props]),
+        link_inertia_kg_m2=np.array([p[2] for p in props]),
+        stiffness_nm_per_rad=stiffness, damping_nms_per_rad=np.zeros(links - 1))
+    return _with_damping(chain, damping.coefficients(chain))
+
+
+def _with_damping(chain: WhiskerChain, damping: np.ndarray) -> WhiskerChain:
+    from dataclasses import replace
+
+    return replace(chain, damping_nms_per_rad=np.asarray(damping, dtype=float))
+
+
+def link_centres_of_mass(chain: WhiskerChain) -> np.ndarray:
+    """[N, 3] rest centres of mass of the links (m, whisker frame)."""
+    direction = np.stack([np.cos(chain.link_angles_rad), np.sin(chain.link_angles_rad),
+                          np.zeros(chain.links)], axis=1)
+    return chain.nodes_m[:-1] + direction * chain.link_com_m[:, None]
+
+
+def planar_mass_matrix(chain: WhiskerChain) -> np.ndarray:
+    """[N-1, N-1] mass matrix of the in-plane bending joints at the rest shape, rigid base.
+
+    Joint j rotates every link distal to it about z through node j+1; a link's COM moves
+    with ω × (c − p_j). Used for modal quantities of the linearised chain.
+    """
+    com = link_centres_of_mass(chain)
+    pivots = chain.nodes_m[1:-1]
+    dof = chain.links - 1
+    mass = np.zeros((dof, dof))
+    for i in range(chain.links):
+        active = np.arange(min(i, dof))                  # joints proximal to link i
+        if active.size == 0:
+            continue
+        arm = com[i, :2] - pivots[active, :2]
+        jac = np.stack([-arm[:, 1], arm[:, 0]], axis=0)  # ẑ × r, shape [2, active]
+        block = chain.link_mass_kg[i] * jac.T @ jac + chain.link_inertia_kg_m2[i, 1]
+        mass[np.ix_(active, active)] += block
+    return mass
+
+
+def planar_modes(chain: WhiskerChain, stiffness: np.ndarray | None = None):
+    """Undamped in-plane natural frequencies (Hz, ascending) and mode shapes of the chain."""
+    from scipy.linalg import eigh
+
+    k = chain.stiffness_nm_per_rad if stiffness is None else stiffness
+    omega_sq, shapes = eigh(np.diag(k), planar_mass_matrix(chain))
+    return np.sqrt(np.maximum(omega_sq, 0)) / (2 * np.pi), shapes

@@ -1,0 +1,78 @@
+"""The protocol scenes of MODEL.md §5 and loading a cleaned scan mesh."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.errors import UserError
+from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
+
+
+def empty() -> Scene:
+    return Scene("none")
+
+
+def passive_peg(speed_m_s: float = 0.4, lateral_m: float = 0.015, start_y_m: float = 0.06,
+                diameter_m: float = 1e-3, length_m: float = 0.08) -> Scene:
+    """A vertical peg moving rostral → caudal (−y) through the right array (paper §4.6)."""
+    peg = Cylinder(diameter_m / 2, length_m, (lateral_m, start_y_m, 0.0),
+                   velocity_m_s=(0.0, -speed_m_s, 0.0))
+    return Scene("peg-passive", (peg,))
+
+
+def active_pegs(lateral_m: float = 0.030, y_m: float = -0.010, diameter_m: float = 1e-3,
+                length_m: float = 0.08) -> Scene:
+    """Two vertical pegs at x = ±30 mm, y = −10 mm from the array origin (paper §4.6)."""
+    pegs = tuple(Cylinder(diameter_m / 2, length_m, (side * lateral_m, y_m, 0.0)) for side in (1, -1))
+    return Scene("pegs-active", pegs)
+
+
+def wall(distance_m: float = 0.025, side: int = 1) -> Scene:
+    """A large flat wall parallel to the y–z plane at x = side·distance (lateral of the array)."""
+    thickness = 0.005
+    box = Box((thickness / 2, 0.1, 0.1), (side * (distance_m + thickness / 2), 0.0, 0.0))
+    return Scene("wall", (box,))
+
+
+def collision_edge(contact_point_m: np.ndarray, normal: np.ndarray, edge_direction: np.ndarray,
+                   depth_m: float = 0.01) -> Scene:
+    """A rectangular block whose edge runs along ``edge_direction`` through ``contact_point_m``;
+    ``normal`` points from the block's front face toward the approaching whisker."""
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    e = np.asarray(edge_direction, float)
+    e = e - n * (n @ e)
+    e /= np.linalg.norm(e)
+    back = np.cross(e, n)                  # across the front face, away from the edge
+    rotation = np.stack([back, e, -n], axis=1)
+    half = np.array([depth_m / 2, 0.02, depth_m / 2])
+    centre = np.asarray(contact_point_m) + back * half[0] - n * half[2]
+    return Scene("edge", (Box(tuple(half), tuple(centre), tuple(map(tuple, rotation))),))
+
+
+def load_mesh(path: str | Path) -> TriangleMesh:
+    """A cleaned scan mesh (OBJ/PLY/STL, vertices in metres) as a static obstacle."""
+    import trimesh
+
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"mesh not found: {path}")
+    try:
+        mesh = trimesh.load(path, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types for bad files
+        raise UserError(f"{path}: not a readable triangle mesh ({exc})") from None
+    vertices, faces = np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
+    if len(faces) == 0 or not np.all(np.isfinite(vertices)):
+        raise UserError(f"{path}: mesh has no triangles or non-finite vertices")
+    if np.ptp(vertices, axis=0).max() > 50:
+        raise UserError(f"{path}: mesh spans {np.ptp(vertices, axis=0).max():.0f} units; "
+                        "meshes must be in metres (build them with `pipeline build-meshes`)")
+    return TriangleMesh(vertices, faces, source=str(path.resolve()))
+
+
+def mesh_scene(path: str | Path, offset_m=(0.0, 0.0, 0.0)) -> Scene:
+    mesh = load_mesh(path)
+    if any(offset_m):
+        mesh = TriangleMesh(mesh.vertices_m + np.asarray(offset_m), mesh.faces, mesh.source + f"@{offset_m}")
+    return Scene(f"mesh:{Path(path).stem}", (mesh,))
