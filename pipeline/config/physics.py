@@ -48,6 +48,8 @@ class EngineConfig(StrictModel):
     name: Literal["bullet"] = "bullet"
     dt_s: float = Field(1e-4, gt=1e-7, le=1e-3, description="integration step, s")
     output_rate_hz: float = Field(1000.0, gt=0, le=100_000)
+    contact_friction: float = Field(0.5, ge=0, le=2.0, description="Coulomb μ whisker–object")
+    solver_iterations: int = Field(50, ge=1, le=1000, description="Bullet contact solver iterations")
 
 
 class WhiskConfig(StrictModel):

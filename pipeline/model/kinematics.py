@@ -42,14 +42,17 @@ WHISKER_FRAME_OFFSET = {1: rot_x(-np.pi / 2), -1: rot_x(-np.pi / 2) @ rot_y(np.p
 
 @dataclass(frozen=True)
 class ProtractionDrive:
-    """Protraction θ(t) (rad) as samples at times t (s); C² cubic-spline interpolation.
+    """Protraction θ(t) (rad) as samples at times t (s).
 
-    Before the first sample θ holds its first value, after the last its last value.
+    Interpolated with a C² cubic spline, or piecewise linearly (``interpolation="linear"``,
+    for drives with kinks such as an abrupt stop). Before the first sample θ holds its
+    first value, after the last its last value.
     """
 
     time_s: np.ndarray
     angle_rad: np.ndarray
-    _spline: CubicSpline = field(init=False, repr=False, compare=False)
+    interpolation: str = "cubic"
+    _spline: object = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
         t, a = np.asarray(self.time_s, float), np.asarray(self.angle_rad, float)
@@ -60,7 +63,15 @@ class ProtractionDrive:
             raise UserError("protraction table times must be finite and strictly increasing")
         object.__setattr__(self, "time_s", t)
         object.__setattr__(self, "angle_rad", a)
-        object.__setattr__(self, "_spline", CubicSpline(t, a))
+        if self.interpolation == "cubic":
+            spline = CubicSpline(t, a)
+        elif self.interpolation == "linear":
+            from scipy.interpolate import make_interp_spline
+
+            spline = make_interp_spline(t, a, k=1)
+        else:
+            raise UserError(f"unknown interpolation '{self.interpolation}' (cubic or linear)")
+        object.__setattr__(self, "_spline", spline)
 
     @property
     def duration_s(self) -> float:
@@ -70,8 +81,9 @@ class ProtractionDrive:
         t = np.asarray(t, float)
         inside = (t >= self.time_s[0]) & (t <= self.time_s[-1])
         clipped = np.clip(t, self.time_s[0], self.time_s[-1])
-        value = self._spline(clipped, derivative)
-        return value if derivative == 0 else np.where(inside, value, 0.0)
+        if derivative == 0:
+            return self._spline(clipped)
+        return np.where(inside, self._spline(clipped, derivative), 0.0)
 
 
 def sinusoidal_whisk(frequency_hz: float = 8.0, protraction_deg: float = 35.0,

@@ -45,7 +45,7 @@ def collision_edge(contact_point_m: np.ndarray, normal: np.ndarray, edge_directi
     e = e - n * (n @ e)
     e /= np.linalg.norm(e)
     back = np.cross(e, n)                  # across the front face, away from the edge
-    rotation = np.stack([back, e, -n], axis=1)
+    rotation = np.stack([back, e, n], axis=1)          # right-handed: back = e × n
     half = np.array([depth_m / 2, 0.02, depth_m / 2])
     centre = np.asarray(contact_point_m) + back * half[0] - n * half[2]
     return Scene("edge", (Box(tuple(half), tuple(centre), tuple(map(tuple, rotation))),))
