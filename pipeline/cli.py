@@ -67,6 +67,110 @@ def run(workflow: Path = typer.Argument(..., help="Workflow YAML, e.g. workflows
     run_workflow(workflow, force=force, echo=typer.echo)
 
 
+# --- recordings: `pipeline view` (issue 5) ---
+@app.command()
+def view(target: str = typer.Argument(..., help="An .rrd file, or a dataset NAME or NAME/vK (NAME alone: "
+                                                 "its newest version)."),
+         trial: Optional[int] = typer.Option(None, "--trial", help="Trial index (dataset targets)."),
+         web: bool = typer.Option(False, "--web", help="Serve a web viewer on 127.0.0.1 and print its URL."),
+         port: Optional[int] = typer.Option(None, "--port", help="Web page port (default 9090) or the "
+                                                                  "native viewer's server port.")) -> None:
+    """Open a trial's rerun recording in the viewer; stops the viewer on exit."""
+    from pipeline.recordings.viewer import resolve_target, view as open_viewer
+
+    code = open_viewer(resolve_target(target, trial), web=web, port=port, echo=typer.echo)
+    if code:
+        raise typer.Exit(code)
+# --- end recordings ---
+
+
+def _model_config(config: Optional[Path], overrides: dict):
+    from pipeline.config import load_config
+    from pipeline.config.physics import ModelConfig
+
+    path = config if config is not None else (Path("configs/model.yaml")
+                                              if Path("configs/model.yaml").is_file() else None)
+    return load_config(ModelConfig, path, env_prefix="PIPELINE_MODEL_", overrides=overrides)[0]
+
+
+def _follicle_override(text: Optional[str]) -> Optional[dict]:
+    if text is None:
+        return None
+    if text == "rigid":
+        return {"kind": "rigid"}
+    try:
+        k, c = (float(v) for v in text.split(","))
+    except ValueError:
+        raise UserError(f"--follicle '{text}' must be 'rigid' or 'K,C' (N·m/rad, N·m·s/rad)") from None
+    return {"kind": "compliant", "stiffness_nm_per_rad": k, "damping_nms_per_rad": c}
+
+
+@app.command()
+def resonance(
+    length_mm: float = typer.Option(..., "--length-mm", help="Arc length S, mm."),
+    base_diameter_um: float = typer.Option(..., "--base-diameter-um", help="Base diameter, µm."),
+    tip_diameter_um: float = typer.Option(..., "--tip-diameter-um", help="Tip diameter, µm."),
+    curvature_per_mm: float = typer.Option(0.0, "--curvature-per-mm", help="A of y = A·x², 1/mm."),
+    e_gpa: Optional[float] = typer.Option(None, "--E-gpa", help="Young's modulus, GPa."),
+    zeta: Optional[float] = typer.Option(None, "--zeta", help="Damping ratio ζ of eq. 3."),
+    links: Optional[int] = typer.Option(None, "--links", help="Links N."),
+    follicle: Optional[str] = typer.Option(None, "--follicle", help="'rigid' or 'K,C'."),
+    engine: Optional[str] = typer.Option(None, "--engine", help="Physics engine (bullet)."),
+    dt_s: Optional[float] = typer.Option(None, "--dt-s", help="Integration step, s."),
+    config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML."),
+    json_output: bool = typer.Option(False, "--json", help="Print JSON."),
+) -> None:
+    """Resonance protocol (Gaussian pulse, abrupt stop): f1, log decrement, damping ratio."""
+    from pipeline.model.whisker import WhiskerGeometry
+    from pipeline.protocols.resonance import run_resonance
+
+    material = {"youngs_modulus_gpa": e_gpa, "damping_ratio": zeta, "links": links,
+                "follicle": _follicle_override(follicle)}
+    model = _model_config(config, {"material": material, "engine": {"name": engine, "dt_s": dt_s}})
+    geometry = WhiskerGeometry(length_mm * 1e-3, base_diameter_um * 0.5e-6, tip_diameter_um * 0.5e-6,
+                               curvature_per_mm * 1e3)
+    result = run_resonance(geometry, model).as_dict()
+    if json_output:
+        typer.echo(json.dumps({k: result[k] for k in ("f1_hz", "log_decrement", "damping_ratio")}))
+    else:
+        typer.echo(f"f1 = {result['f1_hz']:.2f} Hz   δ = {result['log_decrement']:.3f}   "
+                   f"ζ = {result['damping_ratio']:.3f}")
+
+
+@app.command()
+def trial(
+    scene: str = typer.Option("none", "--scene", help="none, peg-passive, pegs-active, wall, mesh:PATH."),
+    whiskers: str = typer.Option("all", "--whiskers", help="all, R, L or names (RC1,RC2)."),
+    duration_s: float = typer.Option(0.25, "--duration-s", help="Duration, s."),
+    pose: Optional[str] = typer.Option(None, "--pose", help="x,y,z (mm),yaw,pitch,roll (deg)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Write the trial as a one-trial dataset (HDF5)."),
+    engine: Optional[str] = typer.Option(None, "--engine", help="Physics engine (bullet)."),
+    config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML."),
+    json_output: bool = typer.Option(False, "--json", help="Print a JSON summary."),
+) -> None:
+    """Run one trial of the array in a scene and summarise (or write) its base signals."""
+    from pipeline.model.kinematics import Pose
+    from pipeline.protocols.whisking import parse_scene, run_trial
+
+    model = _model_config(config, {"engine": {"name": engine}})
+    head = Pose.parse(pose) if pose else Pose()
+    world = parse_scene(scene)
+    output = run_trial(model, world, head, duration_s, whiskers)
+    summary = {"scene": world.name, "whiskers": len(output.whisker_names),
+               "samples": len(output.time_s), "whiskers_in_contact": int(output.contact.any(axis=(0, 2)).sum()),
+               "max_moment_nm": float(output.moment_magnitude().max()),
+               "cpu_seconds": output.metadata["cpu_seconds"]}
+    if out is not None:
+        from pipeline.datasets import write_single_trial
+
+        summary["file"] = str(write_single_trial(out, output, model, world, head))
+    if json_output:
+        _print_json(summary)
+    else:
+        for key, value in summary.items():
+            typer.echo(f"{key:>20}: {value}")
+
+
 def main() -> None:
     """Console entry point: user errors become one ``error:`` line and exit code 2."""
     debug = "--debug" in sys.argv[1:]

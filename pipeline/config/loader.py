@@ -69,10 +69,12 @@ def _merge(base: dict[str, Any], top: Mapping[str, Any], origin: str,
         if value is None:
             continue
         loc = prefix + (key,)
-        if isinstance(value, Mapping) and isinstance(base.get(key), dict):
+        if isinstance(value, Mapping):
+            if not isinstance(base.get(key), dict):
+                base[key] = {}
             _merge(base[key], value, origin, origins, loc)
         else:
-            base[key] = dict(value) if isinstance(value, Mapping) else value
+            base[key] = value
             origins[loc] = origin
 
 

@@ -1,0 +1,1 @@
+"""Fitting, comparison and reports: material calibration, validation, statistics."""

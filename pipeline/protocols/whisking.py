@@ -1,0 +1,45 @@
+"""A whisking trial: the array whisks (MODEL.md §4) in a scene at a head pose."""
+
+from __future__ import annotations
+
+from pipeline.config.physics import ModelConfig
+from pipeline.errors import UserError
+from pipeline.model.array import build_array
+from pipeline.model.kinematics import Pose, ProtractionDrive, sinusoidal_whisk, still
+from pipeline.model.morphology import load_morphology
+from pipeline.model.outputs import TrialOutput
+from pipeline.scenes import Scene, active_pegs, empty, mesh_scene, passive_peg, wall
+
+SCENE_NAMES = ("none", "peg-passive", "pegs-active", "wall", "mesh:PATH")
+
+
+def parse_scene(text: str) -> Scene:
+    """'none', 'peg-passive', 'pegs-active', 'wall' or 'mesh:PATH' (mesh in metres)."""
+    fixed = {"none": empty, "peg-passive": passive_peg, "pegs-active": active_pegs, "wall": wall}
+    if text in fixed:
+        return fixed[text]()
+    if text.startswith("mesh:") and len(text) > 5:
+        return mesh_scene(text[5:])
+    raise UserError(f"unknown scene '{text}' (choose from {', '.join(SCENE_NAMES)})")
+
+
+def default_drive(scene: Scene, config: ModelConfig, duration_s: float) -> ProtractionDrive:
+    """The paper's drives: still whiskers for the passive peg, the configured whisk otherwise."""
+    if scene.name == "peg-passive":
+        return still(duration_s)
+    w = config.whisk
+    return sinusoidal_whisk(w.frequency_hz, w.protraction_deg, w.retraction_deg, duration_s)
+
+
+def run_trial(config: ModelConfig, scene: Scene, pose: Pose = Pose(), duration_s: float | None = None,
+              whiskers: str | None = None, drive: ProtractionDrive | None = None) -> TrialOutput:
+    """Build the configured array (or a selection of it) and run one trial on a new engine."""
+    from pipeline.engines import create_engine
+
+    duration_s = config.whisk.duration_s if duration_s is None else duration_s
+    morphology = load_morphology(config.morphology).select(whiskers or config.whiskers)
+    if len(morphology) == 0:
+        raise UserError(f"no whiskers selected by '{whiskers or config.whiskers}'")
+    array = build_array(morphology, config.material)
+    with create_engine(config, array) as engine:
+        return engine.run(scene, pose, drive or default_drive(scene, config, duration_s), duration_s)
