@@ -38,6 +38,9 @@ from pipeline.model.outputs import TrialOutput
 from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
 
 WHISKER_GROUP, OBSTACLE_GROUP = 1, 2
+# A base moment above this is no whisker's (they break near 10⁻⁴ N·m): the contact solver has
+# jammed, typically a surface pressed against the base by the rigid drive.
+MAX_PLAUSIBLE_MOMENT_NM = 1e-3
 GRAVITY_M_S2 = 9.81
 _IDENTITY_QUAT = (0.0, 0.0, 0.0, 1.0)
 _CAPSULE_ALONG_X = (0.0, 0.7071067811865476, 0.0, 0.7071067811865476)   # z axis → x axis
@@ -53,6 +56,10 @@ def _matrix(quat) -> np.ndarray:
     from scipy.spatial.transform import Rotation
 
     return Rotation.from_quat(quat).as_matrix()
+
+
+class SimulationError(RuntimeError):
+    """The simulation left the physically plausible range; the trial is not usable."""
 
 
 class _LinkList:
@@ -327,12 +334,22 @@ class BulletEngine(Engine):
                     nodes[sample, k] = self._node_positions(w)
                 contact[sample] = touching
                 touching[:] = False
+                self._check_plausible(wrench[sample], time_s=(step + 1) * h)
         time_s = np.arange(1, samples + 1) / self.config.output_rate_hz
         metadata = {"engine": self.name, "dt_s": h, "steps": samples * self.steps_per_sample,
                     "wall_seconds": time.perf_counter() - start_wall,
                     "cpu_seconds": time.process_time() - start_cpu,
                     "build_seconds": self.build_seconds}
         return TrialOutput(time_s, wrench, contact, nodes, self.array.names, metadata)
+
+    def _check_plausible(self, wrench: np.ndarray, time_s: float) -> None:
+        moments = np.linalg.norm(wrench[:, 3:], axis=1)
+        bad = np.flatnonzero(~np.isfinite(moments) | (moments > MAX_PLAUSIBLE_MOMENT_NM))
+        if bad.size:
+            name = self.array.whiskers[bad[0]].name
+            raise SimulationError(f"non-physical base moment {moments[bad[0]]:.3g} N·m on {name} at "
+                                  f"t = {time_s:.4f} s (contact jammed: is a surface pressed "
+                                  "against the whisker base?)")
 
     def _driven_angles(self, w: _BulletWhisker) -> np.ndarray:
         import pybullet as p
