@@ -1,6 +1,7 @@
 # The two commands a newcomer needs (see README): `make demo` and `make test`.
 VENV   := .venv
 STAMP  := $(VENV)/.installed
+TEST_STAMP := $(VENV)/.installed-test
 PIPE   := $(VENV)/bin/pipeline
 PYTEST := $(VENV)/bin/python -m pytest
 
@@ -10,6 +11,11 @@ $(STAMP): pyproject.toml scripts/bootstrap.sh
 	bash scripts/bootstrap.sh
 	touch $(STAMP)
 
+# Tests also need Debian's chromium (headless web-viewer test); `make demo` does not.
+$(TEST_STAMP): pyproject.toml scripts/bootstrap.sh
+	EXTRA_PACKAGES=chromium bash scripts/bootstrap.sh
+	touch $(STAMP) $(TEST_STAMP)
+
 install: $(STAMP)
 
 ## Main job on the embedded default: build meshes from scans/, simulate, print where results are.
@@ -17,11 +23,11 @@ demo: $(STAMP)
 	$(PIPE) run workflows/natural.yaml
 
 ## Test suite as CI runs it (slow tests excluded).
-test: $(STAMP)
+test: $(TEST_STAMP)
 	$(PYTEST) -m "not slow" -q
 
 ## Everything, slow physics and cluster tests included.
-test-all: $(STAMP)
+test-all: $(TEST_STAMP)
 	$(PYTEST) -q
 
 bench: $(STAMP)

@@ -1,0 +1,214 @@
+"""One trial as a rerun recording (``.rrd``): scene, head, whisker shapes and base signals.
+
+Entity layout (all positions in metres, world frame, timeline ``sim_time`` in seconds):
+
+- ``world/scene/<kind>_<i>``: obstacles (static shapes; a moving one gets a time-varying
+  translation ``velocity·t``),
+- ``world/head``: head pose (transform, axes, an ellipsoid standing for the snout),
+- ``world/whiskers``: one line strip per whisker per sample, orange while touching,
+- ``world/contact/links`` and ``world/contact/points``: links in contact and their midpoints,
+- ``signals/<whisker>/force`` (Fx, Fy, Fz in N), ``signals/<whisker>/moment`` (Mx, My, Mz in
+  N·m, whisker frame) and ``signals/<whisker>/moment_magnitude`` (|M| in N·m).
+
+Bulk data goes through ``send_columns`` (one call per entity); the file is written under a
+temporary name and renamed once rerun has closed it, so the final name only ever holds a
+complete recording.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS, TrialOutput
+from pipeline.recordings.blueprint import make_blueprint
+from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
+
+if TYPE_CHECKING:
+    from pipeline.model.kinematics import Pose
+
+APPLICATION_ID = "whisker-pipeline"
+TIMELINE = "sim_time"
+
+WHISKER_COLOUR = (170, 190, 215, 255)
+CONTACT_COLOUR = (255, 140, 0, 255)
+CONTACT_LINK_COLOUR = (230, 30, 30, 255)
+OBSTACLE_COLOUR = (120, 200, 120, 255)
+MESH_COLOUR = (160, 150, 135, 255)
+HEAD_COLOUR = (205, 170, 150, 110)
+HEAD_HALF_SIZES_M = (0.008, 0.022, 0.008)      # a snout-sized ellipsoid behind the array origin
+HEAD_CENTRE_M = (0.0, -0.016, 0.0)
+AXES_LENGTH_M = 0.01
+FORCE_COLOURS = ((230, 70, 70), (70, 170, 70), (70, 110, 230))
+
+
+def _rgba32(rgba) -> np.uint32:
+    r, g, b, a = rgba
+    return np.uint32((r << 24) | (g << 16) | (b << 8) | a)
+
+
+def write_recording(path: Path, output: TrialOutput, scene: Scene, pose: "Pose",
+                    recording_id: str, title: str = "") -> Path:
+    """Write one trial to ``path`` (``.rrd``) atomically; returns ``path``.
+
+    ``recording_id`` must be unique per trial: recordings with the same id merge in the viewer.
+    """
+    import rerun as rr
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.partial")
+    rec = rr.RecordingStream(APPLICATION_ID, recording_id=str(recording_id), send_properties=True)
+    try:
+        rec.save(tmp, default_blueprint=make_blueprint(output))
+        if title:
+            rec.send_recording_name(title)
+        _log_world(rec, output, scene, pose)
+        _log_signals(rec, output)
+    except BaseException:
+        rec.disconnect()
+        tmp.unlink(missing_ok=True)
+        raise
+    rec.disconnect()
+    os.replace(tmp, path)
+    return path
+
+
+def _time_column(time_s: np.ndarray):
+    import rerun as rr
+
+    return rr.TimeColumn(TIMELINE, duration=np.asarray(time_s, dtype=np.float64))
+
+
+def _log_world(rec, output: TrialOutput, scene: Scene, pose: "Pose") -> None:
+    import rerun as rr
+
+    rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True, strict=True)
+    rec.log("world/head", rr.Transform3D(translation=np.asarray(pose.position_m, float),
+                                         mat3x3=pose.rotation),
+            rr.TransformAxes3D(AXES_LENGTH_M),
+            rr.Ellipsoids3D(half_sizes=[HEAD_HALF_SIZES_M], centers=[HEAD_CENTRE_M],
+                            colors=[HEAD_COLOUR], fill_mode="solid"),
+            static=True, strict=True)
+    for i, obstacle in enumerate(scene.obstacles):
+        _log_obstacle(rec, f"world/scene/{type(obstacle).__name__.lower()}_{i}", obstacle,
+                      output.time_s)
+    _log_whiskers(rec, output)
+
+
+def _rotation_z_to(axis):
+    """Rotation taking +z (rerun's cylinder axis) onto ``axis``."""
+    import rerun as rr
+
+    a = np.asarray(axis, float)
+    a = a / np.linalg.norm(a)
+    cross = np.cross([0.0, 0.0, 1.0], a)
+    s, c = np.linalg.norm(cross), a[2]
+    if s < 1e-12:
+        return rr.RotationAxisAngle(axis=[1.0, 0.0, 0.0], radians=0.0 if c > 0 else np.pi)
+    return rr.RotationAxisAngle(axis=cross / s, radians=float(np.arctan2(s, c)))
+
+
+def _vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    v = vertices[faces]
+    face_normals = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])   # area-weighted
+    normals = np.zeros_like(vertices)
+    for k in range(3):
+        np.add.at(normals, faces[:, k], face_normals)
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    return (normals / np.where(length > 0, length, 1.0)).astype(np.float32)
+
+
+def _log_obstacle(rec, entity: str, obstacle, time_s: np.ndarray) -> None:
+    import rerun as rr
+    from scipy.spatial.transform import Rotation
+
+    if isinstance(obstacle, Cylinder):
+        shape = rr.Cylinders3D(lengths=[obstacle.length_m], radii=[obstacle.radius_m],
+                               centers=[obstacle.position_m],
+                               rotation_axis_angles=[_rotation_z_to(obstacle.axis)],
+                               colors=[OBSTACLE_COLOUR], fill_mode="solid")
+    elif isinstance(obstacle, Box):
+        quaternion = Rotation.from_matrix(np.asarray(obstacle.rotation, float)).as_quat()  # xyzw
+        shape = rr.Boxes3D(half_sizes=[obstacle.half_extents_m], centers=[obstacle.position_m],
+                           quaternions=[rr.Quaternion(xyzw=quaternion)],
+                           colors=[OBSTACLE_COLOUR], fill_mode="solid")
+    elif isinstance(obstacle, TriangleMesh):
+        vertices = np.asarray(obstacle.vertices_m, np.float32)
+        faces = np.asarray(obstacle.faces, np.uint32)
+        shape = rr.Mesh3D(vertex_positions=vertices, triangle_indices=faces,
+                          vertex_normals=_vertex_normals(vertices, faces), albedo_factor=MESH_COLOUR)
+    else:
+        raise TypeError(f"unknown obstacle type {type(obstacle).__name__}")
+    rec.log(entity, shape, static=True, strict=True)
+    velocity = np.asarray(obstacle.velocity_m_s, float)
+    if np.any(velocity != 0.0):
+        rec.send_columns(entity, indexes=[_time_column(time_s)],
+                         columns=rr.Transform3D.columns(translation=np.outer(time_s, velocity)),
+                         strict=True)
+
+
+def _log_whiskers(rec, output: TrialOutput) -> None:
+    import rerun as rr
+
+    nodes = np.asarray(output.node_positions_m, np.float32)
+    T, W, nodes_per_whisker, _ = nodes.shape
+    contact = np.asarray(output.contact, bool)
+    touching = contact.any(axis=2)                                         # [T, W]
+    colours = np.where(touching, _rgba32(CONTACT_COLOUR), _rgba32(WHISKER_COLOUR)).astype(np.uint32)
+    times = _time_column(output.time_s)
+    rec.log("world/whiskers", rr.LineStrips3D.from_fields(radii=[rr.Radius.ui_points(1.0)],
+                                                         labels=list(output.whisker_names),
+                                                         show_labels=False),
+            static=True, strict=True)
+    rec.send_columns(
+        "world/whiskers", indexes=[times],
+        columns=rr.LineStrips3D.columns(strips=nodes.reshape(T * W, nodes_per_whisker, 3),
+                                        colors=colours.reshape(-1)).partition([W] * T),
+        strict=True)
+
+    # Links in contact, drawn over the whiskers, and their midpoints.
+    t_idx, w_idx, l_idx = np.nonzero(contact)                              # sorted by time
+    per_step = np.bincount(t_idx, minlength=T)
+    segments = np.stack([nodes[t_idx, w_idx, l_idx], nodes[t_idx, w_idx, l_idx + 1]], axis=1)
+    rec.log("world/contact/links", rr.LineStrips3D.from_fields(radii=[rr.Radius.ui_points(3.0)],
+                                                              colors=[CONTACT_LINK_COLOUR]),
+            static=True, strict=True)
+    rec.send_columns("world/contact/links", indexes=[times],
+                     columns=rr.LineStrips3D.columns(strips=segments.reshape(-1, 2, 3))
+                     .partition(per_step), strict=True)
+    rec.log("world/contact/points", rr.Points3D.from_fields(radii=[rr.Radius.ui_points(4.0)],
+                                                           colors=[CONTACT_LINK_COLOUR]),
+            static=True, strict=True)
+    rec.send_columns("world/contact/points", indexes=[times],
+                     columns=rr.Points3D.columns(positions=segments.mean(axis=1).reshape(-1, 3))
+                     .partition(per_step), strict=True)
+
+
+def _series_names(kind: slice) -> list[str]:
+    return [f"{s} [{u.replace('*', '·')}]" for s, u in zip(SIGNALS[kind], SIGNAL_UNITS[kind])]
+
+
+def _log_signals(rec, output: TrialOutput) -> None:
+    import rerun as rr
+
+    wrench = np.asarray(output.base_wrench, np.float64)
+    magnitude = np.asarray(output.moment_magnitude(), np.float64)
+    times = _time_column(output.time_s)
+    force_style = rr.SeriesLines(names=_series_names(slice(0, 3)), colors=FORCE_COLOURS)
+    moment_style = rr.SeriesLines(names=_series_names(slice(3, 6)), colors=FORCE_COLOURS)
+    for w, name in enumerate(output.whisker_names):
+        base = f"signals/{name}"
+        rec.log(f"{base}/force", force_style, static=True, strict=True)
+        rec.log(f"{base}/moment", moment_style, static=True, strict=True)
+        rec.log(f"{base}/moment_magnitude", rr.SeriesLines(names=[f"{name} |M| [N·m]"]),
+                static=True, strict=True)
+        rec.send_columns(f"{base}/force", indexes=[times],
+                         columns=rr.Scalars.columns(scalars=wrench[:, w, 0:3]), strict=True)
+        rec.send_columns(f"{base}/moment", indexes=[times],
+                         columns=rr.Scalars.columns(scalars=wrench[:, w, 3:6]), strict=True)
+        rec.send_columns(f"{base}/moment_magnitude", indexes=[times],
+                         columns=rr.Scalars.columns(scalars=magnitude[:, w]), strict=True)
