@@ -73,8 +73,8 @@ def view(target: str = typer.Argument(..., help="An .rrd file, or a dataset NAME
                                                  "its newest version)."),
          trial: Optional[int] = typer.Option(None, "--trial", help="Trial index (dataset targets)."),
          web: bool = typer.Option(False, "--web", help="Serve a web viewer on 127.0.0.1 and print its URL."),
-         port: Optional[int] = typer.Option(None, "--port", help="Web page port (default 9090) or the "
-                                                                  "native viewer's server port.")) -> None:
+         port: Optional[int] = typer.Option(None, "--port", help="Web page port (default 9090; data on "
+                                                                  "port+1) or the native viewer's server port.")) -> None:
     """Open a trial's rerun recording in the viewer; stops the viewer on exit."""
     from pipeline.recordings.viewer import resolve_target, view as open_viewer
 
@@ -170,6 +170,38 @@ def trial(
         for key, value in summary.items():
             typer.echo(f"{key:>20}: {value}")
 
+
+# --- meshes: `pipeline build-meshes` (issue 4) ---
+@app.command("build-meshes")
+def build_meshes(
+    scans: Path = typer.Option(Path("scans"), "--scans", help="Folder of .ply .pcd .xyz .pts scans."),
+    out: Path = typer.Option(Path("outputs/meshes"), "--out", help="Folder for <name>.obj and manifest.json."),
+    config: Optional[Path] = typer.Option(None, "--config", help="Mesh config YAML (default configs/meshes.yaml)."),
+    force: bool = typer.Option(False, "--force", help="Rebuild scans even if unchanged."),
+    json_output: bool = typer.Option(False, "--json", help="Print JSON."),
+) -> None:
+    """Turn every scan into a collision mesh (OBJ, metres) with quality metrics in manifest.json."""
+    from pipeline.meshes.build import build_meshes as build, load_mesh_config
+
+    report = build(scans, out, load_mesh_config(config), force=force, progress=not json_output)
+    if json_output:
+        _print_json(report.to_dict())
+    else:
+        from rich.console import Console
+        from rich.table import Table
+
+        table = Table("scan", "status", "triangles", "max edge mm", "to data p95 mm", "seconds",
+                      title=f"meshes → {report.out_dir}")
+        for scan in report.scans:
+            m = scan.metrics
+            table.add_row(scan.name, scan.status, str(m.get("triangles", "")), str(m.get("max_edge_mm", "")),
+                          str(m.get("surface_to_data_p95_mm", "")), f"{scan.seconds:.1f}" if scan.seconds else "")
+        Console().print(table)
+    for scan in report.failed:
+        typer.echo(f"error: {scan.message}", err=True)
+    if report.failed:
+        sys.exit(2)  # main() runs click with standalone_mode=False, which swallows typer.Exit codes
+# --- end meshes ---
 
 def main() -> None:
     """Console entry point: user errors become one ``error:`` line and exit code 2."""

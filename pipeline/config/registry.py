@@ -2,7 +2,9 @@
 
 from pipeline.config.physics import StrictModel
 from pipeline.config.physics import ModelConfig
+from pipeline.config.meshes import MeshConfig  # build-meshes stage
 
 CONFIG_FILES: dict[str, tuple[type[StrictModel], str]] = {
     "model.yaml": (ModelConfig, "PIPELINE_MODEL_"),
+    "meshes.yaml": (MeshConfig, "PIPELINE_MESHES_"),  # build-meshes stage
 }

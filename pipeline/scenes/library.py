@@ -71,6 +71,15 @@ def load_mesh(path: str | Path) -> TriangleMesh:
     return TriangleMesh(vertices, faces, source=str(path.resolve()))
 
 
+def beside_right_array(mesh: TriangleMesh, distance_m: float = 0.022) -> TriangleMesh:
+    """The mesh translated so that its nearest face of the bounding box is ``distance_m`` lateral
+    (+x) of the array origin, centred in y and z: a quick placement that the right whiskers reach."""
+    v = mesh.vertices_m
+    centre = v.mean(axis=0)
+    offset = np.array([distance_m - v[:, 0].min(), -centre[1], -centre[2]])
+    return TriangleMesh(v + offset, mesh.faces, f"{mesh.source}@beside-right-{distance_m}")
+
+
 def mesh_scene(path: str | Path, offset_m=(0.0, 0.0, 0.0)) -> Scene:
     mesh = load_mesh(path)
     if any(offset_m):
