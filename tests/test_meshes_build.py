@@ -236,3 +236,20 @@ def test_cli_help_and_stages_stay_import_light():
             "print([m for m in ('open3d', 'trimesh', 'scipy') if m in sys.modules])")
     light = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO)
     assert light.stdout.strip() == "[]", light.stderr
+
+
+def test_ball_pivoting_option_and_environment_override(tmp_path, monkeypatch):
+    from pipeline.meshes.build import load_mesh_config
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("PIPELINE_MESHES_RECONSTRUCT__METHOD", "ball_pivoting")
+    config = load_mesh_config(None)
+    assert config.reconstruct.method == "ball_pivoting"
+    (tmp_path / "scans").mkdir()
+    _noisy_ball(tmp_path / "scans" / "ball.ply")
+    report = build_meshes(tmp_path / "scans", tmp_path / "meshes", config)
+    (scan,) = report.scans
+    assert scan.status == "built", scan.message
+    assert scan.metrics["max_edge_mm"] <= 3.0 and scan.metrics["surface_to_data_max_mm"] <= 3.0
+    manifest = json.loads((tmp_path / "meshes" / "manifest.json").read_text())
+    assert manifest["scans"]["ball"]["reconstruction"]["method"] == "ball_pivoting"

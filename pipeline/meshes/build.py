@@ -253,7 +253,7 @@ def build_meshes(scans_dir: str | Path, out_dir: str | Path, config: MeshConfig 
             continue
         old = old_entries.get(name)
         if not force and is_current(old, base["input"]["sha256"], key, out_dir):
-            entries[name] = old
+            entries[name] = {**old, "input": base["input"]}
             results[name] = ScanResult(name, "skipped", str(path), str(out_dir / f"{name}.obj"),
                                        metrics=old.get("metrics", {}),
                                        warnings=old.get("warnings", []))

@@ -166,7 +166,7 @@ class SensorModel:
     height_px: int = 150
     fov_deg: float = 50.0
     distance_factor: float = 2.2       # camera distance / object size
-    noise_mm_at_500: float = 0.35      # depth noise σ at 500 mm, grows with depth²
+    noise_mm_at_500: float = 0.6       # depth noise σ at 500 mm, grows with depth²
     dropout: float = 0.04              # random pixel dropouts
     grazing_cos: float = 0.2           # |cos| below this: dropped with ``grazing_drop``
     grazing_drop: float = 0.7
