@@ -203,11 +203,98 @@ def build_meshes(
         sys.exit(2)  # main() runs click with standalone_mode=False, which swallows typer.Exit codes
 # --- end meshes ---
 
+# --- simulate and datasets (issue 5) ---
+def _print_summary(summary: dict, json_output: bool) -> None:
+    if json_output:
+        _print_json(summary)
+        return
+    for key, value in summary.items():
+        typer.echo(f"{key:>30}: {json.dumps(value, default=str) if isinstance(value, (dict, list)) else value}")
+
+
+@app.command()
+def simulate(
+    n: Optional[int] = typer.Option(None, "--n", help="Trials in the run (config: trials)."),
+    scenes: Optional[Path] = typer.Option(None, "--scenes", help="Folder of meshes from build-meshes "
+                                                                 "(config: scenes.folder, default outputs/meshes)."),
+    config: Optional[Path] = typer.Option(None, "--config", help="Run config YAML (default configs/simulate.yaml)."),
+    name: Optional[str] = typer.Option(None, "--name", help="Dataset name (config: dataset.name)."),
+    workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (0: one per core)."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Existing dask scheduler, tcp://HOST:PORT."),
+    record_every: Optional[int] = typer.Option(None, "--record-every", help="Rerun recording of every K-th trial "
+                                                                            "(0: none)."),
+    resume: bool = typer.Option(False, "--resume", help="Write the missing trials of the unfinished newest "
+                                                        "version (same config)."),
+    shard: Optional[str] = typer.Option(None, "--shard", help="Run block i of N (i/N, 1-based) without a "
+                                                              "scheduler; join with `pipeline datasets join`."),
+    json_output: bool = typer.Option(False, "--json", help="Print the summary as JSON (no progress bar)."),
+) -> None:
+    """Simulate N trials (scenes × head poses × whisks) on dask into a new versioned HDF5 dataset."""
+    from pipeline.config.simulate import load_simulate_config
+    from pipeline.runner.simulate import simulate as run_simulation
+
+    if workers is not None and scheduler is not None:
+        raise UserError("give --workers or --scheduler, not both")
+    settings = load_simulate_config(config, {
+        "trials": n, "scenes": {"folder": scenes}, "dataset": {"name": name},
+        "cluster": {"workers": workers, "scheduler": scheduler, "record_every": record_every}})
+    _print_summary(run_simulation(settings, resume=resume, shard=shard, progress=not json_output), json_output)
+
+
+datasets_app = typer.Typer(help="List, inspect and join simulated datasets (outputs/datasets/).",
+                           no_args_is_help=True)
+app.add_typer(datasets_app, name="datasets")
+_ROOT_OPTION = typer.Option(Path("outputs/datasets"), "--root", help="Datasets folder.")
+
+
+@datasets_app.command("list")
+def datasets_list(root: Path = _ROOT_OPTION,
+                  json_output: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
+    """Every version of every dataset: state, trials, size."""
+    from pipeline.datasets.catalog import list_datasets
+
+    rows = list_datasets(root)
+    if json_output:
+        _print_json(rows)
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    columns = ("dataset", "state", "trials", "ok", "failed", "size_mb", "created_utc")
+    table = Table(*columns, title=f"datasets in {root}/")
+    for row in rows:
+        table.add_row(*(str(row.get(c, "")) for c in columns))
+    Console().print(table)
+
+
+@datasets_app.command("show")
+def datasets_show(target: str = typer.Argument(..., help="NAME, NAME/vK, a version folder or a data file."),
+                  root: Path = _ROOT_OPTION,
+                  verify: bool = typer.Option(False, "--verify", help="Re-hash files against the manifest."),
+                  json_output: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
+    """Summary of one dataset version (trials, scenes, arrays, provenance)."""
+    from pipeline.datasets.catalog import describe
+
+    _print_summary(describe(target, root, check=verify), json_output)
+
+
+@datasets_app.command("join")
+def datasets_join(name: str = typer.Argument(..., help="Dataset name whose shards to join."),
+                  run: Optional[str] = typer.Option(None, "--run", help="Run id (prefix) if shards of "
+                                                                        "several runs exist."),
+                  root: Path = _ROOT_OPTION) -> None:
+    """Join the complete shards of a --shard run into a new version (virtual datasets, no copy)."""
+    from pipeline.datasets.join import join_shards
+
+    typer.echo(join_shards(root, name, run))
+# --- end simulate and datasets ---
+
+
 def main() -> None:
     """Console entry point: user errors become one ``error:`` line and exit code 2."""
     debug = "--debug" in sys.argv[1:]
     try:
-        app(standalone_mode=False)
+        sys.exit(app(standalone_mode=False) or 0)     # typer returns the code of an Exit/Abort
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
     except click.ClickException as exc:

@@ -18,6 +18,17 @@ STAGES["build-meshes"] = _build_meshes
 # --- end build-meshes
 
 
+# --- simulate (pipeline/runner, issue 5): a new dataset version; imported only when the stage runs
+def _simulate(config_path, n=None, scenes=None, name=None, workers=None, record_every=None) -> dict[str, Any]:
+    from pipeline.runner.simulate import run_stage
+
+    return run_stage(config_path, n=n, scenes=scenes, name=name, workers=workers, record_every=record_every)
+
+
+STAGES["simulate"] = _simulate
+# --- end simulate
+
+
 def _whisk_beside_meshes(config_path, **args) -> dict[str, Any]:
     from pipeline.protocols.demo_trial import whisk_beside_meshes
 

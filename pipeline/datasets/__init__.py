@@ -1,0 +1,10 @@
+"""Versioned HDF5 datasets of simulated trials: schema, writer, reader, versions, manifests.
+
+Schema and layout: docs/dataset.md. h5py is imported only inside functions.
+"""
+
+from pipeline.datasets.reader import DatasetFile, open_dataset as open  # noqa: A001 (pipeline.datasets.open)
+from pipeline.datasets.trials import TrialDataset
+from pipeline.datasets.writer import write_single_trial
+
+__all__ = ["DatasetFile", "TrialDataset", "open", "write_single_trial"]

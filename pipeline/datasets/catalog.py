@@ -1,0 +1,72 @@
+"""Summaries of the datasets under a root, for ``pipeline datasets list`` and ``show``."""
+
+from __future__ import annotations
+
+from collections import Counter
+from pathlib import Path
+from typing import Any
+
+from pipeline.datasets.manifest import read_manifest, verify
+from pipeline.datasets.reader import DatasetFile
+from pipeline.datasets.schema import ARRAYS, DATA_FILE
+from pipeline.datasets.versions import dataset_names, is_complete, is_locked, resolve, versions
+
+
+# Figures of the finished run, kept in its manifest (see pipeline.runner.simulate.summarize).
+RUN_FIGURES = ("cpu_seconds_per_trial", "physics_share_of_cpu", "whiskers_in_contact_per_trial",
+               "pose_acceptance_rate", "pose_rejections", "failures")
+
+
+def state(folder: Path) -> str:
+    """complete (manifest written), writing (a writer holds the lock) or unfinished."""
+    return "complete" if is_complete(folder) else "writing" if is_locked(folder) else "unfinished"
+
+
+def _size_mb(folder: Path) -> float:
+    return round(sum(p.stat().st_size for p in folder.rglob("*") if p.is_file()) / 1e6, 2)
+
+
+def describe(target: str | Path, root: Path, check: bool = False) -> dict[str, Any]:
+    """What a dataset version (or a one-trial file of ``pipeline trial --out``) holds; ``check``
+    also re-hashes a version's files against its manifest."""
+    data_file = resolve(target, root)
+    folder = data_file.parent
+    if data_file.name != DATA_FILE:                        # a standalone file, not a version
+        where = {"path": str(data_file), "label": data_file.stem, "state": "single file",
+                 "recordings": 0, "size_mb": round(data_file.stat().st_size / 1e6, 2)}
+    else:
+        where = {"path": str(folder), "label": folder.name, "state": state(folder),
+                 "recordings": len(list((folder / "recordings").glob("*.rrd"))), "size_mb": _size_mb(folder)}
+    with DatasetFile(data_file) as ds:
+        ok, provenance = ds.ok, ds.provenance
+        info = {
+            **where, "label": ds.attrs.get("label", where["label"]),
+            "schema_version": ds.attrs.get("schema_version"),
+            "trials": len(ds.status), "ok": len(ok), "failed": len(ds.failed), "pending": len(ds.pending),
+            "whiskers": len(ds.whiskers["name"]), "samples_per_trial": int(ds.attrs["samples"]),
+            "sampling_rate_hz": float(ds.attrs["sampling_rate_hz"]), "seed": ds.attrs.get("seed"),
+            "scenes_ok": dict(Counter(ds.trials["scene"][ok].tolist())),
+            "arrays": [name for name in ARRAYS if name in ds.file],
+            "created_utc": provenance.get("created_utc"), "git_commit": provenance.get("git_commit"),
+            "engine": provenance.get("engine"),
+        }
+    if data_file.name == DATA_FILE:
+        run = (read_manifest(folder) or {}).get("summary", {})
+        info.update({key: run[key] for key in RUN_FIGURES if key in run})
+        if check:
+            info["verify"] = verify(folder) or "ok"
+    return info
+
+
+def list_datasets(root: Path) -> list[dict[str, Any]]:
+    """One row per version of every dataset under ``root``."""
+    rows = []
+    for name in dataset_names(root):
+        for k, folder in versions(root, name).items():
+            row = {"dataset": f"{name}/v{k}", "state": state(folder), "size_mb": _size_mb(folder)}
+            if (folder / DATA_FILE).is_file():
+                with DatasetFile(folder / DATA_FILE) as ds:
+                    row.update(trials=len(ds.status), ok=len(ds.ok), failed=len(ds.failed),
+                               created_utc=ds.provenance.get("created_utc"))
+            rows.append(row)
+    return rows

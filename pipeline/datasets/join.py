@@ -1,0 +1,127 @@
+"""Join the shards of a scheduler-less run (``pipeline simulate --shard i/N``) into a new version.
+
+The shard files move into ``v<k>/shards/`` (hard links, or copies across file systems) and
+``v<k>/data.h5`` maps their blocks of trials through HDF5 virtual datasets, so nothing is
+copied; the small trial table is merged for real. Recordings move to ``v<k>/recordings/``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from pathlib import Path
+
+from pipeline.datasets.manifest import write_manifest
+from pipeline.datasets.reader import decode_attr
+from pipeline.datasets.schema import ARRAYS, CONFIG_FILE, DATA_FILE, OK, FAILED, PENDING
+from pipeline.datasets.versions import SHARDS_DIR, VersionLock, is_locked, new_version
+from pipeline.datasets.writer import recover
+from pipeline.errors import UserError
+
+
+def _place(source: Path, target: Path) -> None:
+    target.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        os.link(source, target)
+    except OSError:
+        shutil.copy2(source, target)
+
+
+def _run_folder(root: Path, name: str, run: str | None) -> Path:
+    staging = Path(root) / name / SHARDS_DIR
+    runs = sorted(p for p in staging.iterdir() if p.is_dir()) if staging.is_dir() else []
+    if run:
+        runs = [p for p in runs if p.name.startswith(run)]
+    if not runs:
+        raise UserError(f"no shards of dataset '{name}'{f' run {run}' if run else ''} in {staging}/ "
+                        f"(write them with `pipeline simulate --shard i/N --name {name}`)")
+    if len(runs) > 1:
+        raise UserError(f"dataset '{name}' has shards of {len(runs)} runs ({', '.join(p.name for p in runs)}); "
+                        "choose one with --run")
+    return runs[0]
+
+
+def _shards(run_folder: Path) -> list[tuple[Path, range]]:
+    """(data file, trial block) per shard, checked complete and not being written."""
+    import h5py
+
+    found, count = {}, None
+    for folder in sorted(run_folder.glob("shard_*_of_*")):
+        data = folder / DATA_FILE
+        if is_locked(folder):
+            raise UserError(f"{folder} is still being written")
+        if not data.is_file():
+            continue
+        try:
+            h5py.File(data, "r").close()
+        except OSError:           # its writer was killed after the last trial: clean copy first
+            recover(data)
+        with h5py.File(data, "r") as f:
+            number, count = decode_attr(f.attrs["shard"])
+            block = range(*decode_attr(f.attrs["trial_range"]))
+            pending = int((f["trials/status"][block.start:block.stop] == PENDING.encode()).sum())
+        if pending:
+            raise UserError(f"shard {number}/{count} has {pending} trials pending; finish it with "
+                            f"`pipeline simulate --shard {number}/{count}` and the same config")
+        found[number] = (data, block)
+    missing = [f"{i}/{count}" for i in range(1, (count or 0) + 1) if i not in found]
+    if not found or missing:
+        raise UserError(f"{run_folder}: shards missing: {', '.join(missing) or 'all'}")
+    return [found[i] for i in sorted(found)]
+
+
+def _write_joined(path: Path, label: str, shards: list[tuple[Path, range]]) -> None:
+    import h5py
+
+    partial = path.with_name(path.name + ".partial")
+    with h5py.File(shards[0][0], "r") as first, h5py.File(partial, "w", libver="latest") as out:
+        out.attrs.update(first.attrs)
+        del out.attrs["shard"]
+        out.attrs.update(label=label, trial_range=[0, first["trials/status"].shape[0]],
+                         joined_from=json.dumps([f"{SHARDS_DIR}/{p.name}" for p, _ in shards]))
+        for key in ("time_s", "node_time_s", "whiskers", "trials"):
+            if key in first:
+                first.copy(first[key], out, name=key)
+        for data, block in shards[1:]:
+            with h5py.File(data, "r") as shard:
+                for column, values in shard["trials"].items():
+                    out["trials"][column][block.start:block.stop] = values[block.start:block.stop]
+        for name in ARRAYS:
+            if name not in first:
+                continue
+            source = first[name]
+            layout = h5py.VirtualLayout(shape=source.shape, dtype=source.dtype)
+            for data, block in shards:
+                virtual = h5py.VirtualSource(f"{SHARDS_DIR}/{data.name}", name, shape=source.shape)
+                layout[block.start:block.stop] = virtual[block.start:block.stop]
+            out.create_virtual_dataset(name, layout, fillvalue=source.fillvalue).attrs.update(source.attrs)
+    os.replace(partial, path)
+
+
+def join_shards(root: Path, name: str, run: str | None = None) -> Path:
+    """Make a new version of ``name`` from the complete shards of one run; returns its folder."""
+    import h5py
+
+    run_folder = _run_folder(root, name, run)
+    shards = _shards(run_folder)
+    version = new_version(root, name)
+    with VersionLock(version):
+        placed = []
+        for data, block in shards:
+            target = version / SHARDS_DIR / f"{data.parent.name}.h5"
+            _place(data, target)
+            placed.append((target, block))
+            for recording in sorted((data.parent / "recordings").glob("*.rrd")):
+                _place(recording, version / "recordings" / recording.name)
+        _place(shards[0][0].parent / CONFIG_FILE, version / CONFIG_FILE)
+        _write_joined(version / DATA_FILE, f"{name}/{version.name}", placed)
+        with h5py.File(version / DATA_FILE, "r") as f:
+            status = f["trials/status"][()]
+        write_manifest(version, {"trials": len(status), "ok": int((status == OK.encode()).sum()),
+                                 "failed": int((status == FAILED.encode()).sum()),
+                                 "joined_run": run_folder.name, "shards": len(shards)})
+    shutil.rmtree(run_folder)
+    if not any(run_folder.parent.iterdir()):
+        run_folder.parent.rmdir()
+    return version

@@ -1,0 +1,134 @@
+"""Dataset folders: ``<root>/<name>/v<k>/`` versions, finding one from a target, the writer's lock.
+
+A version is *complete* once its ``manifest.json`` exists (written last, files then made
+read-only); before that it is *unfinished* and only ``pipeline simulate --resume`` writes to
+it, under an exclusive ``flock`` on its ``.lock`` file (released by the OS when the writer dies).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import re
+from pathlib import Path
+
+from pipeline.datasets.schema import DATA_FILE, MANIFEST_FILE
+from pipeline.errors import UserError
+
+DEFAULT_ROOT = Path("outputs/datasets")
+LOCK_FILE = ".lock"
+SHARDS_DIR = "shards"          # <root>/<name>/shards/<run>/shard_<i>_of_<N>/ (pipeline.runner.shards)
+_VERSION = re.compile(r"^v(\d+)$")
+
+
+def versions(root: Path, name: str) -> dict[int, Path]:
+    """Version number → folder, for dataset ``name`` under ``root``."""
+    folder = Path(root) / name
+    found = {int(m.group(1)): p for p in (folder.iterdir() if folder.is_dir() else ())
+             if (m := _VERSION.match(p.name)) and p.is_dir()}
+    return dict(sorted(found.items()))
+
+
+def dataset_names(root: Path) -> list[str]:
+    root = Path(root)
+    if not root.is_dir():
+        return []
+    return sorted(p.name for p in root.iterdir() if p.is_dir() and versions(root, p.name))
+
+
+def is_complete(version_dir: Path) -> bool:
+    return (Path(version_dir) / MANIFEST_FILE).is_file()
+
+
+def new_version(root: Path, name: str) -> Path:
+    """Create the next version folder (race-free: the first process to create v<k> owns it)."""
+    folder = Path(root) / name
+    folder.mkdir(parents=True, exist_ok=True)
+    k = max(versions(root, name), default=0) + 1
+    while True:
+        try:
+            (folder / f"v{k}").mkdir()
+            return folder / f"v{k}"
+        except FileExistsError:
+            k += 1
+
+
+def unfinished_version(root: Path, name: str) -> Path:
+    """The newest version of ``name`` if it is unfinished; UserError otherwise."""
+    found = versions(root, name)
+    if not found:
+        raise UserError(f"--resume: dataset '{name}' has no version in {root}/ to resume")
+    k, latest = max(found.items())
+    if is_complete(latest):
+        raise UserError(f"--resume: {name}/v{k} is complete; nothing to resume "
+                        "(run without --resume to start a new version)")
+    return latest
+
+
+def resolve(target: str | Path, root: Path = DEFAULT_ROOT) -> Path:
+    """The data file of a target: a file, a version folder, ``NAME/vK`` or ``NAME`` (its newest)."""
+    path = Path(target)
+    if path.is_file():
+        return path
+    if path.is_dir() and (path / DATA_FILE).is_file():
+        return path / DATA_FILE
+    name, _, version = str(target).partition("/")
+    found = versions(root, name)
+    if not found:
+        known = ", ".join(dataset_names(root)) or "none yet"
+        raise UserError(f"dataset '{target}' not found (not a file, folder or NAME[/vK] in {root}/; "
+                        f"datasets: {known})")
+    if version:
+        match = _VERSION.match(version)
+        if not match or int(match.group(1)) not in found:
+            raise UserError(f"dataset '{name}' has no version '{version}' "
+                            f"(versions: {', '.join(f'v{k}' for k in found)})")
+        folder = found[int(match.group(1))]
+    else:
+        folder = found[max(found)]
+    if not (folder / DATA_FILE).is_file():
+        raise UserError(f"{folder} has no {DATA_FILE} yet")
+    return folder / DATA_FILE
+
+
+class VersionLock:
+    """Exclusive lock of a version (or shard) folder for the one process writing it."""
+
+    def __init__(self, folder: Path):
+        self.path = Path(folder) / LOCK_FILE
+        self._handle = None
+
+    def __enter__(self) -> "VersionLock":
+        handle = open(self.path, "a+")
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.seek(0)
+            owner = handle.read().strip() or "another process"
+            handle.close()
+            raise UserError(f"{self.path.parent} is being written by {owner}") from None
+        handle.seek(0)
+        handle.truncate()
+        handle.write(f"pid {os.getpid()}")
+        handle.flush()
+        self._handle = handle
+        return self
+
+    def __exit__(self, *exc) -> None:
+        # The file stays (removing it would let two processes lock two different inodes).
+        fcntl.flock(self._handle, fcntl.LOCK_UN)
+        self._handle.close()
+
+
+def is_locked(folder: Path) -> bool:
+    """True while some process holds the writer's lock of ``folder``."""
+    path = Path(folder) / LOCK_FILE
+    if not path.is_file():
+        return False
+    with open(path) as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return True
+        fcntl.flock(handle, fcntl.LOCK_UN)
+    return False

@@ -1,0 +1,283 @@
+"""Writing dataset files (schema: :mod:`pipeline.datasets.schema`, docs/dataset.md).
+
+:class:`DatasetWriter` is the single writer of a run. It creates every object up front, then
+switches the file to SWMR mode and writes trial by trial (data, flush, table row, status,
+flush), so a reader (``swmr=True``) sees the finished trials at any time, also after the
+writer was killed. A killed writer leaves HDF5's "open for writing" mark in the file; resuming
+copies the readable file into a fresh one (:func:`recover`) instead of clearing the mark in
+place. h5py is imported inside functions.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from pipeline.datasets.schema import (ARRAYS, PENDING, POSE_REJECTION_REASONS, SCHEMA, SCHEMA_VERSION,
+                                      TRIAL_COLUMNS, WHISKER_COLUMNS, TrialRecord)
+from pipeline.errors import UserError
+from pipeline.model.outputs import SIGNALS, TrialOutput
+
+if TYPE_CHECKING:
+    from pipeline.config.physics import ModelConfig
+    from pipeline.model.kinematics import Pose, ProtractionDrive
+    from pipeline.model.morphology import Morphology
+    from pipeline.scenes.obstacles import Scene
+
+TABLE_CHUNK_ROWS = 1024
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Shapes of a dataset file: trials × samples × whiskers × links."""
+
+    trials: int
+    samples: int
+    sampling_rate_hz: float
+    links: int
+    whiskers: dict[str, np.ndarray]      # whisker table columns (WHISKER_COLUMNS)
+    node_every: int = 0                  # node positions every k-th sample; 0 = not stored
+    compression_level: int = 4
+
+    @property
+    def time_s(self) -> np.ndarray:
+        """Sample times: sample i covers (i/rate, (i+1)/rate] and is stamped at its end."""
+        return np.arange(1, self.samples + 1) / self.sampling_rate_hz
+
+    @property
+    def node_time_s(self) -> np.ndarray:
+        """Times of the stored node positions (every ``node_every``-th sample)."""
+        return self.time_s[self.node_every - 1::self.node_every] if self.node_every else self.time_s[:0]
+
+    def shape(self, name: str) -> tuple[int, ...]:
+        w = len(self.whiskers["name"])
+        return {"base_wrench": (self.trials, self.samples, w, len(SIGNALS)),
+                "contact": (self.trials, self.samples, w, self.links),
+                "point_of_contact": (self.trials, self.samples, w),
+                "protraction_rad": (self.trials, self.samples),
+                "node_positions_m": (self.trials, len(self.node_time_s), w, self.links + 1, 3)}[name]
+
+    @property
+    def arrays(self) -> list[str]:
+        return [name for name in ARRAYS if name != "node_positions_m" or self.node_every]
+
+
+def whisker_table(morphology: "Morphology") -> dict[str, np.ndarray]:
+    """Whisker table columns of a (selected) morphology; base points relative to the array origin."""
+    specs = list(morphology)
+    return {"name": np.array([s.name.encode() for s in specs], "S8"),
+            "side": np.array([s.side for s in specs], "i1"),
+            "row": np.array([s.row for s in specs], "i1"),
+            "col": np.array([s.col for s in specs], "i1"),
+            "arc_length_m": np.array([s.arc_length_m for s in specs]),
+            "base_radius_m": np.array([s.base_radius_m for s in specs]),
+            "tip_radius_m": np.array([s.tip_radius_m for s in specs]),
+            "curvature_per_m": np.array([s.curvature_per_m for s in specs]),
+            "base_point_m": np.array([s.base_point_m for s in specs]).reshape(-1, 3) - morphology.origin_m}
+
+
+def trial_arrays(output: TrialOutput, protraction_rad: np.ndarray, layout: Layout) -> dict[str, np.ndarray]:
+    """The trial-major arrays of one trial, padded to ``layout.samples`` (NaN / 0)."""
+    t = len(output.time_s)
+    if t > layout.samples:
+        raise ValueError(f"trial has {t} samples; the dataset holds {layout.samples}")
+
+    def padded(name: str, value: np.ndarray) -> np.ndarray:
+        spec = ARRAYS[name]
+        row = np.full(layout.shape(name)[1:], spec.fill, spec.dtype)
+        row[:len(value)] = value
+        return row
+
+    arrays = {"base_wrench": padded("base_wrench", output.base_wrench),
+              "contact": padded("contact", output.contact),
+              "point_of_contact": padded("point_of_contact", output.point_of_contact()),
+              "protraction_rad": padded("protraction_rad", protraction_rad)}
+    if layout.node_every:
+        arrays["node_positions_m"] = padded("node_positions_m",
+                                            output.node_positions_m[layout.node_every - 1::layout.node_every])
+    return arrays
+
+
+def provenance(config: dict[str, Any], **extra: Any) -> dict[str, Any]:
+    """What produced a dataset: config, package versions, git commit, host, command, time."""
+    from pipeline.provenance import describe_environment
+
+    packages = describe_environment()
+    return {"created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+            "host": socket.gethostname(), "command": sys.argv, "git_commit": packages.get("git-commit"),
+            "packages": packages, "config": config, **extra}
+
+
+def encode(text: str, dtype: str) -> bytes:
+    """UTF-8 bytes of ``text`` cut to the column's width without splitting a character."""
+    width = int(dtype[1:])
+    data = " ".join(str(text).split()).encode()
+    return data[:width].decode("utf-8", "ignore").encode() if len(data) > width else data
+
+
+def _create_column(group, name: str, meta: dict, rows: int, chunk_rows: int, data=None) -> None:
+    import h5py
+
+    dtype = h5py.string_dtype("utf-8", int(meta["dtype"][1:])) if meta["dtype"][0] == "S" else meta["dtype"]
+    shape = (rows,) + tuple(meta["shape"])
+    if data is not None:
+        column = group.create_dataset(name, data=np.asarray(data, dtype=dtype).reshape(shape))
+    else:
+        default = TrialRecord.__dataclass_fields__[name].default
+        fill = b"" if meta["dtype"][0] == "S" else (default[0] if isinstance(default, tuple) else default)
+        column = group.create_dataset(name, shape=shape, dtype=dtype, chunks=(chunk_rows,) + shape[1:],
+                                      fillvalue=fill)
+    column.attrs.update(units=meta["units"], description=meta["doc"])
+
+
+def create_file(path: Path, layout: Layout, attrs: dict[str, Any]):
+    """Create every object of a dataset file (not yet in SWMR mode); returns the open h5py.File."""
+    import h5py
+
+    f = h5py.File(path, "w", libver="latest")
+    f.attrs.update(schema=SCHEMA, schema_version=SCHEMA_VERSION, trials=layout.trials,
+                   samples=layout.samples, sampling_rate_hz=layout.sampling_rate_hz, links=layout.links,
+                   node_every=layout.node_every, units="SI: m, s, rad, N, N*m")
+    for key, value in attrs.items():
+        f.attrs[key] = json.dumps(value) if isinstance(value, (dict, list, tuple)) else value
+    f.create_dataset("time_s", data=layout.time_s).attrs.update(units="s", axes=["time"])
+    if layout.node_every:
+        f.create_dataset("node_time_s", data=layout.node_time_s).attrs.update(units="s", axes=["node_time"])
+    whiskers = f.create_group("whiskers")
+    for name, meta in WHISKER_COLUMNS.items():
+        _create_column(whiskers, name, meta, len(layout.whiskers["name"]), 0, layout.whiskers[name])
+    trials = f.create_group("trials")
+    for name, meta in TRIAL_COLUMNS.items():
+        _create_column(trials, name, meta, layout.trials, min(layout.trials, TABLE_CHUNK_ROWS))
+    trials["pose_rejections"].attrs["reasons"] = list(POSE_REJECTION_REASONS)
+    compression = dict(compression="gzip", compression_opts=layout.compression_level, shuffle=True) \
+        if layout.compression_level else {}
+    for name in layout.arrays:
+        spec, shape = ARRAYS[name], layout.shape(name)
+        data = f.create_dataset(name, shape=shape, dtype=spec.dtype, chunks=(1,) + shape[1:],
+                                fillvalue=spec.fill, **compression)
+        data.attrs.update(axes=list(spec.dims), units=spec.units, description=spec.description)
+    f["base_wrench"].attrs.update(signals=list(SIGNALS), frame="whisker")
+    if layout.node_every:
+        f["node_positions_m"].attrs.update(frame="world", every=layout.node_every)
+    return f
+
+
+def recover(path: Path) -> None:
+    """Replace a file whose writer was killed by a clean copy of what a SWMR reader sees."""
+    import h5py
+
+    partial = path.with_name(path.name + ".recover.partial")
+    with h5py.File(path, "r", swmr=True) as old, h5py.File(partial, "w", libver="latest") as new:
+        new.attrs.update(old.attrs)
+        for key in old:
+            old.copy(old[key], new, name=key)
+    os.replace(partial, path)
+
+
+class DatasetWriter:
+    """Writes trials into rows of one dataset file, each at most once."""
+
+    def __init__(self, file, path: Path):
+        self.file, self.path = file, Path(path)
+        self.file.swmr_mode = True
+        self._status = self.file["trials/status"][:]
+
+    @classmethod
+    def create(cls, path: Path, layout: Layout, attrs: dict[str, Any]) -> "DatasetWriter":
+        return cls(create_file(Path(path), layout, attrs), path)
+
+    @classmethod
+    def resume(cls, path: Path) -> "DatasetWriter":
+        """Open an unfinished file for more trials, recovering it first if its writer was killed."""
+        import h5py
+
+        try:
+            f = h5py.File(path, "r+", libver="latest")
+        except OSError as exc:
+            if "already open for write" not in str(exc):
+                raise
+            try:
+                recover(Path(path))
+            except (OSError, KeyError) as failure:       # killed while the file was being created
+                raise UserError(f"{path} cannot be recovered ({failure}); remove its folder and start "
+                                "again") from None
+            f = h5py.File(path, "r+", libver="latest")
+        return cls(f, path)
+
+    def pending(self) -> np.ndarray:
+        """Indices of trials not written yet."""
+        return np.flatnonzero(self._status == PENDING.encode())
+
+    def write(self, index: int, record: TrialRecord, arrays: dict[str, np.ndarray] | None) -> bool:
+        """Write trial ``index``; False (and nothing written) if it was written before."""
+        if self._status[index] != PENDING.encode():
+            return False
+        for name, value in (arrays or {}).items():
+            self.file[name][index] = value
+        if arrays:
+            self.file.flush()
+        table = self.file["trials"]
+        for name, value in asdict(record).items():
+            if name != "status":
+                meta = TRIAL_COLUMNS[name]
+                table[name][index] = encode(value, meta["dtype"]) if meta["dtype"][0] == "S" else value
+        table["status"][index] = record.status.encode()
+        self.file.flush()
+        self._status[index] = record.status.encode()
+        return True
+
+    def close(self) -> None:
+        if self.file.id.valid:
+            self.file.close()
+
+    def __enter__(self) -> "DatasetWriter":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def write_single_trial(path: str | Path, output: TrialOutput, model: "ModelConfig", scene: "Scene",
+                       pose: "Pose", drive: "ProtractionDrive | None" = None) -> Path:
+    """Write one trial as a one-trial dataset file (all node positions kept), atomically.
+
+    ``drive``: the protraction drive the trial used; without it, ``model.whisk``'s sinusoid.
+    """
+    from pipeline.model.kinematics import sinusoidal_whisk
+    from pipeline.model.morphology import load_morphology
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    duration = float(output.time_s[-1])
+    whisk = model.whisk
+    theta = (drive or sinusoidal_whisk(whisk.frequency_hz, whisk.protraction_deg, whisk.retraction_deg,
+                                       duration))(output.time_s)
+    layout = Layout(trials=1, samples=len(output.time_s), sampling_rate_hz=output.sample_rate_hz,
+                    links=output.links, node_every=1,
+                    whiskers=whisker_table(load_morphology(model.morphology).select(output.whisker_names)))
+    record = TrialRecord(
+        status="ok", scene=scene.name, duration_s=duration, samples=len(output.time_s),
+        whisk_kind="table" if drive is not None else "sinusoid",
+        whisk_frequency_hz=np.nan if drive is not None else whisk.frequency_hz,
+        whisk_protraction_rad=float(np.max(theta)), whisk_retraction_rad=float(-np.min(theta)),
+        pose_position_m=tuple(pose.position_m), pose_euler_zyx_rad=tuple(pose.yaw_pitch_roll_rad),
+        whiskers_in_contact=int(output.contact.any(axis=(0, 2)).sum()),
+        cpu_seconds=output.metadata.get("cpu_seconds", 0.0),
+        physics_cpu_seconds=output.metadata.get("cpu_seconds", 0.0),
+        wall_seconds=output.metadata.get("wall_seconds", 0.0), worker=f"{socket.gethostname()}:{os.getpid()}")
+    partial = path.with_name(path.name + ".partial")
+    attrs = {"name": path.stem, "version": 0, "seed": 0,
+             "provenance": provenance(model.model_dump(mode="json"), engine=output.metadata.get("engine"))}
+    with DatasetWriter.create(partial, layout, attrs) as writer:
+        writer.write(0, record, trial_arrays(output, theta, layout))
+    os.replace(partial, path)
+    return path

@@ -1,0 +1,69 @@
+"""The scenes of a run: meshes from a ``build-meshes`` folder and the fixed protocol scenes.
+
+The catalogue (names, mesh paths, sha256) is fixed when a run starts and stored in the dataset;
+workers load scenes from it lazily, and a resumed run checks that no mesh changed since.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from pipeline.config.simulate import ScenesConfig
+from pipeline.datasets.manifest import sha256
+from pipeline.errors import UserError
+from pipeline.scenes.obstacles import Scene
+
+
+@dataclass(frozen=True)
+class SceneEntry:
+    """A scene of the run: ``mesh:NAME`` with its file and hash, or a fixed scene's name."""
+
+    name: str
+    path: str = ""
+    sha256: str = ""
+
+    @property
+    def is_mesh(self) -> bool:
+        return bool(self.path)
+
+    def load(self) -> Scene:
+        from pipeline.protocols.whisking import parse_scene
+        from pipeline.scenes.library import mesh_scene
+
+        return mesh_scene(self.path) if self.is_mesh else parse_scene(self.name)
+
+
+def mesh_files(folder: Path) -> list[Path]:
+    """Meshes of a ``build-meshes`` folder: the ok entries of its manifest, else every ``*.obj``."""
+    from pipeline.meshes.manifest import load_manifest
+
+    scans = load_manifest(folder)["scans"]
+    if scans:
+        return sorted(folder / entry["output"]["path"] for entry in scans.values()
+                      if entry.get("status") == "ok" and entry.get("output"))
+    return sorted(folder.glob("*.obj"))
+
+
+def _mesh_entry(path: Path) -> SceneEntry:
+    if not path.is_file():
+        raise UserError(f"mesh not found: {path} (build meshes with `pipeline build-meshes`)")
+    return SceneEntry(f"mesh:{path.stem}", str(path.resolve()), sha256(path))
+
+
+def scene_catalogue(config: ScenesConfig) -> tuple[SceneEntry, ...]:
+    """The run's scenes in ``include`` order (duplicates dropped); trial i uses entry i mod count."""
+    folder = Path(config.folder)
+    entries: list[SceneEntry] = []
+    for item in config.include:
+        if item == "meshes":
+            found = mesh_files(folder)
+            if not found:
+                raise UserError(f"no meshes in {folder}/ (build them with "
+                                f"`pipeline build-meshes --out {folder}`)")
+            entries += [_mesh_entry(path) for path in found]
+        elif item.startswith("mesh:"):
+            entries.append(_mesh_entry(folder / f"{item[5:]}.obj"))
+        else:
+            entries.append(SceneEntry(item))
+    return tuple(dict.fromkeys(entries))

@@ -1,0 +1,54 @@
+"""Scheduler-less runs split into shards (job arrays): ``--shard i/N`` runs a contiguous block.
+
+Shard i of N holds trials [(i−1)·n/N, i·n/N) in its own dataset file under
+``<root>/<name>/shards/<run>/shard_<i>_of_<N>/``, where ``<run>`` is a hash of the resolved
+config, so every job of the array finds the same folder without coordination. A shard run
+starts or continues its shard (safe to requeue); ``pipeline datasets join NAME`` stitches the
+shards into a new version.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from pipeline.config.simulate import SimulateConfig
+from pipeline.datasets.versions import SHARDS_DIR
+from pipeline.errors import UserError
+
+
+@dataclass(frozen=True)
+class Shard:
+    number: int          # 1..count
+    count: int
+
+    @classmethod
+    def parse(cls, text: str) -> "Shard":
+        match = re.fullmatch(r"\s*(\d+)\s*/\s*(\d+)\s*", text)
+        if not match or not 1 <= int(match.group(1)) <= int(match.group(2)):
+            raise UserError(f"--shard '{text}' must be i/N with 1 ≤ i ≤ N (e.g. 3/8)")
+        return cls(int(match.group(1)), int(match.group(2)))
+
+    def indices(self, trials: int) -> range:
+        return range((self.number - 1) * trials // self.count, self.number * trials // self.count)
+
+    @property
+    def label(self) -> str:
+        return f"shard_{self.number:03d}_of_{self.count:03d}"
+
+
+def plan_fields(config: SimulateConfig) -> dict:
+    """The config fields that define the trials (not where they run or are stored)."""
+    return config.model_dump(mode="json", exclude={"cluster": True, "dataset": {"root"}})
+
+
+def run_id(config: SimulateConfig) -> str:
+    text = json.dumps(plan_fields(config), sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
+def shard_folder(config: SimulateConfig, shard: Shard) -> Path:
+    return Path(config.dataset.root) / config.dataset.name / SHARDS_DIR / run_id(config) / shard.label

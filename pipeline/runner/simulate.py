@@ -1,0 +1,271 @@
+"""``pipeline simulate``: plan a run, stream its trials through dask into one dataset writer.
+
+A run writes a new version ``<root>/<name>/v<k>/`` (or, with ``--resume``, the missing trials
+of the unfinished newest version, which must have been started with the same config; or, with
+``--shard i/N``, its block of trials in the shard folder). Trials are submitted a window at a
+time; each result is written as it arrives (``as_completed(..., with_results=True)``) and its
+future released once written, so a worker that dies only costs the trials it was running, which
+dask runs again; the writer never writes a trial twice. A finished version gets its manifest.
+Workers of an existing scheduler must see the same paths (meshes, the version's recordings).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+import uuid
+from contextlib import contextmanager
+from dataclasses import dataclass, replace
+from itertools import islice
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+import numpy as np
+import yaml
+
+from pipeline.config.simulate import SimulateConfig, load_simulate_config
+from pipeline.datasets.manifest import write_manifest
+from pipeline.datasets.reader import DatasetFile, decode_attr
+from pipeline.datasets.schema import (CONFIG_FILE, DATA_FILE, FAILED, OK, PENDING, POSE_REJECTION_REASONS,
+                                      TrialRecord)
+from pipeline.datasets.versions import VersionLock, new_version, unfinished_version
+from pipeline.datasets.writer import DatasetWriter, Layout, provenance, whisker_table
+from pipeline.errors import UserError
+from pipeline.runner.scenes import SceneEntry, scene_catalogue
+from pipeline.runner.shards import Shard, plan_fields, run_id, shard_folder
+from pipeline.runner.trial import RunSpec, TrialResult, load_whisk_table
+
+RECORDINGS_DIR = "recordings"
+
+
+def _first_difference(a: Any, b: Any, path: str = "") -> str | None:
+    if isinstance(a, dict) and isinstance(b, dict):
+        for key in sorted(set(a) | set(b)):
+            found = _first_difference(a.get(key), b.get(key), f"{path}.{key}" if path else key)
+            if found:
+                return found
+        return None
+    return None if a == b else f"{path} ({b!r} now, {a!r} when started)"
+
+
+def _stored_config(folder: Path) -> SimulateConfig:
+    path = folder / CONFIG_FILE
+    if not path.is_file():
+        raise UserError(f"{folder} has no {CONFIG_FILE}; it cannot be resumed")
+    return SimulateConfig.model_validate(yaml.safe_load(path.read_text()))
+
+
+def _target(config: SimulateConfig, resume: bool, shard: Shard | None) -> tuple[Path, str, range]:
+    """(folder, label, trial indices) this run writes."""
+    root, name = Path(config.dataset.root), config.dataset.name
+    if shard is not None:
+        folder = shard_folder(config, shard)
+        folder.mkdir(parents=True, exist_ok=True)
+        return folder, f"{name}/{shard.label}", shard.indices(config.trials)
+    if resume:
+        folder = unfinished_version(root, name)
+        difference = _first_difference(plan_fields(_stored_config(folder)), plan_fields(config))
+        if difference:
+            raise UserError(f"--resume: {folder} was started with another config: {difference}; "
+                            f"resume with the same config (its copy: {folder / CONFIG_FILE})")
+    else:
+        folder = new_version(root, name)
+    return folder, f"{name}/{folder.name}", range(config.trials)
+
+
+def _layout(config: SimulateConfig) -> Layout:
+    from pipeline.model.morphology import load_morphology
+
+    model = config.model
+    morphology = load_morphology(model.morphology).select(model.whiskers)
+    if len(morphology) == 0:
+        raise UserError(f"model.whiskers '{model.whiskers}' selects no whisker")
+    rate = model.engine.output_rate_hz
+    return Layout(trials=config.trials, samples=int(round(config.whisk.duration_s.high * rate)),
+                  sampling_rate_hz=rate, links=model.material.links,
+                  whiskers=whisker_table(morphology), node_every=config.dataset.node_positions_every,
+                  compression_level=config.dataset.compression_level)
+
+
+def _check(config: SimulateConfig, scenes: tuple[SceneEntry, ...], layout: Layout) -> None:
+    whiskers = len(layout.whiskers["name"])
+    if any(s.is_mesh for s in scenes) and config.poses.min_whiskers_reaching > whiskers:
+        raise UserError(f"poses.min_whiskers_reaching = {config.poses.min_whiskers_reaching} but only "
+                        f"{whiskers} whisker(s) are simulated (model.whiskers = '{config.model.whiskers}')")
+
+
+def _open_writer(folder: Path, spec: RunSpec, shard: Shard | None, indices: range) -> DatasetWriter:
+    config, scenes, label = spec.config, spec.scenes, spec.title
+    data = folder / DATA_FILE
+    if data.is_file():
+        writer = DatasetWriter.resume(data)
+        stored = [SceneEntry(**s) for s in decode_attr(writer.file.attrs["scenes"])]
+        if tuple(stored) != scenes:
+            writer.close()
+            raise UserError(f"the scenes changed since {label} was started (a mesh was rebuilt or "
+                            "removed); finish it with the same meshes or start a new version")
+        return writer
+    (folder / CONFIG_FILE).write_text(yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False))
+    attrs = {"name": config.dataset.name, "label": label, "seed": config.seed,
+             "scenes": [vars(s) for s in scenes], "trial_range": [indices.start, indices.stop],
+             "shard": [shard.number, shard.count] if shard else [1, 1], "run_id": run_id(config),
+             "provenance": provenance(config.model_dump(mode="json"), engine=config.model.engine.name)}
+    return DatasetWriter.create(data, spec.layout, attrs)
+
+
+def _stream(client, plugin_name: str, todo: list[int]) -> Iterator[tuple[int, Any]]:
+    """(index, TrialResult or the exception dask gave) as trials finish; a window in flight."""
+    from distributed import as_completed
+
+    from pipeline.runner.plugin import run_trial
+
+    token = uuid.uuid4().hex[:8]
+    pending = iter(todo)
+
+    def window() -> int:
+        return 2 * max(1, sum(client.nthreads().values())) + 2
+
+    def submit(index: int):
+        return client.submit(run_trial, plugin_name, index, key=f"trial-{token}-{index}", pure=False)
+
+    finished = as_completed([submit(i) for i in islice(pending, window())], with_results=True,
+                            raise_errors=False)
+    for future, result in finished:
+        index = int(future.key.rsplit("-", 1)[1])
+        yield index, result
+        future.release()      # written: dask must not keep (or recompute after a worker loss) it
+        for i in islice(pending, max(0, window() - finished.count())):
+            finished.add(submit(i))
+
+
+@contextmanager
+def _progress(total: int, label: str, enabled: bool) -> Iterator[Callable[[int], None]]:
+    """A rich progress bar (trials done, rate, ETA) on stderr; yields advance(failed_so_far)."""
+    if not enabled:
+        yield lambda failed: None
+        return
+    from rich.console import Console
+    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, ProgressColumn, TextColumn,
+                               TimeElapsedColumn, TimeRemainingColumn)
+    from rich.text import Text
+
+    class Rate(ProgressColumn):
+        def render(self, task) -> Text:
+            return Text(f"{task.speed * 3600:,.0f} trials/h" if task.speed else "… trials/h")
+
+    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), Rate(),
+                  TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
+                  console=Console(stderr=True)) as bar:
+        task = bar.add_task(label, total=total)
+        yield lambda failed: bar.update(task, advance=1, description=f"{label} ({failed} failed)"
+                                        if failed else label)
+
+
+def summarize(data_file: Path, indices: range) -> dict[str, Any]:
+    """Totals over the trials ``indices`` of a dataset file."""
+    with DatasetFile(data_file) as ds:
+        table = {k: v[indices.start:indices.stop] for k, v in ds.trials.items()}
+    status = table["status"]
+    ok, failed = status == OK, status == FAILED
+    sampled = table["pose_attempts"] > 0                # includes trials whose sampling gave up
+    accepted = table["pose_side"] != 0
+    cpu = table["cpu_seconds"][ok]
+    return {
+        "trials": len(status), "ok": int(ok.sum()), "failed": int(failed.sum()),
+        "pending": int((status == PENDING).sum()),
+        "cpu_seconds_per_trial": round(float(cpu.mean()), 3) if ok.any() else None,
+        "physics_share_of_cpu": round(float(table["physics_cpu_seconds"][ok].sum() / cpu.sum()), 3)
+        if ok.any() and cpu.sum() > 0 else None,
+        "whiskers_in_contact_per_trial": round(float(table["whiskers_in_contact"][ok].mean()), 2)
+        if ok.any() else None,
+        "pose_acceptance_rate": round(float(accepted.sum() / table["pose_attempts"][sampled].sum()), 4)
+        if sampled.any() else None,
+        "pose_rejections": dict(zip(POSE_REJECTION_REASONS,
+                                    table["pose_rejections"][ok | failed].sum(axis=0).tolist())),
+        "failures": [f"{i + indices.start}: {error}"
+                     for i, error in zip(np.flatnonzero(failed)[:5], table["error"][failed][:5])],
+    }
+
+
+@dataclass
+class _Tally:
+    written: int = 0
+    failed: int = 0
+    duplicates: int = 0
+    write_seconds: float = 0.0
+
+
+def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _Tally, progress: bool) -> None:
+    """Run ``todo`` on the configured cluster, writing each result as it arrives."""
+    from pipeline.runner.cluster import dask_client
+    from pipeline.runner.plugin import SimulatorPlugin
+
+    config, scenes = spec.config, spec.scenes
+    with dask_client(config.cluster.workers, config.cluster.scheduler) as client:
+        name = f"whisker-simulator-{uuid.uuid4().hex[:8]}"
+        client.register_plugin(SimulatorPlugin(spec, name), name=name)
+        with _progress(len(todo), spec.title, progress) as advance:
+            for index, result in _stream(client, name, todo):
+                if not isinstance(result, TrialResult):          # e.g. KilledWorker
+                    result = TrialResult(index, TrialRecord(
+                        status=FAILED, error=f"{type(result).__name__}: {result}",
+                        scene=scenes[index % len(scenes)].name, seed=config.seed))
+                before = time.perf_counter()
+                fresh = writer.write(index, result.record, result.arrays)
+                tally.write_seconds += time.perf_counter() - before
+                tally.written += fresh
+                tally.failed += fresh and result.record.status == FAILED
+                tally.duplicates += not fresh
+                advance(tally.failed)
+        client.unregister_worker_plugin(name)
+
+
+def run_spec(config: SimulateConfig) -> RunSpec:
+    """What every trial of a run needs (scenes, dataset layout, whisk table), checked; without a
+    recordings folder. ``Simulator(run_spec(config)).run(i)`` redoes trial i in this process."""
+    scenes = scene_catalogue(config.scenes)
+    layout = _layout(config)
+    _check(config, scenes, layout)
+    table = load_whisk_table(config.whisk.table) if config.whisk.kind == "table" else None
+    return RunSpec(config, scenes, layout, table)
+
+
+def simulate(config: SimulateConfig, *, resume: bool = False, shard: str | None = None,
+             progress: bool = True) -> dict[str, Any]:
+    """Run (or resume, or run one shard of) a simulation; returns the summary of its dataset."""
+    shard_spec = Shard.parse(shard) if shard else None
+    spec = run_spec(config)
+    folder, label, indices = _target(config, resume, shard_spec)
+    recordings = folder / RECORDINGS_DIR
+    spec = replace(spec, recordings=str(recordings.resolve()), title=label)
+    started, tally = time.perf_counter(), _Tally()
+    with VersionLock(folder):
+        with _open_writer(folder, spec, shard_spec, indices) as writer:
+            todo = [int(i) for i in writer.pending() if i in indices]
+            try:
+                if todo:
+                    _run_trials(spec, todo, writer, tally, progress)
+            except KeyboardInterrupt:
+                print(f"interrupted: {tally.written} trials written this run to {folder}; continue with the "
+                      "same command plus --resume" + (" (shards always continue)" if shard_spec else ""),
+                      file=sys.stderr)
+                raise
+        wall = time.perf_counter() - started
+        totals = summarize(folder / DATA_FILE, indices)
+        summary = {"dataset": str(folder), "recordings": str(recordings), "complete": totals["pending"] == 0,
+                   **totals, "written_now": tally.written, "duplicates_skipped": tally.duplicates,
+                   "wall_seconds": round(wall, 1), "write_seconds": round(tally.write_seconds, 3),
+                   "trials_per_hour_now": round(tally.written / wall * 3600, 1) if tally.written else None}
+        if summary["complete"] and shard_spec is None:
+            write_manifest(folder, summary)
+    return summary
+
+
+def run_stage(config_path: str | Path | None, n: int | None = None, scenes: str | None = None,
+              name: str | None = None, workers: int | None = None,
+              record_every: int | None = None) -> dict[str, Any]:
+    """Workflow stage ``simulate``: a new version; summary with the dataset and recordings folders."""
+    config = load_simulate_config(config_path, {
+        "trials": n, "scenes": {"folder": scenes}, "dataset": {"name": name},
+        "cluster": {"workers": workers, "record_every": record_every}})
+    return simulate(config, progress=False)

@@ -1,0 +1,171 @@
+"""One trial as a pure function of (run spec, trial index), on this process's engine.
+
+Trial i uses scene i mod (number of scenes) and draws, from ``numpy.random.default_rng([seed,
+i])`` and in this order, its whisk (duration, frequency, protraction, retraction) and, for a
+mesh scene, its head pose (:mod:`pipeline.scenes.poses`); fixed scenes sit at the identity
+pose. The passive-peg scene has no whisking (MODEL.md §5). A :class:`Simulator` keeps one
+engine, the loaded scenes and pose samplers per process, built on first use; a trial that
+raises comes back as a failed record carrying the error, never as an exception.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import socket
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.config.simulate import SimulateConfig, WhiskSamplingConfig
+from pipeline.datasets.schema import FAILED, OK, TrialRecord
+from pipeline.datasets.writer import Layout, trial_arrays
+from pipeline.errors import UserError
+from pipeline.model.kinematics import Pose, ProtractionDrive, sinusoidal_whisk, still
+from pipeline.runner.scenes import SceneEntry
+from pipeline.scenes.poses import PoseSampler, PoseSamplingError
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """Everything a worker needs for any trial of a run (shipped once, via the worker plugin)."""
+
+    config: SimulateConfig
+    scenes: tuple[SceneEntry, ...]
+    layout: Layout
+    whisk_table: tuple[tuple[float, ...], tuple[float, ...]] | None = None   # (time s, θ rad)
+    recordings: str = ""          # folder for rerun recordings; "" = none
+    title: str = ""               # dataset label used in recording titles and ids
+
+
+@dataclass
+class TrialResult:
+    index: int
+    record: TrialRecord
+    arrays: dict[str, np.ndarray] | None = None
+
+
+def load_whisk_table(path: Path) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """(time s, θ rad) from a CSV with a header naming columns time_s and theta_deg."""
+    try:
+        with open(path, newline="") as handle:
+            rows = list(csv.DictReader(line for line in handle if not line.startswith("#")))
+        time_s = tuple(float(r["time_s"]) for r in rows)
+        theta = tuple(float(np.radians(float(r["theta_deg"]))) for r in rows)
+    except (OSError, KeyError, ValueError, TypeError) as exc:
+        raise UserError(f"whisk table {path}: needs CSV columns time_s, theta_deg ({exc})") from None
+    ProtractionDrive(np.array(time_s), np.array(theta))       # validates (UserError if bad)
+    return time_s, theta
+
+
+def draw_whisk(config: WhiskSamplingConfig, rng: np.random.Generator, table, whisking: bool):
+    """(drive, record fields) of one trial; every parameter is drawn even if unused, so the
+    random stream (and the pose drawn after it) does not depend on the whisk kind."""
+    duration = config.duration_s.draw(rng)
+    frequency, protraction, retraction = (r.draw(rng) for r in
+                                          (config.frequency_hz, config.protraction_deg, config.retraction_deg))
+    if not whisking:
+        drive, kind, frequency = still(duration), "still", float("nan")
+    elif config.kind == "table":
+        drive, kind, frequency = ProtractionDrive(np.array(table[0]), np.array(table[1])), "table", float("nan")
+    else:
+        drive, kind = sinusoidal_whisk(frequency, protraction, retraction, duration), "sinusoid"
+    theta = drive(np.linspace(0.0, duration, 1001))
+    return drive, dict(duration_s=duration, whisk_kind=kind, whisk_frequency_hz=frequency,
+                       whisk_protraction_rad=float(theta.max()), whisk_retraction_rad=float(-theta.min()))
+
+
+class Simulator:
+    """Runs trials of one run spec in this process (one engine, built on first use)."""
+
+    def __init__(self, spec: RunSpec):
+        self.spec = spec
+        self._array = None
+        self._engine = None
+        self._scenes: dict[str, object] = {}
+        self._samplers: dict[str, object] = {}
+
+    @property
+    def array(self):
+        if self._array is None:
+            from pipeline.model.array import build_array
+            from pipeline.model.morphology import load_morphology
+
+            model = self.spec.config.model
+            self._array = build_array(load_morphology(model.morphology).select(model.whiskers), model.material)
+        return self._array
+
+    @property
+    def engine(self):
+        if self._engine is None:
+            from pipeline.engines import create_engine
+
+            self._engine = create_engine(self.spec.config.model, self.array)
+        return self._engine
+
+    def scene(self, entry: SceneEntry):
+        if entry.name not in self._scenes:
+            self._scenes[entry.name] = entry.load()
+        return self._scenes[entry.name]
+
+    def sampler(self, entry: SceneEntry):
+        if entry.name not in self._samplers:
+            mesh = self.scene(entry).obstacles[0]
+            self._samplers[entry.name] = PoseSampler(mesh, self.array, self.spec.config.poses)
+        return self._samplers[entry.name]
+
+    def run(self, index: int) -> TrialResult:
+        spec, config = self.spec, self.spec.config
+        start_wall, start_cpu = time.perf_counter(), time.process_time()
+        entry = spec.scenes[index % len(spec.scenes)]
+        record = TrialRecord(scene=entry.name, seed=config.seed, worker=f"{socket.gethostname()}:{os.getpid()}")
+        arrays = None
+        try:
+            rng = np.random.default_rng([config.seed, index])
+            scene = self.scene(entry)
+            drive, whisk = draw_whisk(config.whisk, rng, spec.whisk_table, whisking=entry.name != "peg-passive")
+            for key, value in whisk.items():
+                setattr(record, key, value)
+            pose = Pose()
+            if entry.is_mesh:
+                sample = self.sampler(entry).sample(
+                    rng, (-whisk["whisk_retraction_rad"], whisk["whisk_protraction_rad"]), float(drive(0.0)))
+                pose = sample.pose
+                record.pose_side, record.pose_distance_m = sample.side, sample.distance_m
+                record.pose_attempts, record.whiskers_reaching = sample.attempts, sample.whiskers_reaching
+                record.pose_rejections = tuple(sample.rejections.values())
+            record.pose_position_m, record.pose_euler_zyx_rad = pose.position_m, pose.yaw_pitch_roll_rad
+            record.sampling_seconds = time.perf_counter() - start_wall
+            output = self.engine.run(scene, pose, drive, whisk["duration_s"])
+            record.physics_cpu_seconds = output.metadata["cpu_seconds"]
+            record.samples = len(output.time_s)
+            record.whiskers_in_contact = int(output.contact.any(axis=(0, 2)).sum())
+            arrays = trial_arrays(output, drive(output.time_s), spec.layout)
+            every = config.cluster.record_every
+            if spec.recordings and every and index % every == 0:
+                record.recording_seconds = self._record(index, output, scene, pose)
+            record.status = OK
+        except Exception as exc:          # a failed trial is data: recorded with its error
+            record.status, record.error, arrays = FAILED, f"{type(exc).__name__}: {exc}", None
+            if isinstance(exc, PoseSamplingError):
+                record.pose_attempts, record.pose_rejections = exc.attempts, tuple(exc.rejections.values())
+        record.cpu_seconds = time.process_time() - start_cpu
+        record.wall_seconds = time.perf_counter() - start_wall
+        return TrialResult(index, record, arrays)
+
+    def _record(self, index: int, output, scene, pose) -> float:
+        from pipeline.recordings import write_recording
+        from pipeline.recordings.viewer import recording_name
+
+        start = time.perf_counter()
+        write_recording(Path(self.spec.recordings) / recording_name(index), output, scene, pose,
+                        recording_id=f"{self.spec.title}/trial-{index}",
+                        title=f"{self.spec.title} trial {index} ({scene.name})")
+        return time.perf_counter() - start
+
+    def close(self) -> None:
+        if self._engine is not None:
+            self._engine.close()
+            self._engine = None

@@ -1,0 +1,177 @@
+"""Head poses relative to a scene mesh so that the array makes sufficient but not extreme contact.
+
+A candidate pose aims one side of the array at a surface point drawn uniformly over the mesh
+area (:class:`~pipeline.config.simulate.PoseSamplingConfig` describes the distributions). It
+is accepted when, checked in this order (the first failure is the rejection reason):
+
+``behind_surface``     the aim ray from the array origin meets the back of a face first
+                       (the head would sit inside an object or behind the scanned surface);
+``head_in_surface``    the surface comes within the head sphere (radius around the array origin);
+``surface_near_base``  the surface comes nearer a base point than the configured fraction of
+                       that whisker's arc length;
+``starts_in_surface``  a whisker's rest shape at the drive's starting angle already crosses the
+                       surface (it would start the trial inside an object);
+``too_few_whiskers``   fewer than the configured number of whiskers reach the surface while
+                       sweeping rigidly (rest shape) through the trial's protraction range: a
+                       whisker reaches when one of its links, at one of ``sweep_steps`` angles,
+                       or one of its nodes' paths between consecutive angles crosses a face.
+
+Anatomical angles map onto :class:`~pipeline.model.kinematics.Pose` (Z–Y–X Euler angles of the
+head frame, x lateral, y rostral, z dorsal) as yaw = heading, "pitch" (about y, rostral) = head
+roll, "roll" (about x, lateral) = head pitch (nose up positive). Distances use Open3D's
+``RaycastingScene`` (one thread). Units: metres and radians.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pipeline.config.simulate import PoseSamplingConfig
+from pipeline.model.array import ArrayModel
+from pipeline.model.kinematics import Pose
+from pipeline.scenes.obstacles import TriangleMesh
+
+REASONS = ("behind_surface", "head_in_surface", "surface_near_base", "starts_in_surface", "too_few_whiskers")
+
+
+@dataclass(frozen=True)
+class PoseSample:
+    """An accepted pose and what it took to find it."""
+
+    pose: Pose
+    side: int                      # +1: right side faces the surface, −1: left
+    distance_m: float              # array origin → aimed surface point
+    whiskers_reaching: int
+    attempts: int
+    rejections: dict[str, int] = field(default_factory=dict)
+
+
+class PoseSamplingError(RuntimeError):
+    """No acceptable pose within the attempt budget; ``rejections`` counts the reasons."""
+
+    def __init__(self, attempts: int, rejections: dict[str, int]):
+        reasons = ", ".join(f"{k} {v}" for k, v in rejections.items() if v)
+        super().__init__(f"no acceptable head pose in {attempts} attempts ({reasons})")
+        self.attempts, self.rejections = attempts, rejections
+
+
+class SurfaceQueries:
+    """Distances to, rays against and area-uniform points on one triangle mesh (metres)."""
+
+    def __init__(self, mesh: TriangleMesh):
+        import open3d as o3d
+
+        self._o3d = o3d
+        vertices = np.asarray(mesh.vertices_m, np.float64)
+        faces = np.asarray(mesh.faces, np.int64)
+        self.scene = o3d.t.geometry.RaycastingScene()
+        self.scene.add_triangles(o3d.core.Tensor(vertices.astype(np.float32)),
+                                 o3d.core.Tensor(faces.astype(np.uint32)))
+        corners = vertices[faces]                                   # [F, 3, 3]
+        normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        self._corners = corners
+        self._cumulative_area = np.cumsum(0.5 * np.linalg.norm(normals, axis=1))
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """[n] unsigned distance from each point to the surface."""
+        query = self._o3d.core.Tensor(np.asarray(points, np.float32).reshape(-1, 3))
+        return self.scene.compute_distance(query, nthreads=1).numpy().astype(float)
+
+    def cast(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """First hit of rays o + t·d: t in units of |d| (inf if none) and the face normals."""
+        rays = np.hstack([np.reshape(origins, (-1, 3)), np.reshape(directions, (-1, 3))])
+        hits = self.scene.cast_rays(self._o3d.core.Tensor(rays.astype(np.float32)), nthreads=1)
+        return hits["t_hit"].numpy().astype(float), hits["primitive_normals"].numpy().astype(float)
+
+    def random_point(self, rng: np.random.Generator) -> np.ndarray:
+        """A point drawn uniformly over the surface area."""
+        face = int(np.searchsorted(self._cumulative_area, rng.uniform(0.0, self._cumulative_area[-1]),
+                                   side="right"))
+        a, b = rng.uniform(size=2)
+        if a + b > 1.0:
+            a, b = 1.0 - a, 1.0 - b
+        p0, p1, p2 = self._corners[min(face, len(self._corners) - 1)]
+        return p0 + a * (p1 - p0) + b * (p2 - p0)
+
+
+class PoseSampler:
+    """Draws accepted head poses for one mesh and one array (reusable across trials)."""
+
+    def __init__(self, mesh: TriangleMesh, array: ArrayModel, config: PoseSamplingConfig):
+        self.surface = SurfaceQueries(mesh)
+        self.array = array
+        self.config = config
+        self.base_points = np.array([w.base_point_m for w in array.whiskers])
+        self.min_base_distance = config.min_base_distance_fraction * np.array(
+            [w.chain.geometry.arc_length_m for w in array.whiskers])
+
+    def shapes(self, thetas_rad) -> np.ndarray:
+        """[K, W, N+1, 3] rest-shape node positions (head frame, m) at protraction angles θ_k."""
+        return np.array([[w.rest_nodes_head(t) for w in self.array.whiskers] for t in thetas_rad])
+
+    def draw_candidate(self, rng: np.random.Generator) -> tuple[Pose, int, float, np.ndarray]:
+        """An unchecked pose: (pose, side, distance m, aim direction in the world)."""
+        c = self.config
+        side = 1 if rng.uniform() < c.right_side_probability else -1
+        azimuth, elevation = np.radians(c.aim_azimuth_deg.draw(rng)), np.radians(c.aim_elevation_deg.draw(rng))
+        heading, pitch, roll = (np.radians(r.draw(rng)) for r in (c.heading_deg, c.pitch_deg, c.roll_deg))
+        distance = c.distance_mm.draw(rng) * 1e-3
+        target = self.surface.random_point(rng)
+        orientation = Pose(yaw_pitch_roll_rad=(float(heading), float(roll), float(pitch)))
+        aim = orientation.rotation @ np.array([side * np.cos(elevation) * np.cos(azimuth),
+                                               np.cos(elevation) * np.sin(azimuth), np.sin(elevation)])
+        origin = target - distance * aim
+        return (Pose(tuple(origin.tolist()), orientation.yaw_pitch_roll_rad), side, distance, aim)
+
+    def check(self, pose: Pose, aim: np.ndarray, start: np.ndarray,
+              envelope: np.ndarray) -> tuple[str | None, int]:
+        """(rejection reason or None, whiskers reaching) of a candidate pose; ``start`` and
+        ``envelope`` are :meth:`shapes` at the starting angle and over the protraction range."""
+        origin = np.asarray(pose.position_m)
+        t_hit, normal = self.surface.cast(origin, aim)
+        if not np.isfinite(t_hit[0]) or normal[0] @ aim > 0.0:
+            return "behind_surface", 0
+        if self.surface.distance(origin)[0] < self.config.head_radius_mm * 1e-3:
+            return "head_in_surface", 0
+        if np.any(self.surface.distance(pose.apply(self.base_points)) < self.min_base_distance):
+            return "surface_near_base", 0
+        if self.crossings(pose, start).any():
+            return "starts_in_surface", 0
+        reaching = int(self.sweeps(pose, envelope).sum())
+        if reaching < self.config.min_whiskers_reaching:
+            return "too_few_whiskers", reaching
+        return None, reaching
+
+    def crossings(self, pose: Pose, shapes: np.ndarray) -> np.ndarray:
+        """[K, W] whether a link of whisker w's rest shape at angle k crosses the surface."""
+        return self._crossings(pose.apply(shapes))
+
+    def _crossings(self, world: np.ndarray) -> np.ndarray:
+        t_hit, _ = self.surface.cast(world[:, :, :-1], np.diff(world, axis=2))
+        return (t_hit.reshape(world.shape[:2] + (-1,)) <= 1.0).any(axis=2)
+
+    def sweeps(self, pose: Pose, envelope: np.ndarray) -> np.ndarray:
+        """[W] whether whisker w crosses the surface at an angle of the envelope, or one of its
+        nodes' paths between consecutive angles does."""
+        world = pose.apply(envelope)                                   # [K, W, N+1, 3]
+        k, w = world.shape[:2]
+        t_hit, _ = self.surface.cast(world[:-1, :, 1:], np.diff(world[:, :, 1:], axis=0))
+        swept = (t_hit.reshape(k - 1, w, -1) <= 1.0).any(axis=(0, 2))
+        return self._crossings(world).any(axis=0) | swept
+
+    def sample(self, rng: np.random.Generator, theta_range_rad: tuple[float, float],
+               theta_start_rad: float) -> PoseSample:
+        """The first acceptable candidate for a drive spanning ``theta_range_rad`` and starting at
+        ``theta_start_rad``; raises :class:`PoseSamplingError` after ``max_attempts``."""
+        start = self.shapes([theta_start_rad])
+        envelope = self.shapes(np.linspace(*theta_range_rad, self.config.sweep_steps))
+        rejections = dict.fromkeys(REASONS, 0)
+        for attempt in range(1, self.config.max_attempts + 1):
+            pose, side, distance, aim = self.draw_candidate(rng)
+            reason, reaching = self.check(pose, aim, start, envelope)
+            if reason is None:
+                return PoseSample(pose, side, distance, reaching, attempt, rejections)
+            rejections[reason] += 1
+        raise PoseSamplingError(self.config.max_attempts, rejections)

@@ -1,0 +1,98 @@
+"""Head-pose sampling against a mesh: accepted poses satisfy every rule, rejections are counted,
+draws are reproducible, and the anatomical angles map onto the head frame as documented."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pipeline.config.physics import MaterialConfig
+from pipeline.config.simulate import PoseSamplingConfig
+from pipeline.model.array import build_array
+from pipeline.model.morphology import model_rat
+from pipeline.scenes.obstacles import TriangleMesh
+from pipeline.scenes.poses import REASONS, PoseSampler, PoseSamplingError
+
+THETA = (np.radians(-15.0), np.radians(35.0))
+
+
+def box_mesh(half_extents_m, centre_m=(0.0, 0.0, 0.0)) -> TriangleMesh:
+    import trimesh
+
+    box = trimesh.creation.box(extents=2 * np.asarray(half_extents_m))
+    box = box.subdivide().subdivide()
+    return TriangleMesh(np.asarray(box.vertices) + centre_m, np.asarray(box.faces), source="box")
+
+
+@pytest.fixture(scope="module")
+def sampler() -> PoseSampler:
+    array = build_array(model_rat().select("R"), MaterialConfig(links=10))
+    config = PoseSamplingConfig(min_whiskers_reaching=3, max_attempts=2000)
+    return PoseSampler(box_mesh((0.03, 0.03, 0.03)), array, config)
+
+
+def test_accepted_poses_satisfy_every_rule(sampler):
+    config = sampler.config
+    arc = np.array([w.chain.geometry.arc_length_m for w in sampler.array.whiskers])
+    start = sampler.shapes([THETA[0]])
+    envelope = sampler.shapes(np.linspace(*THETA, config.sweep_steps))
+    for i in range(5):
+        sample = sampler.sample(np.random.default_rng([7, i]), THETA, THETA[0])
+        pose = sample.pose
+        assert sampler.surface.distance(np.asarray(pose.position_m))[0] >= config.head_radius_mm * 1e-3
+        base_distance = sampler.surface.distance(pose.apply(sampler.base_points))
+        assert np.all(base_distance >= config.min_base_distance_fraction * arc)
+        assert not sampler.crossings(pose, start).any()
+        assert sample.whiskers_reaching == sampler.sweeps(pose, envelope).sum() >= config.min_whiskers_reaching
+        assert 10e-3 <= sample.distance_m <= 35e-3 and sample.side in (1, -1)
+        assert set(sample.rejections) == set(REASONS)
+        assert sum(sample.rejections.values()) == sample.attempts - 1
+
+
+def test_sampling_is_a_pure_function_of_the_generator(sampler):
+    a = sampler.sample(np.random.default_rng([3, 11]), THETA, THETA[0])
+    b = sampler.sample(np.random.default_rng([3, 11]), THETA, THETA[0])
+    c = sampler.sample(np.random.default_rng([3, 12]), THETA, THETA[0])
+    assert a == b
+    assert a.pose != c.pose
+
+
+def test_candidate_aims_the_chosen_side_at_a_surface_point(sampler):
+    for i in range(20):
+        pose, side, distance, aim = sampler.draw_candidate(np.random.default_rng(i))
+        target = np.asarray(pose.position_m) + distance * aim
+        assert sampler.surface.distance(target)[0] < 1e-6          # the aimed point is on the surface
+        lateral = pose.rotation[:, 0] * side                      # the facing side's lateral axis
+        assert lateral @ aim > np.cos(np.radians(90.0)) - 1e-9    # aim within 90° of it (azimuth ≤ 60°)
+
+
+def test_head_angles_are_anatomical():
+    from pipeline.model.kinematics import Pose
+
+    pitch_up = Pose(yaw_pitch_roll_rad=(0.0, 0.0, np.radians(20)))     # as draw_candidate builds it
+    assert pitch_up.rotation[:, 1][2] > 0.3                           # nose (+y) tilts up (+z)
+    roll = Pose(yaw_pitch_roll_rad=(0.0, np.radians(20), 0.0))
+    assert np.allclose(roll.rotation[:, 1], [0, 1, 0])                # rolling keeps the nose direction
+
+
+def test_no_acceptable_pose_reports_the_reasons():
+    array = build_array(model_rat().select("RC1"), MaterialConfig(links=10))
+    far_and_small = box_mesh((0.001, 0.001, 0.001))
+    config = PoseSamplingConfig(min_whiskers_reaching=1, distance_mm=(150, 200), max_attempts=30)
+    with pytest.raises(PoseSamplingError) as caught:
+        PoseSampler(far_and_small, array, config).sample(np.random.default_rng(0), THETA, THETA[0])
+    assert caught.value.attempts == 30
+    assert sum(caught.value.rejections.values()) == 30
+    assert "too_few_whiskers" in str(caught.value)
+
+
+def test_head_inside_a_closed_object_or_too_near_is_rejected(sampler):
+    from pipeline.model.kinematics import Pose
+
+    start = sampler.shapes([THETA[0]])
+    envelope = sampler.shapes(np.linspace(*THETA, sampler.config.sweep_steps))
+    inside = Pose((0.0, 0.0, 0.0))                       # the box's centre
+    for aim in np.eye(3):
+        assert sampler.check(inside, aim, start, envelope)[0] == "behind_surface"
+    near = Pose((0.035, 0.0, 0.0))                       # 5 mm outside the +x face, head radius 8 mm
+    assert sampler.check(near, np.array([-1.0, 0.0, 0.0]), start, envelope)[0] == "head_in_surface"
