@@ -187,7 +187,6 @@ class BulletEngine(Engine):
             self._set_contact_properties(w.body, w.whisker_links, WHISKER_GROUP, OBSTACLE_GROUP)
         self.build_seconds = time.perf_counter() - start
         self._scene_key = None
-        self._shapes: dict[int, int] = {}                                 # obstacle body → shape
         self._obstacles: list[tuple[int, np.ndarray, np.ndarray]] = []   # (body, start mm, v mm/s)
         self._owner = {w.body: k for k, w in enumerate(self.whiskers)}
 
@@ -234,8 +233,6 @@ class BulletEngine(Engine):
             return
         for body, _, _ in self._obstacles:
             p.removeBody(body, physicsClientId=self.client)
-            # a collision shape outlives its body: remove it too, or every scene leaks its mesh
-            p.removeCollisionShape(self._shapes.pop(body), physicsClientId=self.client)
         self._obstacles = []
         for obstacle in scene.obstacles:
             shape, orientation = self._obstacle_shape(obstacle)
@@ -243,7 +240,6 @@ class BulletEngine(Engine):
                      else np.asarray(obstacle.position_m) * U.LENGTH)
             body = p.createMultiBody(0.0, shape, -1, start.tolist(), orientation,
                                      physicsClientId=self.client)
-            self._shapes[body] = shape
             self._set_contact_properties(body, [-1], OBSTACLE_GROUP, WHISKER_GROUP)
             velocity = np.asarray(obstacle.velocity_m_s, float) * U.LENGTH
             self._obstacles.append((body, start, velocity))
