@@ -150,12 +150,17 @@ def trial(
 ) -> None:
     """Run one trial of the array in a scene and summarise (or write) its base signals."""
     from pipeline.model.kinematics import Pose
-    from pipeline.protocols.whisking import parse_scene, run_trial
+    from pipeline.protocols.whisking import default_drive, parse_scene, run_trial
 
     model = _model_config(config, {"engine": {"name": engine}})
+    if out is not None:
+        from pipeline.datasets.writer import refuse_existing
+
+        refuse_existing(out)
     head = Pose.parse(pose) if pose else Pose()
     world = parse_scene(scene)
-    output = run_trial(model, world, head, duration_s, whiskers)
+    drive = default_drive(world, model, duration_s)
+    output = run_trial(model, world, head, duration_s, whiskers, drive)
     summary = {"scene": world.name, "whiskers": len(output.whisker_names),
                "samples": len(output.time_s), "whiskers_in_contact": int(output.contact.any(axis=(0, 2)).sum()),
                "max_moment_nm": float(output.moment_magnitude().max()),
@@ -163,7 +168,7 @@ def trial(
     if out is not None:
         from pipeline.datasets import write_single_trial
 
-        summary["file"] = str(write_single_trial(out, output, model, world, head))
+        summary["file"] = str(write_single_trial(out, output, model, world, head, drive))
     if json_output:
         _print_json(summary)
     else:

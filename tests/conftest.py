@@ -1,5 +1,7 @@
-"""Shared test fixtures: where ../shared lives (skip cleanly when it does not)."""
+"""Shared test fixtures: where ../shared lives (skip cleanly when it does not), the CLI as a user runs it."""
 
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -13,3 +15,15 @@ def shared_dir() -> Path:
     if not SHARED.is_dir():
         pytest.skip("../shared is not present")
     return SHARED
+
+
+def run_pipeline(*args, cwd=REPO, timeout=600, env=None) -> subprocess.CompletedProcess:
+    """``python -m pipeline.cli ARGS`` in a fresh process; text stdout/stderr captured."""
+    return subprocess.run([sys.executable, "-m", "pipeline.cli", *map(str, args)], capture_output=True,
+                          text=True, cwd=cwd, timeout=timeout, env=env)
+
+
+@pytest.fixture
+def pipeline_cli():
+    """The ``pipeline`` command as a function: ``pipeline_cli("trial", "--json")``."""
+    return run_pipeline

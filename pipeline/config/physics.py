@@ -48,8 +48,16 @@ class MaterialConfig(StrictModel):
 class EngineConfig(StrictModel):
     """Which engine and how it steps. Outputs are always sampled at ``output_rate_hz``."""
 
-    name: Literal["bullet"] = "bullet"
-    dt_s: float = Field(1e-4, gt=1e-7, le=1e-3, description="integration step, s")
+    name: Literal["bullet", "mujoco"] = "bullet"
+    dt_s: float = Field(1e-4, gt=1e-7, le=1e-3,
+                        description="integration step of the longest whiskers (the coarsest step), s")
+    f1_tolerance: float = Field(0.01, ge=0, le=0.2,
+                                description="largest relative f1 error a whisker's step may cause; "
+                                            "a whisker steps at dt_s/2^j with the smallest j meeting it "
+                                            "(0: every whisker at dt_s)")
+    jam_refinements: int = Field(2, ge=0, le=6,
+                                 description="a whisker whose contact jams is re-simulated alone with "
+                                             "half its step, at most this many times")
     output_rate_hz: float = Field(1000.0, gt=0, le=100_000)
     contact_friction: float = Field(0.5, ge=0, le=2.0, description="Coulomb μ whisker–object")
     solver_iterations: int = Field(50, ge=1, le=1000, description="Bullet contact solver iterations")

@@ -246,6 +246,13 @@ class DatasetWriter:
         self.close()
 
 
+def refuse_existing(path: Path) -> None:
+    """UserError if ``path`` exists: a written trial file is never replaced."""
+    if Path(path).exists():
+        raise UserError(f"{path} exists: a written trial is never replaced (remove it or choose "
+                        "another --out)")
+
+
 def write_single_trial(path: str | Path, output: TrialOutput, model: "ModelConfig", scene: "Scene",
                        pose: "Pose", drive: "ProtractionDrive | None" = None) -> Path:
     """Write one trial as a one-trial dataset file (all node positions kept), atomically.
@@ -256,18 +263,19 @@ def write_single_trial(path: str | Path, output: TrialOutput, model: "ModelConfi
     from pipeline.model.morphology import load_morphology
 
     path = Path(path)
+    refuse_existing(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     duration = float(output.time_s[-1])
     whisk = model.whisk
-    theta = (drive or sinusoidal_whisk(whisk.frequency_hz, whisk.protraction_deg, whisk.retraction_deg,
-                                       duration))(output.time_s)
+    drive = drive or sinusoidal_whisk(whisk.frequency_hz, whisk.protraction_deg, whisk.retraction_deg,
+                                      duration)
+    theta = drive(output.time_s)
     layout = Layout(trials=1, samples=len(output.time_s), sampling_rate_hz=output.sample_rate_hz,
                     links=output.links, node_every=1,
                     whiskers=whisker_table(load_morphology(model.morphology).select(output.whisker_names)))
     record = TrialRecord(
         status="ok", scene=scene.name, duration_s=duration, samples=len(output.time_s),
-        whisk_kind="table" if drive is not None else "sinusoid",
-        whisk_frequency_hz=np.nan if drive is not None else whisk.frequency_hz,
+        whisk_kind=drive.kind, whisk_frequency_hz=drive.frequency_hz,
         whisk_protraction_rad=float(np.max(theta)), whisk_retraction_rad=float(-np.min(theta)),
         pose_position_m=tuple(pose.position_m), pose_euler_zyx_rad=tuple(pose.yaw_pitch_roll_rad),
         whiskers_in_contact=int(output.contact.any(axis=(0, 2)).sum()),

@@ -15,6 +15,10 @@ from pipeline.model.outputs import TrialOutput
 from pipeline.scenes.obstacles import Scene
 
 
+class SimulationError(RuntimeError):
+    """The simulation left the physically plausible range; the trial is not usable."""
+
+
 class Engine(ABC):
     name: str = ""
 

@@ -1,10 +1,10 @@
 """Bullet engine (pybullet): whiskers as Featherstone chains with implicit joint spring-dampers.
 
-Each whisker is one multibody with a fixed base at its base point: three driven revolute
-joints (Z, Y, X Euler angles of the follicle), an optional compliant follicle (two revolute
-joints about the whisker-frame z and y), a fixed joint to link 1 carrying the force/torque
-sensor, then per bending node a massless link on a z-revolute and the next whisker link on a
-y-revolute. Whiskers never collide with each other (collision groups), only with obstacles.
+Each whisker is one multibody (:mod:`pipeline.engines.bullet_whisker`). Whiskers never touch each
+other (collision groups), only obstacles, so they are independent systems: the engine puts the
+whiskers that share a step size into one Bullet world (a pybullet client) and runs the worlds
+one after the other. Each whisker steps at ``engine.dt_s / 2**j`` with j from its first mode
+(:mod:`pipeline.engines.stepping`).
 
 Integration scheme (one step of size h, per whisker; q, v joint positions and velocities):
 
@@ -19,179 +19,115 @@ for any h (for an undamped mode it is symplectic Euler with ω² replaced by k/(
 unlike backward Euler, adds no numerical damping; frequencies drop by ≈ (hω)²/2 relative.
 Contact impulses come from Bullet's constraint solver within the same step.
 
+Contact jams. The contact solver sees a link's inertia but not the joint springs of the step,
+so a thin tip pushed into a mesh by the rigid drive can end up between faces with opposing
+normals; the impulses then grow without bound. A whisker whose base moment leaves the
+plausible range is parked out of the way (the rest of its world goes on) and simulated again
+alone with half the step, up to ``engine.jam_refinements`` times; only then does the trial fail.
+
+Obstacle shapes cannot be freed in pybullet (``removeBody`` on a static mesh body fails and
+``removeCollisionShape`` refuses shapes in use), so each world keeps the bodies of every scene
+it has seen and parks those of other scenes far away: memory grows with the number of distinct
+scenes, not of trials.
+
 Internal units mm–mg–s (:mod:`pipeline.engines.units`); outputs are converted to SI.
 """
 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
-from pipeline.engines.base import Engine
+from pipeline.engines.base import Engine, SimulationError
+from pipeline.engines.bullet_whisker import IDENTITY_QUAT, BulletWhisker, quat
+from pipeline.engines.stepping import refinement_levels, steps_per_sample
 from pipeline.errors import UserError
 from pipeline.model.array import ArrayModel, WhiskerModel
-from pipeline.model.kinematics import Pose, ProtractionDrive, rot_z
+from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.outputs import TrialOutput
 from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
 
+__all__ = ["BulletEngine", "SimulationError"]
+
 WHISKER_GROUP, OBSTACLE_GROUP = 1, 2
 # A base moment above this is no whisker's (they break near 10⁻⁴ N·m): the contact solver has
-# jammed, typically a surface pressed against the base by the rigid drive.
+# jammed, typically a surface pressed against the whisker by the rigid drive.
 MAX_PLAUSIBLE_MOMENT_NM = 1e-3
 GRAVITY_M_S2 = 9.81
-_IDENTITY_QUAT = (0.0, 0.0, 0.0, 1.0)
-_CAPSULE_ALONG_X = (0.0, 0.7071067811865476, 0.0, 0.7071067811865476)   # z axis → x axis
+PARKED_MM = 1e6          # obstacles of other scenes and jammed whiskers wait this far away
 
 
-def _quat(matrix: np.ndarray) -> list[float]:
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_matrix(matrix).as_quat().tolist()
-
-
-def _matrix(quat) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_quat(quat).as_matrix()
+@dataclass
+class _Obstacle:
+    body: int
+    start_mm: np.ndarray
+    velocity_mm_s: np.ndarray
 
 
-class SimulationError(RuntimeError):
-    """The simulation left the physically plausible range; the trial is not usable."""
+@dataclass
+class WorldResult:
+    """Outputs of one world's whiskers (local order) and the whiskers that jammed."""
+
+    wrench: np.ndarray            # [T, w, 6] SI, whisker frame
+    contact: np.ndarray           # [T, w, N]
+    nodes: np.ndarray             # [T, w, N+1, 3] m, world frame
+    jammed: dict[int, str] = field(default_factory=dict)   # local index → message
 
 
-class _LinkList:
-    """Accumulates the per-link arguments of ``createMultiBody``."""
+def obstacle_shape(client: int, obstacle) -> tuple[int, list[float]]:
+    """A collision shape for ``obstacle`` (internal units) and its orientation quaternion."""
+    import pybullet as p
 
-    def __init__(self):
-        self.columns = {k: [] for k in ("linkMasses", "linkCollisionShapeIndices",
-                                        "linkVisualShapeIndices", "linkPositions",
-                                        "linkOrientations", "linkInertialFramePositions",
-                                        "linkInertialFrameOrientations", "linkParentIndices",
-                                        "linkJointTypes", "linkJointAxis")}
-        self.inertia: list[list[float]] = []
+    if isinstance(obstacle, Cylinder):
+        from scipy.spatial.transform import Rotation
 
-    def add(self, parent: int, joint_type: int, axis, position=(0, 0, 0), rotation=None,
-            mass=0.0, inertia=(0.0, 0.0, 0.0), shape=-1, com=(0.0, 0.0, 0.0)) -> int:
-        """Add a link; returns its link index (its id as a parent is index + 1)."""
-        c = self.columns
-        c["linkMasses"].append(mass)
-        c["linkCollisionShapeIndices"].append(shape)
-        c["linkVisualShapeIndices"].append(-1)
-        c["linkPositions"].append(list(position))
-        c["linkOrientations"].append(_IDENTITY_QUAT if rotation is None else _quat(rotation))
-        c["linkInertialFramePositions"].append(list(com))
-        c["linkInertialFrameOrientations"].append(_IDENTITY_QUAT)
-        c["linkParentIndices"].append(parent + 1)
-        c["linkJointTypes"].append(joint_type)
-        c["linkJointAxis"].append(list(axis))
-        self.inertia.append(list(inertia))
-        return len(self.inertia) - 1
+        axis = np.asarray(obstacle.axis, float) / np.linalg.norm(obstacle.axis)
+        rot_axis = np.cross([0.0, 0.0, 1.0], axis)
+        angle = np.arctan2(np.linalg.norm(rot_axis), axis[2])
+        rot = (Rotation.from_rotvec(rot_axis / np.linalg.norm(rot_axis) * angle)
+               if np.linalg.norm(rot_axis) > 1e-12 else Rotation.identity())
+        shape = p.createCollisionShape(p.GEOM_CYLINDER, radius=obstacle.radius_m * U.LENGTH,
+                                       height=obstacle.length_m * U.LENGTH, physicsClientId=client)
+        return shape, rot.as_quat().tolist()
+    if isinstance(obstacle, Box):
+        shape = p.createCollisionShape(p.GEOM_BOX, physicsClientId=client,
+                                       halfExtents=[v * U.LENGTH for v in obstacle.half_extents_m])
+        return shape, quat(np.asarray(obstacle.rotation))
+    if isinstance(obstacle, TriangleMesh):
+        shape = p.createCollisionShape(p.GEOM_MESH, physicsClientId=client,
+                                       vertices=(obstacle.vertices_m * U.LENGTH).tolist(),
+                                       indices=obstacle.faces.astype(int).ravel().tolist())
+        return shape, list(IDENTITY_QUAT)
+    raise TypeError(f"unknown obstacle {type(obstacle).__name__}")
 
 
-class _BulletWhisker:
-    """One whisker's multibody and the constants of its implicit step (internal units)."""
+class BulletWorld:
+    """One pybullet client stepping some whiskers at one step size ``dt_s``."""
 
-    def __init__(self, client, model: WhiskerModel):
+    def __init__(self, whiskers: list[WhiskerModel], config: EngineConfig, dt_s: float,
+                 gravity: bool):
         import pybullet as p
 
-        self.model = model
-        chain = model.chain
-        links = _LinkList()
-        yaw = links.add(-1, p.JOINT_REVOLUTE, (0, 0, 1))
-        pitch = links.add(yaw, p.JOINT_REVOLUTE, (0, 1, 0))
-        roll = links.add(pitch, p.JOINT_REVOLUTE, (1, 0, 0))
-        parent, link1_rotation = roll, model.frame_offset @ rot_z(chain.link_angles_rad[0])
-        stiffness, damping = [], []
-        if model.follicle is not None:
-            fz = links.add(roll, p.JOINT_REVOLUTE, (0, 0, 1), rotation=model.frame_offset)
-            parent = links.add(fz, p.JOINT_REVOLUTE, (0, 1, 0))
-            link1_rotation = rot_z(chain.link_angles_rad[0])
-            stiffness += [model.follicle.stiffness_nm_per_rad] * 2
-            damping += [model.follicle.damping_nms_per_rad] * 2
-        self.whisker_links = []
-        for i in range(chain.links):
-            r0, r1 = chain.node_radii_m[i], chain.node_radii_m[i + 1]
-            length = chain.link_lengths_m[i]
-            shape = p.createCollisionShape(
-                p.GEOM_CAPSULE, radius=0.5 * (r0 + r1) * U.LENGTH, height=length * U.LENGTH,
-                collisionFramePosition=[0.5 * length * U.LENGTH, 0, 0],
-                collisionFrameOrientation=_CAPSULE_ALONG_X, physicsClientId=client)
-            body_args = dict(mass=chain.link_mass_kg[i] * U.MASS,
-                             inertia=(chain.link_inertia_kg_m2[i] * U.INERTIA).tolist(),
-                             shape=shape, com=(chain.link_com_m[i] * U.LENGTH, 0, 0))
-            if i == 0:
-                link = links.add(parent, p.JOINT_FIXED, (0, 0, 1), rotation=link1_rotation,
-                                 **body_args)
-                self.sensor_joint = link
-            else:
-                hinge = links.add(self.whisker_links[-1], p.JOINT_REVOLUTE, (0, 0, 1),
-                                  position=(chain.link_lengths_m[i - 1] * U.LENGTH, 0, 0),
-                                  rotation=rot_z(chain.rest_bend_rad[i - 1]))
-                link = links.add(hinge, p.JOINT_REVOLUTE, (0, 1, 0), **body_args)
-                stiffness += [chain.stiffness_nm_per_rad[i - 1]] * 2
-                damping += [chain.damping_nms_per_rad[i - 1]] * 2
-            self.whisker_links.append(link)
-        self.body = p.createMultiBody(0.0, -1, -1, [0, 0, 0], _IDENTITY_QUAT,
-                                      physicsClientId=client, **links.columns)
-        if self.body < 0:
-            raise RuntimeError(f"Bullet refused to build whisker {model.name}")
-        for index, inertia in enumerate(links.inertia):
-            p.changeDynamics(self.body, index, linearDamping=0, angularDamping=0,
-                             localInertiaDiagonal=inertia, maxJointVelocity=1e6,
-                             jointDamping=0, physicsClientId=client)
-        p.changeDynamics(self.body, -1, linearDamping=0, angularDamping=0,
-                         activationState=p.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=client)
-        self.dofs = [j for j, t in enumerate(links.columns["linkJointTypes"]) if t == p.JOINT_REVOLUTE]
-        p.setJointMotorControlArray(self.body, self.dofs, p.VELOCITY_CONTROL,
-                                    forces=[0.0] * len(self.dofs), physicsClientId=client)
-        p.enableJointForceTorqueSensor(self.body, self.sensor_joint, True, physicsClientId=client)
-        self.n_dof = len(self.dofs)
-        self.driven_dofs, self.free_dofs = np.arange(3), np.arange(3, self.n_dof)
-        self.stiffness = np.concatenate([np.zeros(3), np.array(stiffness) * U.TORQUE])
-        self.damping = np.concatenate([np.zeros(3), np.array(damping) * U.TORQUE])
-        self.rest_driven = np.asarray(model.rest_joint_angles, float)
-        self.rates = np.asarray(model.joint_rates, float)
-        self.link1_com = chain.link_com_m[0] * U.LENGTH
-        self.link1_angle = chain.link_angles_rad[0]
-        self.tip_offset = chain.link_lengths_m[-1] * U.LENGTH
-        self.has_follicle = model.follicle is not None
-        self.local_link = {link: i for i, link in enumerate(self.whisker_links)}
-
-
-class BulletEngine(Engine):
-    """The WHISKiT model on Bullet (see module docstring for the integration scheme)."""
-
-    name = "bullet"
-
-    def __init__(self, array: ArrayModel, config: EngineConfig, gravity: bool = False):
-        import pybullet as p
-
-        super().__init__(array)
-        self.config = config
-        steps = 1.0 / (config.output_rate_hz * config.dt_s)
-        if abs(steps - round(steps)) > 1e-6 or round(steps) < 1:
-            raise UserError(f"engine.dt_s = {config.dt_s} must divide the output period "
-                            f"1/{config.output_rate_hz:g} s into a whole number of steps")
-        self.steps_per_sample = int(round(steps))
+        self.config, self.dt_s = config, dt_s
+        self.steps_per_sample = int(round(1.0 / (config.output_rate_hz * dt_s)))
         self.client = p.connect(p.DIRECT)
-        p.setPhysicsEngineParameter(fixedTimeStep=config.dt_s, numSubSteps=0,
+        p.setPhysicsEngineParameter(fixedTimeStep=dt_s, numSubSteps=0,
                                     numSolverIterations=config.solver_iterations,
                                     deterministicOverlappingPairs=1, physicsClientId=self.client)
         p.setGravity(0, 0, -GRAVITY_M_S2 * U.LENGTH if gravity else 0.0, physicsClientId=self.client)
-        start = time.perf_counter()
-        self.whiskers = [_BulletWhisker(self.client, w) for w in array.whiskers]
+        self.whiskers = [BulletWhisker(self.client, w) for w in whiskers]
         for w in self.whiskers:
             self._set_contact_properties(w.body, w.whisker_links, WHISKER_GROUP, OBSTACLE_GROUP)
-        self.build_seconds = time.perf_counter() - start
-        self._scene_key = None
-        self._obstacles: list[tuple[int, np.ndarray, np.ndarray]] = []   # (body, start mm, v mm/s)
         self._owner = {w.body: k for k, w in enumerate(self.whiskers)}
+        self._scenes: dict[str, list[_Obstacle]] = {}
+        self._scene_key: str | None = None
 
     # -- scene ---------------------------------------------------------------------------
-    def _set_contact_properties(self, body, links, group, mask):
+    def _set_contact_properties(self, body: int, links, group: int, mask: int) -> None:
         import pybullet as p
 
         for link in links:
@@ -199,211 +135,125 @@ class BulletEngine(Engine):
             p.changeDynamics(body, link, restitution=0.0, lateralFriction=self.config.contact_friction,
                              physicsClientId=self.client)
 
-    def _obstacle_shape(self, obstacle) -> tuple[int, list[float]]:
-        import pybullet as p
+    @property
+    def obstacles(self) -> list[_Obstacle]:
+        return self._scenes.get(self._scene_key, [])
 
-        c = self.client
-        if isinstance(obstacle, Cylinder):
-            axis = np.asarray(obstacle.axis, float) / np.linalg.norm(obstacle.axis)
-            z = np.array([0.0, 0.0, 1.0])
-            rot_axis = np.cross(z, axis)
-            angle = np.arctan2(np.linalg.norm(rot_axis), z @ axis)
-            from scipy.spatial.transform import Rotation
-
-            rot = (Rotation.from_rotvec(rot_axis / np.linalg.norm(rot_axis) * angle)
-                   if np.linalg.norm(rot_axis) > 1e-12 else Rotation.identity())
-            shape = p.createCollisionShape(p.GEOM_CYLINDER, radius=obstacle.radius_m * U.LENGTH,
-                                           height=obstacle.length_m * U.LENGTH, physicsClientId=c)
-            return shape, rot.as_quat().tolist()
-        if isinstance(obstacle, Box):
-            shape = p.createCollisionShape(p.GEOM_BOX, physicsClientId=c,
-                                           halfExtents=[v * U.LENGTH for v in obstacle.half_extents_m])
-            return shape, _quat(np.asarray(obstacle.rotation))
-        if isinstance(obstacle, TriangleMesh):
-            shape = p.createCollisionShape(p.GEOM_MESH, physicsClientId=c,
-                                           vertices=(obstacle.vertices_m * U.LENGTH).tolist(),
-                                           indices=obstacle.faces.astype(int).ravel().tolist())
-            return shape, list(_IDENTITY_QUAT)
-        raise TypeError(f"unknown obstacle {type(obstacle).__name__}")
-
-    def _set_scene(self, scene: Scene) -> None:
+    def set_scene(self, scene: Scene) -> None:
+        """Make ``scene`` the active one (built on first use, kept for later trials)."""
         import pybullet as p
 
         if scene.key == self._scene_key:
             return
-        for body, _, _ in self._obstacles:
-            p.removeBody(body, physicsClientId=self.client)
-        self._obstacles = []
-        for obstacle in scene.obstacles:
-            shape, orientation = self._obstacle_shape(obstacle)
-            start = (np.zeros(3) if isinstance(obstacle, TriangleMesh)
-                     else np.asarray(obstacle.position_m) * U.LENGTH)
-            body = p.createMultiBody(0.0, shape, -1, start.tolist(), orientation,
-                                     physicsClientId=self.client)
-            self._set_contact_properties(body, [-1], OBSTACLE_GROUP, WHISKER_GROUP)
-            velocity = np.asarray(obstacle.velocity_m_s, float) * U.LENGTH
-            self._obstacles.append((body, start, velocity))
+        self._place_obstacles(0.0, far=True)
+        if scene.key not in self._scenes:
+            built = []
+            for obstacle in scene.obstacles:
+                shape, orientation = obstacle_shape(self.client, obstacle)
+                start = (np.zeros(3) if isinstance(obstacle, TriangleMesh)
+                         else np.asarray(obstacle.position_m) * U.LENGTH)
+                body = p.createMultiBody(0.0, shape, -1, (start + PARKED_MM).tolist(), orientation,
+                                         physicsClientId=self.client)
+                self._set_contact_properties(body, [-1], OBSTACLE_GROUP, WHISKER_GROUP)
+                built.append(_Obstacle(body, start, np.asarray(obstacle.velocity_m_s, float) * U.LENGTH))
+            self._scenes[scene.key] = built
         self._scene_key = scene.key
 
     def _place_obstacles(self, t: float, far: bool = False) -> None:
         import pybullet as p
 
-        for body, start, velocity in self._obstacles:
-            if far or velocity.any() or t == 0.0:
-                position = start + velocity * t + (1e6 if far else 0.0)
-                orientation = p.getBasePositionAndOrientation(body, physicsClientId=self.client)[1]
-                p.resetBasePositionAndOrientation(body, position.tolist(), orientation,
+        for obstacle in self.obstacles:
+            if far or obstacle.velocity_mm_s.any() or t == 0.0:
+                position = obstacle.start_mm + obstacle.velocity_mm_s * t + (PARKED_MM if far else 0.0)
+                orientation = p.getBasePositionAndOrientation(obstacle.body, physicsClientId=self.client)[1]
+                p.resetBasePositionAndOrientation(obstacle.body, position.tolist(), orientation,
                                                   physicsClientId=self.client)
 
     # -- trial ---------------------------------------------------------------------------
-    def _driven_targets(self, w: _BulletWhisker, drive: ProtractionDrive, t: float):
-        theta, omega = float(drive(t)), float(drive(t, 1))
-        return w.rest_driven + w.rates * theta, w.rates * omega
-
     def _reset(self, pose: Pose, drive: ProtractionDrive) -> None:
         import pybullet as p
 
-        c = self.client
-        position = np.asarray(pose.position_m, float)
-        angles = np.asarray(pose.yaw_pitch_roll_rad, float)
-        if not (np.all(np.isfinite(position)) and np.all(np.isfinite(angles))):
-            raise UserError(f"head pose has non-finite values: {pose}")
         rotation = pose.rotation
-        orientation = _quat(rotation)
+        orientation = quat(rotation)
+        position = np.asarray(pose.position_m, float)
         # Clear cached contact manifolds so a trial does not depend on the previous one.
         self._place_obstacles(0.0, far=True)
-        p.performCollisionDetection(physicsClientId=c)
+        p.performCollisionDetection(physicsClientId=self.client)
         for w in self.whiskers:
-            base = (position + rotation @ w.model.base_point_m) * U.LENGTH
-            p.resetBasePositionAndOrientation(w.body, base.tolist(), orientation, physicsClientId=c)
-            q_driven, v_driven = self._driven_targets(w, drive, 0.0)
-            for k, joint in enumerate(w.dofs):
-                q, v = (q_driven[k], v_driven[k]) if k < 3 else (0.0, 0.0)
-                p.resetJointState(w.body, joint, q, v, physicsClientId=c)
+            w.reset((position + rotation @ w.model.base_point_m) * U.LENGTH, orientation, drive)
         self._place_obstacles(0.0)
-        p.performCollisionDetection(physicsClientId=c)
+        p.performCollisionDetection(physicsClientId=self.client)
 
-    def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float, *,
-            stop_drive_on_contact: bool = False, external_tip_force_n=None) -> TrialOutput:
+    def _park(self, k: int, drive: ProtractionDrive) -> None:
+        """Move whisker k (jammed) far away at rest: it no longer touches anything."""
+        w = self.whiskers[k]
+        w.reset(np.full(3, PARKED_MM) * (k + 2), list(IDENTITY_QUAT), drive)
+
+    def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, samples: int, *,
+            stop_drive_on_contact: bool = False, external_tip_force_n=None) -> WorldResult:
+        """Simulate ``samples`` output intervals from rest (see :meth:`Engine.run`)."""
         import pybullet as p
 
-        c, h = self.client, self.config.dt_s
-        start_wall, start_cpu = time.perf_counter(), time.process_time()
-        self._set_scene(scene)
+        c, h = self.client, self.dt_s
+        self.set_scene(scene)
         self._reset(pose, drive)
-        samples = int(round(duration_s * self.config.output_rate_hz))
-        if samples < 1:
-            raise UserError(f"duration {duration_s} s is shorter than one output sample")
-        n_w, n_links = len(self.whiskers), self.array.links
-        wrench = np.zeros((samples, n_w, 6), np.float32)
-        contact = np.zeros((samples, n_w, n_links), bool)
-        nodes = np.zeros((samples, n_w, n_links + 1, 3), np.float32)
+        n_w, n_links = len(self.whiskers), self.whiskers[0].model.chain.links
+        result = WorldResult(np.zeros((samples, n_w, 6), np.float32),
+                             np.zeros((samples, n_w, n_links), bool),
+                             np.zeros((samples, n_w, n_links + 1, 3), np.float32))
         touching = np.zeros((n_w, n_links), bool)
-        held_angles: list[np.ndarray | None] = [None] * n_w      # drive stopped at contact
+        held: list[np.ndarray | None] = [None] * n_w      # drive stopped at contact
         tip_force = (None if external_tip_force_n is None
                      else (np.asarray(external_tip_force_n, float) * U.FORCE).tolist())
-        obstacle_ids = [b for b, _, _ in self._obstacles]
+        moving = any(o.velocity_mm_s.any() for o in self.obstacles)
+        active = [k for k in range(n_w)]
         for step in range(samples * self.steps_per_sample):
             t = step * h
-            for k, w in enumerate(self.whiskers):
-                self._apply_implicit_torques(w, drive, t, h, held_angles[k])
+            for k in active:
+                w = self.whiskers[k]
+                target = held[k] if held[k] is not None else w.driven_targets(drive, t + h)[0]
+                w.apply_implicit_torques(target, h)
                 if tip_force is not None:
-                    state = p.getLinkState(w.body, w.whisker_links[-1], computeForwardKinematics=True,
-                                           physicsClientId=c)
-                    tip = np.asarray(state[4]) + _matrix(state[5])[:, 0] * w.tip_offset
-                    p.applyExternalForce(w.body, w.whisker_links[-1], tip_force, tip.tolist(),
-                                         p.WORLD_FRAME, physicsClientId=c)
-            if any(v.any() for _, _, v in self._obstacles):
+                    w.apply_tip_force(tip_force)
+            if moving:
                 self._place_obstacles(t + h)
             p.stepSimulation(physicsClientId=c)
-            for obstacle in obstacle_ids:
-                for point in p.getContactPoints(bodyA=obstacle, physicsClientId=c):
-                    k = self._owner.get(point[2])
-                    if k is not None and point[8] <= 0.0:
-                        link = self.whiskers[k].local_link.get(point[4])
-                        if link is not None:
-                            touching[k, link] = True
+            self._collect_contacts(touching)
             if stop_drive_on_contact:
                 for k in np.flatnonzero(touching.any(axis=1)):
-                    if held_angles[k] is None:
-                        held_angles[k] = self._driven_angles(self.whiskers[k])
+                    if held[k] is None:
+                        held[k] = self.whiskers[k].driven_angles()
             if (step + 1) % self.steps_per_sample == 0:
                 sample = (step + 1) // self.steps_per_sample - 1
-                for k, w in enumerate(self.whiskers):
-                    wrench[sample, k] = self._base_wrench(w)
-                    nodes[sample, k] = self._node_positions(w)
-                contact[sample] = touching
+                for k in active:
+                    result.wrench[sample, k] = self.whiskers[k].base_wrench()
+                    result.nodes[sample, k] = self.whiskers[k].node_positions()
+                result.contact[sample] = touching
                 touching[:] = False
-                self._check_plausible(wrench[sample], time_s=(step + 1) * h)
-        time_s = np.arange(1, samples + 1) / self.config.output_rate_hz
-        metadata = {"engine": self.name, "dt_s": h, "steps": samples * self.steps_per_sample,
-                    "wall_seconds": time.perf_counter() - start_wall,
-                    "cpu_seconds": time.process_time() - start_cpu,
-                    "build_seconds": self.build_seconds}
-        return TrialOutput(time_s, wrench, contact, nodes, self.array.names, metadata)
+                for k in self._implausible(result.wrench[sample], active):
+                    result.jammed[k] = (f"non-physical base moment {np.linalg.norm(result.wrench[sample, k, 3:]):.3g} "
+                                        f"N·m on {self.whiskers[k].model.name} at t = {(step + 1) * h:.4f} s")
+                    self._park(k, drive)
+                    active.remove(k)
+        return result
 
-    def _check_plausible(self, wrench: np.ndarray, time_s: float) -> None:
-        moments = np.linalg.norm(wrench[:, 3:], axis=1)
-        bad = np.flatnonzero(~np.isfinite(moments) | (moments > MAX_PLAUSIBLE_MOMENT_NM))
-        if bad.size:
-            name = self.array.whiskers[bad[0]].name
-            raise SimulationError(f"non-physical base moment {moments[bad[0]]:.3g} N·m on {name} at "
-                                  f"t = {time_s:.4f} s (contact jammed: is a surface pressed "
-                                  "against the whisker base?)")
-
-    def _driven_angles(self, w: _BulletWhisker) -> np.ndarray:
+    def _collect_contacts(self, touching: np.ndarray) -> None:
+        """OR this step's whisker–obstacle contacts into ``touching`` [w, N]."""
         import pybullet as p
 
-        return np.array([s[0] for s in p.getJointStates(w.body, w.dofs[:3],
-                                                          physicsClientId=self.client)])
+        for obstacle in self.obstacles:
+            for point in p.getContactPoints(bodyA=obstacle.body, physicsClientId=self.client):
+                k = self._owner.get(point[2])
+                if k is not None and point[8] <= 0.0:
+                    link = self.whiskers[k].local_link.get(point[4])
+                    if link is not None:
+                        touching[k, link] = True
 
-    def _apply_implicit_torques(self, w: _BulletWhisker, drive: ProtractionDrive, t: float,
-                                h: float, held_angles: np.ndarray | None) -> None:
-        import pybullet as p
-
-        c = self.client
-        states = p.getJointStates(w.body, w.dofs, physicsClientId=c)
-        q = np.fromiter((s[0] for s in states), float, w.n_dof)
-        v = np.fromiter((s[1] for s in states), float, w.n_dof)
-        q_list, v_list = q.tolist(), v.tolist()
-        mass = np.array(p.calculateMassMatrix(w.body, q_list, physicsClientId=c))
-        bias = np.array(p.calculateInverseDynamics(w.body, q_list, v_list, [0.0] * w.n_dof,
-                                                   physicsClientId=c))
-        accel = np.zeros(w.n_dof)
-        q_target = held_angles if held_angles is not None else self._driven_targets(w, drive, t + h)[0]
-        d, f = w.driven_dofs, w.free_dofs
-        accel[d] = ((q_target - q[d]) / h - v[d]) / h
-        lhs = mass[np.ix_(f, f)] + np.diag(h * w.damping[f] + h * h * w.stiffness[f])
-        rhs = (-w.stiffness[f] * q[f] - w.damping[f] * v[f] - bias[f]
-               - mass[np.ix_(f, d)] @ accel[d])
-        accel[f] = np.linalg.solve(lhs, rhs)
-        torque = mass @ accel + bias
-        p.setJointMotorControlArray(w.body, w.dofs, p.TORQUE_CONTROL, forces=torque.tolist(),
-                                    physicsClientId=c)
-
-    def _base_wrench(self, w: _BulletWhisker) -> np.ndarray:
-        """Follicle → whisker force (N) and moment about the base point (N·m), whisker frame."""
-        import pybullet as p
-
-        reading = np.asarray(p.getJointState(w.body, w.sensor_joint, physicsClientId=self.client)[2])
-        force, moment = reading[:3], reading[3:]
-        moment = moment + np.cross([w.link1_com, 0.0, 0.0], force)
-        rotation = rot_z(w.link1_angle)
-        if w.has_follicle:
-            from pipeline.model.kinematics import rot_y
-
-            states = p.getJointStates(w.body, w.dofs[3:5], physicsClientId=self.client)
-            rotation = rot_z(states[0][0]) @ rot_y(states[1][0]) @ rotation
-        return np.concatenate([rotation @ force / U.FORCE, rotation @ moment / U.TORQUE])
-
-    def _node_positions(self, w: _BulletWhisker) -> np.ndarray:
-        import pybullet as p
-
-        states = p.getLinkStates(w.body, w.whisker_links, computeForwardKinematics=True,
-                                 physicsClientId=self.client)
-        frames = np.array([s[4] for s in states])
-        tip = frames[-1] + _matrix(states[-1][5])[:, 0] * w.tip_offset
-        return np.vstack([frames, tip]) / U.LENGTH
+    @staticmethod
+    def _implausible(wrench: np.ndarray, active: list[int]) -> list[int]:
+        moments = np.linalg.norm(wrench[active, 3:], axis=1)
+        bad = ~np.isfinite(moments) | (moments > MAX_PLAUSIBLE_MOMENT_NM)
+        return [active[i] for i in np.flatnonzero(bad)]
 
     def close(self) -> None:
         import pybullet as p
@@ -411,3 +261,81 @@ class BulletEngine(Engine):
         if self.client is not None and p.isConnected(self.client):
             p.disconnect(self.client)
         self.client = None
+
+
+class BulletEngine(Engine):
+    """The WHISKiT model on Bullet (see the module docstring for the scheme)."""
+
+    name = "bullet"
+
+    def __init__(self, array: ArrayModel, config: EngineConfig, gravity: bool = False):
+        super().__init__(array)
+        self.config, self.gravity = config, gravity
+        steps_per_sample(config)                      # validates dt_s against the output rate
+        self.levels = refinement_levels(array, config)
+        start = time.perf_counter()
+        self.worlds: list[tuple[np.ndarray, BulletWorld]] = []
+        for level in np.unique(self.levels):
+            members = np.flatnonzero(self.levels == level)
+            world = BulletWorld([array.whiskers[k] for k in members], config,
+                                config.dt_s / 2 ** level, gravity)
+            self.worlds.append((members, world))
+        self.build_seconds = time.perf_counter() - start
+
+    def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float, *,
+            stop_drive_on_contact: bool = False, external_tip_force_n=None) -> TrialOutput:
+        start_wall, start_cpu = time.perf_counter(), time.process_time()
+        if not (np.all(np.isfinite(pose.position_m)) and np.all(np.isfinite(pose.yaw_pitch_roll_rad))):
+            raise UserError(f"head pose has non-finite values: {pose}")
+        samples = int(round(duration_s * self.config.output_rate_hz))
+        if samples < 1:
+            raise UserError(f"duration {duration_s} s is shorter than one output sample")
+        n_w, n_links = len(self.array.whiskers), self.array.links
+        wrench = np.zeros((samples, n_w, 6), np.float32)
+        contact = np.zeros((samples, n_w, n_links), bool)
+        nodes = np.zeros((samples, n_w, n_links + 1, 3), np.float32)
+        options = dict(stop_drive_on_contact=stop_drive_on_contact,
+                       external_tip_force_n=external_tip_force_n)
+        steps, refined = 0, {}
+        for members, world in self.worlds:
+            result = world.run(scene, pose, drive, samples, **options)
+            steps += samples * world.steps_per_sample * len(members)
+            for local, message in result.jammed.items():
+                k = members[local]
+                alone, levels, extra = self._rerun_alone(k, world.dt_s, message, scene, pose, drive,
+                                                         samples, options)
+                for name in ("wrench", "contact", "nodes"):
+                    getattr(result, name)[:, local] = getattr(alone, name)[:, 0]
+                refined[self.array.whiskers[k].name] = levels
+                steps += extra
+            wrench[:, members], contact[:, members], nodes[:, members] = result.wrench, result.contact, result.nodes
+        time_s = np.arange(1, samples + 1) / self.config.output_rate_hz
+        metadata = {"engine": self.name, "dt_s": self.config.dt_s,
+                    "dt_per_whisker_s": (self.config.dt_s / 2.0 ** self.levels).tolist(),
+                    "jam_refined": refined, "whisker_steps": steps,
+                    "wall_seconds": time.perf_counter() - start_wall,
+                    "cpu_seconds": time.process_time() - start_cpu,
+                    "build_seconds": self.build_seconds}
+        return TrialOutput(time_s, wrench, contact, nodes, self.array.names, metadata)
+
+    def _rerun_alone(self, k: int, dt_s: float, message: str, scene, pose, drive, samples, options):
+        """Whisker k alone with half the step, again while it jams (``jam_refinements`` times)."""
+        extra = 0
+        for refinement in range(1, self.config.jam_refinements + 1):
+            world = BulletWorld([self.array.whiskers[k]], self.config, dt_s / 2 ** refinement, self.gravity)
+            try:
+                result = world.run(scene, pose, drive, samples, **options)
+            finally:
+                world.close()
+            extra += samples * world.steps_per_sample
+            if not result.jammed:
+                return result, refinement, extra
+            message = result.jammed[0]
+        raise SimulationError(f"{message} (contact jammed at every step down to "
+                              f"{dt_s / 2 ** self.config.jam_refinements:.3g} s: "
+                              "is a surface pressed against the whisker?)")
+
+    def close(self) -> None:
+        for _, world in self.worlds:
+            world.close()
+        self.worlds = []

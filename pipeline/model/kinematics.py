@@ -46,12 +46,15 @@ class ProtractionDrive:
 
     Interpolated with a C² cubic spline, or piecewise linearly (``interpolation="linear"``,
     for drives with kinks such as an abrupt stop). Before the first sample θ holds its
-    first value, after the last its last value.
+    first value, after the last its last value. ``kind`` says where the table came from
+    (``table``, ``sinusoid`` with its ``frequency_hz``, or ``still``), for the records.
     """
 
     time_s: np.ndarray
     angle_rad: np.ndarray
     interpolation: str = "cubic"
+    kind: str = "table"
+    frequency_hz: float = float("nan")
     _spline: object = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -93,12 +96,13 @@ def sinusoidal_whisk(frequency_hz: float = 8.0, protraction_deg: float = 35.0,
     t = np.arange(0.0, duration_s + 0.5 / rate_hz, 1.0 / rate_hz)
     mid = np.radians(protraction_deg - retraction_deg) / 2
     amplitude = np.radians(protraction_deg + retraction_deg) / 2
-    return ProtractionDrive(t, mid - amplitude * np.cos(2 * np.pi * frequency_hz * t))
+    return ProtractionDrive(t, mid - amplitude * np.cos(2 * np.pi * frequency_hz * t),
+                            kind="sinusoid", frequency_hz=float(frequency_hz))
 
 
 def still(duration_s: float) -> ProtractionDrive:
     """No whisking: θ(t) = 0."""
-    return ProtractionDrive(np.array([0.0, duration_s]), np.zeros(2))
+    return ProtractionDrive(np.array([0.0, duration_s]), np.zeros(2), kind="still")
 
 
 def euler_joint_angles(rest_angles_rad, row: int, side: int, theta: np.ndarray) -> np.ndarray:

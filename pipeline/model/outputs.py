@@ -30,7 +30,8 @@ class TrialOutput:
 
     @property
     def sample_rate_hz(self) -> float:
-        return float(1.0 / np.median(np.diff(self.time_s))) if len(self.time_s) > 1 else 0.0
+        """Output rate, Hz (rounded to µHz: the time stamps are n / rate in floating point)."""
+        return float(np.round(1.0 / np.median(np.diff(self.time_s)), 6)) if len(self.time_s) > 1 else 0.0
 
     @property
     def links(self) -> int:

@@ -67,13 +67,13 @@ def draw_whisk(config: WhiskSamplingConfig, rng: np.random.Generator, table, whi
     frequency, protraction, retraction = (r.draw(rng) for r in
                                           (config.frequency_hz, config.protraction_deg, config.retraction_deg))
     if not whisking:
-        drive, kind, frequency = still(duration), "still", float("nan")
+        drive = still(duration)
     elif config.kind == "table":
-        drive, kind, frequency = ProtractionDrive(np.array(table[0]), np.array(table[1])), "table", float("nan")
+        drive = ProtractionDrive(np.array(table[0]), np.array(table[1]))
     else:
-        drive, kind = sinusoidal_whisk(frequency, protraction, retraction, duration), "sinusoid"
+        drive = sinusoidal_whisk(frequency, protraction, retraction, duration)
     theta = drive(np.linspace(0.0, duration, 1001))
-    return drive, dict(duration_s=duration, whisk_kind=kind, whisk_frequency_hz=frequency,
+    return drive, dict(duration_s=duration, whisk_kind=drive.kind, whisk_frequency_hz=drive.frequency_hz,
                        whisk_protraction_rad=float(theta.max()), whisk_retraction_rad=float(-theta.min()))
 
 

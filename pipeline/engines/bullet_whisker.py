@@ -1,0 +1,210 @@
+"""One whisker as a pybullet multibody, and the per-step operations on it (internal units).
+
+Layout of the multibody (fixed base at the whisker's base point, head orientation): three
+driven revolute joints (Z, Y, X Euler angles of the follicle), an optional compliant follicle
+(two revolute joints about the whisker-frame z and y), a fixed joint to link 1 carrying the
+force/torque sensor, then per bending node a massless link on a z-revolute and the next whisker
+link on a y-revolute. The implicit step is described in :mod:`pipeline.engines.bullet`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.engines import units as U
+from pipeline.model.array import WhiskerModel
+from pipeline.model.kinematics import ProtractionDrive, rot_y, rot_z
+
+IDENTITY_QUAT = (0.0, 0.0, 0.0, 1.0)
+_CAPSULE_ALONG_X = (0.0, 0.7071067811865476, 0.0, 0.7071067811865476)   # z axis → x axis
+
+
+def quat(matrix: np.ndarray) -> list[float]:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_matrix(matrix).as_quat().tolist()
+
+
+def matrix(quaternion) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_quat(quaternion).as_matrix()
+
+
+class LinkList:
+    """Accumulates the per-link arguments of ``createMultiBody``."""
+
+    def __init__(self):
+        self.columns = {k: [] for k in ("linkMasses", "linkCollisionShapeIndices",
+                                        "linkVisualShapeIndices", "linkPositions",
+                                        "linkOrientations", "linkInertialFramePositions",
+                                        "linkInertialFrameOrientations", "linkParentIndices",
+                                        "linkJointTypes", "linkJointAxis")}
+        self.inertia: list[list[float]] = []
+
+    def add(self, parent: int, joint_type: int, axis, position=(0, 0, 0), rotation=None,
+            mass=0.0, inertia=(0.0, 0.0, 0.0), shape=-1, com=(0.0, 0.0, 0.0)) -> int:
+        """Add a link; returns its link index (its id as a parent is index + 1)."""
+        c = self.columns
+        c["linkMasses"].append(mass)
+        c["linkCollisionShapeIndices"].append(shape)
+        c["linkVisualShapeIndices"].append(-1)
+        c["linkPositions"].append(list(position))
+        c["linkOrientations"].append(IDENTITY_QUAT if rotation is None else quat(rotation))
+        c["linkInertialFramePositions"].append(list(com))
+        c["linkInertialFrameOrientations"].append(IDENTITY_QUAT)
+        c["linkParentIndices"].append(parent + 1)
+        c["linkJointTypes"].append(joint_type)
+        c["linkJointAxis"].append(list(axis))
+        self.inertia.append(list(inertia))
+        return len(self.inertia) - 1
+
+
+class BulletWhisker:
+    """One whisker's multibody in a client and the constants of its implicit step (internal units)."""
+
+    def __init__(self, client: int, model: WhiskerModel):
+        import pybullet as p
+
+        self.client = client
+        self.model = model
+        chain = model.chain
+        links = LinkList()
+        yaw = links.add(-1, p.JOINT_REVOLUTE, (0, 0, 1))
+        pitch = links.add(yaw, p.JOINT_REVOLUTE, (0, 1, 0))
+        roll = links.add(pitch, p.JOINT_REVOLUTE, (1, 0, 0))
+        parent, link1_rotation = roll, model.frame_offset @ rot_z(chain.link_angles_rad[0])
+        stiffness, damping = [], []
+        if model.follicle is not None:
+            fz = links.add(roll, p.JOINT_REVOLUTE, (0, 0, 1), rotation=model.frame_offset)
+            parent = links.add(fz, p.JOINT_REVOLUTE, (0, 1, 0))
+            link1_rotation = rot_z(chain.link_angles_rad[0])
+            stiffness += [model.follicle.stiffness_nm_per_rad] * 2
+            damping += [model.follicle.damping_nms_per_rad] * 2
+        self.whisker_links = []
+        for i in range(chain.links):
+            r0, r1 = chain.node_radii_m[i], chain.node_radii_m[i + 1]
+            length = chain.link_lengths_m[i]
+            shape = p.createCollisionShape(
+                p.GEOM_CAPSULE, radius=0.5 * (r0 + r1) * U.LENGTH, height=length * U.LENGTH,
+                collisionFramePosition=[0.5 * length * U.LENGTH, 0, 0],
+                collisionFrameOrientation=_CAPSULE_ALONG_X, physicsClientId=client)
+            body_args = dict(mass=chain.link_mass_kg[i] * U.MASS,
+                             inertia=(chain.link_inertia_kg_m2[i] * U.INERTIA).tolist(),
+                             shape=shape, com=(chain.link_com_m[i] * U.LENGTH, 0, 0))
+            if i == 0:
+                link = links.add(parent, p.JOINT_FIXED, (0, 0, 1), rotation=link1_rotation,
+                                 **body_args)
+                self.sensor_joint = link
+            else:
+                hinge = links.add(self.whisker_links[-1], p.JOINT_REVOLUTE, (0, 0, 1),
+                                  position=(chain.link_lengths_m[i - 1] * U.LENGTH, 0, 0),
+                                  rotation=rot_z(chain.rest_bend_rad[i - 1]))
+                link = links.add(hinge, p.JOINT_REVOLUTE, (0, 1, 0), **body_args)
+                stiffness += [chain.stiffness_nm_per_rad[i - 1]] * 2
+                damping += [chain.damping_nms_per_rad[i - 1]] * 2
+            self.whisker_links.append(link)
+        self.body = p.createMultiBody(0.0, -1, -1, [0, 0, 0], IDENTITY_QUAT,
+                                      physicsClientId=client, **links.columns)
+        if self.body < 0:
+            raise RuntimeError(f"Bullet refused to build whisker {model.name}")
+        for index, inertia in enumerate(links.inertia):
+            p.changeDynamics(self.body, index, linearDamping=0, angularDamping=0,
+                             localInertiaDiagonal=inertia, maxJointVelocity=1e6,
+                             jointDamping=0, physicsClientId=client)
+        p.changeDynamics(self.body, -1, linearDamping=0, angularDamping=0,
+                         activationState=p.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=client)
+        self.dofs = [j for j, t in enumerate(links.columns["linkJointTypes"]) if t == p.JOINT_REVOLUTE]
+        p.setJointMotorControlArray(self.body, self.dofs, p.VELOCITY_CONTROL,
+                                    forces=[0.0] * len(self.dofs), physicsClientId=client)
+        p.enableJointForceTorqueSensor(self.body, self.sensor_joint, True, physicsClientId=client)
+        self.n_dof = len(self.dofs)
+        self.driven_dofs, self.free_dofs = np.arange(3), np.arange(3, self.n_dof)
+        self.stiffness = np.concatenate([np.zeros(3), np.array(stiffness) * U.TORQUE])
+        self.damping = np.concatenate([np.zeros(3), np.array(damping) * U.TORQUE])
+        self.rest_driven = np.asarray(model.rest_joint_angles, float)
+        self.rates = np.asarray(model.joint_rates, float)
+        self.link1_com = chain.link_com_m[0] * U.LENGTH
+        self.link1_angle = chain.link_angles_rad[0]
+        self.tip_offset = chain.link_lengths_m[-1] * U.LENGTH
+        self.has_follicle = model.follicle is not None
+        self.local_link = {link: i for i, link in enumerate(self.whisker_links)}
+
+    # -- per trial -----------------------------------------------------------------------
+    def driven_targets(self, drive: ProtractionDrive, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Prescribed Z, Y, X follicle angles (rad) and rates (rad/s) at time t."""
+        theta, omega = float(drive(t)), float(drive(t, 1))
+        return self.rest_driven + self.rates * theta, self.rates * omega
+
+    def reset(self, base_mm: np.ndarray, orientation: list[float], drive: ProtractionDrive) -> None:
+        """Rest shape, base at ``base_mm`` (world, mm) with the head ``orientation`` quaternion."""
+        import pybullet as p
+
+        p.resetBasePositionAndOrientation(self.body, base_mm.tolist(), orientation,
+                                          physicsClientId=self.client)
+        q_driven, v_driven = self.driven_targets(drive, 0.0)
+        for k, joint in enumerate(self.dofs):
+            q, v = (q_driven[k], v_driven[k]) if k < 3 else (0.0, 0.0)
+            p.resetJointState(self.body, joint, q, v, physicsClientId=self.client)
+
+    def driven_angles(self) -> np.ndarray:
+        import pybullet as p
+
+        return np.array([s[0] for s in p.getJointStates(self.body, self.dofs[:3],
+                                                          physicsClientId=self.client)])
+
+    def apply_implicit_torques(self, q_target: np.ndarray, h: float) -> None:
+        """Joint torques of one linearly implicit step of size h (s) toward driven angles q_target."""
+        import pybullet as p
+
+        c = self.client
+        states = p.getJointStates(self.body, self.dofs, physicsClientId=c)
+        q = np.fromiter((s[0] for s in states), float, self.n_dof)
+        v = np.fromiter((s[1] for s in states), float, self.n_dof)
+        q_list, v_list = q.tolist(), v.tolist()
+        mass = np.array(p.calculateMassMatrix(self.body, q_list, physicsClientId=c))
+        bias = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, [0.0] * self.n_dof,
+                                                   physicsClientId=c))
+        accel = np.zeros(self.n_dof)
+        d, f = self.driven_dofs, self.free_dofs
+        accel[d] = ((q_target - q[d]) / h - v[d]) / h
+        lhs = mass[np.ix_(f, f)] + np.diag(h * self.damping[f] + h * h * self.stiffness[f])
+        rhs = (-self.stiffness[f] * q[f] - self.damping[f] * v[f] - bias[f]
+               - mass[np.ix_(f, d)] @ accel[d])
+        accel[f] = np.linalg.solve(lhs, rhs)
+        torque = mass @ accel + bias
+        p.setJointMotorControlArray(self.body, self.dofs, p.TORQUE_CONTROL, forces=torque.tolist(),
+                                    physicsClientId=c)
+
+    def apply_tip_force(self, force: list[float]) -> None:
+        """A force (internal units, world frame) on the tip node for the next step."""
+        import pybullet as p
+
+        state = p.getLinkState(self.body, self.whisker_links[-1], computeForwardKinematics=True,
+                               physicsClientId=self.client)
+        tip = np.asarray(state[4]) + matrix(state[5])[:, 0] * self.tip_offset
+        p.applyExternalForce(self.body, self.whisker_links[-1], force, tip.tolist(), p.WORLD_FRAME,
+                             physicsClientId=self.client)
+
+    def base_wrench(self) -> np.ndarray:
+        """Follicle → whisker force (N) and moment about the base point (N·m), whisker frame."""
+        import pybullet as p
+
+        reading = np.asarray(p.getJointState(self.body, self.sensor_joint, physicsClientId=self.client)[2])
+        force, moment = reading[:3], reading[3:]
+        moment = moment + np.cross([self.link1_com, 0.0, 0.0], force)
+        rotation = rot_z(self.link1_angle)
+        if self.has_follicle:
+            states = p.getJointStates(self.body, self.dofs[3:5], physicsClientId=self.client)
+            rotation = rot_z(states[0][0]) @ rot_y(states[1][0]) @ rotation
+        return np.concatenate([rotation @ force / U.FORCE, rotation @ moment / U.TORQUE])
+
+    def node_positions(self) -> np.ndarray:
+        """[N+1, 3] node positions, world frame, m."""
+        import pybullet as p
+
+        states = p.getLinkStates(self.body, self.whisker_links, computeForwardKinematics=True,
+                                 physicsClientId=self.client)
+        frames = np.array([s[4] for s in states])
+        tip = frames[-1] + matrix(states[-1][5])[:, 0] * self.tip_offset
+        return np.vstack([frames, tip]) / U.LENGTH

@@ -1,0 +1,63 @@
+"""Contacts with rough meshes: step size per whisker, jammed whiskers re-simulated alone."""
+
+import numpy as np
+import pytest
+
+from pipeline.config.physics import ModelConfig
+from pipeline.engines.base import SimulationError
+from pipeline.engines.stepping import first_frequency_hz, refinement_levels
+from pipeline.model.array import build_array
+from pipeline.model.kinematics import Pose
+from pipeline.model.morphology import load_morphology
+from pipeline.protocols.whisking import run_trial
+from pipeline.scenes.library import beside_right_array
+from pipeline.scenes.obstacles import Scene, TriangleMesh
+
+
+def bumpy_sheet(size_m=0.06, spacing_m=0.001, bump_m=0.0015, seed=0) -> TriangleMesh:
+    """An open sheet in the y–z plane, 1 mm triangles, vertices jittered ±1.5 mm in x: rougher
+    than a scan, a surface thin tips catch on."""
+    rng = np.random.default_rng(seed)
+    n = int(round(size_m / spacing_m)) + 1
+    y, z = np.meshgrid(*2 * [np.linspace(-size_m / 2, size_m / 2, n)], indexing="ij")
+    vertices = np.stack([bump_m * rng.uniform(-1, 1, y.shape).ravel(), y.ravel(), z.ravel()], axis=1)
+    index = np.arange(n * n).reshape(n, n)
+    a, b, c, d = (index[:-1, :-1].ravel(), index[1:, :-1].ravel(), index[1:, 1:].ravel(),
+                  index[:-1, 1:].ravel())
+    faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    return TriangleMesh(vertices, faces, f"bumpy-sheet-{seed}")
+
+
+def with_engine(**fields) -> ModelConfig:
+    model = ModelConfig()
+    return model.model_copy(update={"engine": model.engine.model_copy(update=fields)})
+
+
+def test_step_per_whisker_follows_its_first_mode():
+    model = ModelConfig()
+    array = build_array(load_morphology("model_rat").select("R"), model.material)
+    levels = refinement_levels(array, model.engine)
+    dt = model.engine.dt_s / 2.0 ** levels
+    f1 = first_frequency_hz(array)
+    # each step meets (2π f1 h)² ≤ tolerance, and the next coarser one would not (unless at dt_s)
+    assert np.all((2 * np.pi * f1 * dt) ** 2 <= model.engine.f1_tolerance)
+    coarser = (2 * np.pi * f1 * 2 * dt) ** 2 > model.engine.f1_tolerance
+    assert np.all(coarser | (levels == 0))
+    lengths = np.array([w.chain.geometry.arc_length_m for w in array.whiskers])
+    assert levels[lengths > 0.05].max() == 0 and levels[lengths < 0.008].min() == 3
+    assert np.all(refinement_levels(array, model.engine.model_copy(update={"f1_tolerance": 0})) == 0)
+
+
+def test_a_jammed_whisker_is_simulated_again_alone_with_a_finer_step():
+    scene = Scene("bumpy-sheet", (beside_right_array(bumpy_sheet(), 0.02),))
+    # one coarse step for all and no second chance: the RD3 tip jams in the sheet
+    with pytest.raises(SimulationError, match="RD3"):
+        run_trial(with_engine(f1_tolerance=0.0, jam_refinements=0), scene, Pose(), 0.1, "RD3")
+    out = run_trial(ModelConfig(), scene, Pose(), 0.1, "RD3,RC1")
+    assert out.metadata["jam_refined"].get("RD3", 0) >= 1
+    assert out.contact[:, out.index("RD3")].any()
+    moments = out.moment_magnitude()
+    assert np.all(np.isfinite(moments)) and moments.max() < 1e-4     # whiskers break near 1e-4 N·m
+    # the other whisker is untouched by its neighbour's refinement
+    alone = run_trial(ModelConfig(), scene, Pose(), 0.1, "RC1")
+    assert np.array_equal(alone.base_wrench[:, 0], out.base_wrench[:, out.index("RC1")])
