@@ -61,3 +61,22 @@ def test_a_jammed_whisker_is_simulated_again_alone_with_a_finer_step():
     # the other whisker is untouched by its neighbour's refinement
     alone = run_trial(ModelConfig(), scene, Pose(), 0.1, "RC1")
     assert np.array_equal(alone.base_wrench[:, 0], out.base_wrench[:, out.index("RC1")])
+
+
+def test_switching_scenes_reuses_their_bodies():
+    """pybullet cannot free a mesh shape, so each scene is built once per world and parked."""
+    import pybullet as p
+
+    from pipeline.engines import create_engine
+    from pipeline.model.kinematics import sinusoidal_whisk
+
+    model = ModelConfig()
+    array = build_array(load_morphology("model_rat").select("RA0,RE4"), model.material)
+    scenes = [Scene(f"sheet-{i}", (beside_right_array(bumpy_sheet(seed=i), 0.04),)) for i in range(2)]
+    with create_engine(model, array) as engine:
+        counts = []
+        for k in range(6):
+            engine.run(scenes[k % 2], Pose(), sinusoidal_whisk(duration_s=0.002), 0.002)
+            counts.append([p.getNumBodies(physicsClientId=world.client) for _, world in engine.worlds])
+    assert counts[1] == counts[-1]          # built once per scene, then reused
+    assert len(counts[0]) == 2               # RA0 and RE4 step at different sizes: two worlds

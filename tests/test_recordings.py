@@ -226,13 +226,13 @@ def test_resolve_dataset_targets(tmp_path):
         resolve_target("natural", 0, root=tmp_path)          # newest version is v3
     with pytest.raises(UserError, match=r"no recording of trial 3; trials with recordings: 0-2, 5$"):
         resolve_target("natural/v2", 3, root=tmp_path)
-    with pytest.raises(UserError, match=r"no version v7 \(versions: v1, v2, v3\)"):
+    with pytest.raises(UserError, match=r"no version 'v7' \(versions: v1, v2, v3\)"):
         resolve_target("natural/v7", 0, root=tmp_path)
     with pytest.raises(UserError, match=r"dataset 'other' not found.*natural"):
         resolve_target("other", 0, root=tmp_path)
     with pytest.raises(UserError, match=r"give --trial"):
         resolve_target("natural/v2", None, root=tmp_path)
-    with pytest.raises(UserError, match=r"must be an \.rrd file or a dataset"):
+    with pytest.raises(UserError, match=r"has no version '2' \(versions: v1, v2, v3\)"):
         resolve_target("natural/2", 0, root=tmp_path)
 
 

@@ -65,6 +65,23 @@ def unfinished_version(root: Path, name: str) -> Path:
     return latest
 
 
+def version_folder(target: str, root: Path = DEFAULT_ROOT) -> Path:
+    """The folder of ``NAME/vK`` or of ``NAME``'s newest version; UserError naming what exists."""
+    name, _, version = str(target).strip("/").partition("/")
+    found = versions(root, name) if name else {}
+    if not found:
+        known = ", ".join(dataset_names(root)) or "none yet"
+        raise UserError(f"dataset '{target}' not found (not a file, folder or NAME[/vK] in {root}/; "
+                        f"datasets: {known})")
+    if not version:
+        return found[max(found)]
+    match = _VERSION.match(version)
+    if not match or int(match.group(1)) not in found:
+        raise UserError(f"dataset '{name}' has no version '{version}' "
+                        f"(versions: {', '.join(f'v{k}' for k in found)})")
+    return found[int(match.group(1))]
+
+
 def resolve(target: str | Path, root: Path = DEFAULT_ROOT) -> Path:
     """The data file of a target: a file, a version folder, ``NAME/vK`` or ``NAME`` (its newest)."""
     path = Path(target)
@@ -72,20 +89,7 @@ def resolve(target: str | Path, root: Path = DEFAULT_ROOT) -> Path:
         return path
     if path.is_dir() and (path / DATA_FILE).is_file():
         return path / DATA_FILE
-    name, _, version = str(target).partition("/")
-    found = versions(root, name)
-    if not found:
-        known = ", ".join(dataset_names(root)) or "none yet"
-        raise UserError(f"dataset '{target}' not found (not a file, folder or NAME[/vK] in {root}/; "
-                        f"datasets: {known})")
-    if version:
-        match = _VERSION.match(version)
-        if not match or int(match.group(1)) not in found:
-            raise UserError(f"dataset '{name}' has no version '{version}' "
-                            f"(versions: {', '.join(f'v{k}' for k in found)})")
-        folder = found[int(match.group(1))]
-    else:
-        folder = found[max(found)]
+    folder = version_folder(str(target), root)
     if not (folder / DATA_FILE).is_file():
         raise UserError(f"{folder} has no {DATA_FILE} yet")
     return folder / DATA_FILE

@@ -28,21 +28,11 @@ DATASETS_ROOT = Path("outputs/datasets")
 RECORDINGS_DIR = "recordings"
 HOST = "127.0.0.1"
 DEFAULT_WEB_PORT = 9090
-_VERSION = re.compile(r"^v(\d+)$")
 _TRIAL = re.compile(r"^trial_(\d{6})\.rrd$")
 
 
 def recording_name(trial: int) -> str:
     return f"trial_{trial:06d}.rrd"
-
-
-def _versions(dataset: Path) -> dict[int, Path]:
-    found = {}
-    for p in dataset.iterdir() if dataset.is_dir() else ():
-        m = _VERSION.match(p.name)
-        if m and p.is_dir():
-            found[int(m.group(1))] = p
-    return found
 
 
 def recorded_trials(version_dir: Path) -> list[int]:
@@ -75,30 +65,18 @@ def resolve_target(target: str, trial: int | None = None, root: Path = DATASETS_
             raise UserError("--trial applies to dataset targets (NAME[/vK]), not to an .rrd file")
         return path
 
-    name, _, version = target.strip("/").partition("/")
-    if not name or "/" in version or (version and not _VERSION.match(version)):
-        raise UserError(f"target '{target}' must be an .rrd file or a dataset NAME[/vK], e.g. natural/v2")
-    dataset = root / name
-    versions = _versions(dataset)
-    if not versions:
-        known = sorted(p.name for p in root.iterdir() if p.is_dir()) if root.is_dir() else []
-        raise UserError(f"dataset '{name}' not found in {root}/"
-                        + (f" (datasets: {', '.join(known)})" if known else " (no datasets yet)"))
-    if version:
-        k = int(version[1:])
-        if k not in versions:
-            raise UserError(f"dataset '{name}' has no version v{k} "
-                            f"(versions: {', '.join(f'v{v}' for v in sorted(versions))})")
-    else:
-        k = max(versions)
-    trials = recorded_trials(versions[k])
+    from pipeline.datasets.versions import version_folder
+
+    folder = version_folder(target, root)
+    label = f"{folder.parent.name}/{folder.name}"
+    trials = recorded_trials(folder)
     listing = (f"trials with recordings: {_ranges(trials)}" if trials
                else "no trial of this version has a recording")
     if trial is None:
-        raise UserError(f"give --trial I for dataset '{name}/v{k}'; {listing}")
-    path = versions[k] / RECORDINGS_DIR / recording_name(trial)
+        raise UserError(f"give --trial I for dataset '{label}'; {listing}")
+    path = folder / RECORDINGS_DIR / recording_name(trial)
     if not path.is_file():
-        raise UserError(f"dataset '{name}/v{k}' has no recording of trial {trial}; {listing}")
+        raise UserError(f"dataset '{label}' has no recording of trial {trial}; {listing}")
     return path
 
 
