@@ -20,27 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
+from pipeline.meshes.io import read_obj
+from pipeline.meshes.metrics import distance_to_surface
+
 REPO = Path(__file__).resolve().parents[1]
 SHARED_SCANS = REPO.parent / "shared" / "data" / "scans"
-
-
-def _read_obj(path: Path):
-    vertices, faces = [], []
-    for line in path.read_text().splitlines():
-        kind, *values = line.split()
-        (vertices if kind == "v" else faces).append(values)
-    return np.array(vertices, dtype=float), np.array(faces, dtype=int) - 1
-
-
-def _distance(points, vertices, faces):
-    import open3d as o3d
-
-    mesh = o3d.t.geometry.TriangleMesh()
-    mesh.vertex.positions = o3d.core.Tensor(np.asarray(vertices, dtype=np.float32))
-    mesh.triangle.indices = o3d.core.Tensor(np.asarray(faces, dtype=np.int32))
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(mesh)
-    return scene.compute_distance(o3d.core.Tensor(np.asarray(points, np.float32))).numpy()
 
 
 def evaluate(result, truth_v, truth_f, raw_mm) -> dict:
@@ -48,14 +32,14 @@ def evaluate(result, truth_v, truth_f, raw_mm) -> dict:
 
     from pipeline.meshes.metrics import sample_surface
 
-    vertices, faces = _read_obj(Path(result.output))
+    vertices, faces = read_obj(Path(result.output))
     vertices = vertices * 1000.0
     samples = np.vstack([sample_surface(vertices, faces, 200_000, seed=1), vertices])
-    to_truth = _distance(samples, truth_v, truth_f)
-    data = cKDTree(raw_mm[_distance(raw_mm, truth_v, truth_f) < 5.0])
+    to_truth = distance_to_surface(samples, truth_v, truth_f)
+    data = cKDTree(raw_mm[distance_to_surface(raw_mm, truth_v, truth_f) < 5.0])
     truth_samples = sample_surface(truth_v, truth_f, 50_000, seed=2)
     seen = data.query(truth_samples)[0] < 2.0
-    covered = (_distance(truth_samples, vertices, faces) < 2.0) & seen
+    covered = (distance_to_surface(truth_samples, vertices, faces) < 2.0) & seen
     m = result.metrics
     return {"scan": result.name, "pts in": m["points_in"], "after ds": m["points_after_downsample"],
             "tri": m["triangles"], "med": np.median(to_truth),

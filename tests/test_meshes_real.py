@@ -12,30 +12,12 @@ import pytest
 
 from pipeline.config.meshes import MeshConfig
 from pipeline.meshes import build_meshes
+from pipeline.meshes.io import read_obj
+from pipeline.meshes.metrics import distance_to_surface
 
 SCANS = Path(__file__).resolve().parents[2] / "shared" / "data" / "scans"
 FAST = ("scan_14", "scan_82")
 ALL = ("scan_14", "scan_24", "scan_43", "scan_57", "scan_80", "scan_82")
-
-
-def _read_obj(path):
-    vertices, faces = [], []
-    for line in Path(path).read_text().splitlines():
-        kind, *values = line.split()
-        (vertices if kind == "v" else faces).append(values)
-    return np.array(vertices, dtype=float), np.array(faces, dtype=int) - 1
-
-
-def _distance(points, vertices, faces):
-    """Distance of each point to the surface (vertices, faces)."""
-    import open3d as o3d
-
-    mesh = o3d.t.geometry.TriangleMesh()
-    mesh.vertex.positions = o3d.core.Tensor(np.asarray(vertices, dtype=np.float32))
-    mesh.triangle.indices = o3d.core.Tensor(np.asarray(faces, dtype=np.int32))
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(mesh)
-    return scene.compute_distance(o3d.core.Tensor(np.asarray(points, np.float32))).numpy()
 
 
 @pytest.mark.parametrize("name", [n if n in FAST else pytest.param(n, marks=pytest.mark.slow)
@@ -55,19 +37,19 @@ def test_real_scan_against_truth(name, tmp_path):
     report = build_meshes(tmp_path / "scans", tmp_path / "meshes", MeshConfig(), workers=1)
     (result,) = report.scans
     assert result.status == "built", result.message
-    vertices, faces = _read_obj(result.output)
+    vertices, faces = read_obj(result.output)
     vertices *= 1000.0                                      # the OBJ is in metres
     truth = trimesh.load(reference, process=False)
     truth_v, truth_f = np.asarray(truth.vertices), np.asarray(truth.faces)
 
     samples = np.vstack([sample_surface(vertices, faces, 200_000, seed=1), vertices])
-    to_truth = _distance(samples, truth_v, truth_f)
+    to_truth = distance_to_surface(samples, truth_v, truth_f)
     assert np.median(to_truth) <= 0.5
     assert np.percentile(to_truth, 95) <= 2.0
 
     # "the data": the scan's points on the scanned surface (its outliers excluded)
     raw = np.vstack(list(open_point_file(scan).chunks(1_000_000)))
-    data = cKDTree(raw[_distance(raw, truth_v, truth_f) < 5.0])
+    data = cKDTree(raw[distance_to_surface(raw, truth_v, truth_f) < 5.0])
     assert data.query(samples)[0].max() <= 3.0
     assert result.metrics["surface_to_data_max_mm"] <= 3.0
     assert result.metrics["max_edge_mm"] <= 3.0
@@ -75,5 +57,5 @@ def test_real_scan_against_truth(name, tmp_path):
     # the mesh covers what the data covers (no passing by deleting surface)
     truth_samples = sample_surface(truth_v, truth_f, 50_000, seed=2)
     seen = data.query(truth_samples)[0] < 2.0
-    covered = _distance(truth_samples, vertices, faces) < 2.0
+    covered = distance_to_surface(truth_samples, vertices, faces) < 2.0
     assert covered.mean() >= seen.mean() - 0.05

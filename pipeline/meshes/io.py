@@ -390,6 +390,18 @@ def write_obj(path: Path, vertices_m: np.ndarray, faces: np.ndarray) -> None:
     os.replace(partial, path)
 
 
+def read_obj(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices [V, 3] and 0-based triangles [F, 3] of a plain ``v``/``f`` OBJ (as written above)."""
+    vertices, faces = [], []
+    for line in Path(path).read_text().splitlines():
+        kind, *values = line.split() or [""]
+        if kind == "v":
+            vertices.append(values[:3])
+        elif kind == "f":
+            faces.append([v.split("/")[0] for v in values[:3]])
+    return np.array(vertices, dtype=float), np.array(faces, dtype=int) - 1
+
+
 def write_ply_points(path: Path, points: np.ndarray, *, units: str | None = None,
                      dtype: str = "<f4") -> None:
     """Binary little-endian PLY of points (used by the example-scan generator and tests)."""

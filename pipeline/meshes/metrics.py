@@ -59,6 +59,18 @@ def mesh_metrics(vertices_mm: np.ndarray, faces: np.ndarray, tree, samples: int,
     }
 
 
+def distance_to_surface(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unsigned distance of each point to the triangle surface (vertices, faces); same unit."""
+    import open3d as o3d
+
+    surface = o3d.t.geometry.TriangleMesh()
+    surface.vertex.positions = o3d.core.Tensor(np.asarray(vertices, dtype=np.float32))
+    surface.triangle.indices = o3d.core.Tensor(np.asarray(faces, dtype=np.int32))
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(surface)
+    return scene.compute_distance(o3d.core.Tensor(np.asarray(points, dtype=np.float32))).numpy()
+
+
 def distance_to_reference(vertices: np.ndarray, faces: np.ndarray, ref_vertices: np.ndarray,
                           ref_faces: np.ndarray, samples: int = 200_000,
                           seed: int = 0) -> np.ndarray:
@@ -66,13 +78,6 @@ def distance_to_reference(vertices: np.ndarray, faces: np.ndarray, ref_vertices:
 
     Same length unit as the inputs. Used to validate against reference (truth) meshes.
     """
-    import open3d as o3d
-
-    reference = o3d.t.geometry.TriangleMesh()
-    reference.vertex.positions = o3d.core.Tensor(np.asarray(ref_vertices, dtype=np.float32))
-    reference.triangle.indices = o3d.core.Tensor(np.asarray(ref_faces, dtype=np.int32))
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(reference)
     points = sample_surface(np.asarray(vertices, dtype=np.float64), np.asarray(faces), samples,
                             seed)
-    return scene.compute_distance(o3d.core.Tensor(points.astype(np.float32))).numpy()
+    return distance_to_surface(points, ref_vertices, ref_faces)
