@@ -115,7 +115,7 @@ def resonance(
     zeta: Optional[float] = typer.Option(None, "--zeta", help="Damping ratio ζ of eq. 3."),
     links: Optional[int] = typer.Option(None, "--links", help="Links N."),
     follicle: Optional[str] = typer.Option(None, "--follicle", help="'rigid' or 'K,C'."),
-    engine: Optional[str] = typer.Option(None, "--engine", help="Physics engine (bullet)."),
+    engine: Optional[str] = typer.Option(None, "--engine", help="Physics engine (bullet or mujoco)."),
     dt_s: Optional[float] = typer.Option(None, "--dt-s", help="Integration step, s."),
     config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML."),
     json_output: bool = typer.Option(False, "--json", help="Print JSON."),
@@ -144,7 +144,7 @@ def trial(
     duration_s: float = typer.Option(0.25, "--duration-s", help="Duration, s."),
     pose: Optional[str] = typer.Option(None, "--pose", help="x,y,z (mm),yaw,pitch,roll (deg)."),
     out: Optional[Path] = typer.Option(None, "--out", help="Write the trial as a one-trial dataset (HDF5)."),
-    engine: Optional[str] = typer.Option(None, "--engine", help="Physics engine (bullet)."),
+    engine: Optional[str] = typer.Option(None, "--engine", help="Physics engine (bullet or mujoco)."),
     config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML."),
     json_output: bool = typer.Option(False, "--json", help="Print a JSON summary."),
 ) -> None:
@@ -232,6 +232,8 @@ def simulate(
                                                         "version (same config)."),
     shard: Optional[str] = typer.Option(None, "--shard", help="Run block i of N (i/N, 1-based) without a "
                                                               "scheduler; join with `pipeline datasets join`."),
+    engine: Optional[str] = typer.Option(None, "--engine", help="Physics engine (bullet or mujoco; config: "
+                                                                "model.engine.name)."),
     json_output: bool = typer.Option(False, "--json", help="Print the summary as JSON (no progress bar)."),
 ) -> None:
     """Simulate N trials (scenes × head poses × whisks) on dask into a new versioned HDF5 dataset."""
@@ -241,7 +243,7 @@ def simulate(
     if workers is not None and scheduler is not None:
         raise UserError("give --workers or --scheduler, not both")
     settings = load_simulate_config(config, {
-        "trials": n, "scenes": {"folder": scenes}, "dataset": {"name": name},
+        "trials": n, "scenes": {"folder": scenes}, "dataset": {"name": name}, "model": {"engine": {"name": engine}},
         "cluster": {"workers": workers, "scheduler": scheduler, "record_every": record_every}})
     _print_summary(run_simulation(settings, resume=resume, shard=shard, progress=not json_output), json_output)
 
@@ -293,6 +295,117 @@ def datasets_join(name: str = typer.Argument(..., help="Dataset name whose shard
 
     typer.echo(join_shards(root, name, run))
 # --- end simulate and datasets ---
+
+# --- reports: `pipeline stats`, `pipeline validate` (issue 7) ---
+@app.command()
+def stats(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a version folder or a data file."),
+          out: Optional[Path] = typer.Option(None, "--out", help="Report folder (default "
+                                                                 "reports/stats/<name>_v<k>/)."),
+          root: Path = typer.Option(Path("outputs/datasets"), "--root", help="Datasets folder."),
+          json_output: bool = typer.Option(False, "--json", help="Print the summary as JSON.")) -> None:
+    """Natural tactile statistics of a dataset's ok trials (read one at a time): report.md, PNGs, stats.json."""
+    from pipeline.reports.stats import stats_report
+
+    summary = stats_report(target, root, out)
+    if json_output:
+        _print_json(summary)
+    else:
+        typer.echo(f"{summary['dataset']}: {summary['trials_used']} trials in {summary['seconds']:.1f} s → "
+                   f"{summary['report']}")
+
+
+@app.command()
+def validate(
+    engine: Optional[str] = typer.Option(None, "--engine", help="Physics engine (bullet or mujoco)."),
+    out: Path = typer.Option(Path("reports/validation"), "--out", help="Report folder."),
+    quick: bool = typer.Option(False, "--quick", help="Fewer whiskers and speeds (under a minute)."),
+    refit: bool = typer.Option(False, "--refit", help="Refit E and ζ on Table 1 first (~100 s more)."),
+    follicle: Optional[str] = typer.Option(None, "--follicle", help="The model's follicle, 'rigid' or 'K,C' "
+                                                                    "(N·m/rad, N·m·s/rad); Fig. 4 compares rigid "
+                                                                    "with K,C (default constants if rigid)."),
+    mesh: Optional[Path] = typer.Option(None, "--mesh", help="Natural scene of Fig. 5 (mesh in metres; default "
+                                                             "outputs/meshes/drainpipe.obj)."),
+    config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML."),
+    json_output: bool = typer.Option(False, "--json", help="Print the checks as JSON (no progress)."),
+) -> None:
+    """Reproduce the paper's validation (Table 1, figures 2–5): report.md, PNGs, validation.json."""
+    from pipeline.reports.document import number
+    from pipeline.reports.validation import validate as run_validation
+
+    model = _model_config(config, {"material": {"follicle": _follicle_override(follicle)},
+                                   "engine": {"name": engine}})
+    progress = (lambda _: None) if json_output else (lambda text: typer.echo(text, err=True))
+    result = run_validation(model, out, quick=quick, refit=refit, mesh=mesh, progress=progress)
+    if json_output:
+        _print_json(result)
+        return
+    for check in result["checks"]:
+        verdict = {True: "agrees", False: "DIFFERS", None: ""}[check["agrees"]]
+        typer.echo(f"{check['name']:>45}: published {number(check['published'])}, "
+                   f"ours {number(check['simulated'])}  {verdict}")
+    typer.echo(f"{result['agree']} of {result['judged']} checks agree; {result['seconds']:.0f} s → "
+               f"{result['report']}")
+# --- end reports ---
+
+# --- measured data: `pipeline calibrate`, `diagnose`, `synth` (issue 8) ---
+@app.command()
+def calibrate(
+    file: Path = typer.Argument(..., help="Measurement: time series (.h5) or resonance table (.csv)."),
+    params: str = typer.Option("E,zeta", "--params", help="Parameters to fit, e.g. E,zeta,follicle.k_f."),
+    method: str = typer.Option("optimizer", "--method", help="optimizer (least squares) or grid (paper)."),
+    objective: str = typer.Option("msa", "--objective", help="msa (paper eq. 4a/4b) or trajectory."),
+    grid_points: Optional[int] = typer.Option(None, "--grid-points", help="Grid values per parameter."),
+    bootstrap: int = typer.Option(0, "--bootstrap", help="Bootstrap refits over trials for the sd."),
+    engine: Optional[str] = typer.Option(None, "--engine", help="Check and refine the fit on an engine (bullet or mujoco)."),
+    config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML (material, links, damping)."),
+    json_output: bool = typer.Option(False, "--json", help="Print JSON."),
+) -> None:
+    """Fit model parameters to measured data (median symmetric accuracy), with uncertainties."""
+    from pipeline.diagnosis.commands import run_calibrate
+
+    material = _model_config(config, {}).material
+    data, lines = run_calibrate(file, params, method, objective, material, engine, bootstrap, grid_points)
+    if json_output:
+        _print_json(data)
+    else:
+        typer.echo("\n".join(lines))
+
+
+@app.command()
+def diagnose(
+    file: Path = typer.Argument(..., help="Measurement: time series (.h5) or resonance table (.csv)."),
+    report: Optional[Path] = typer.Option(None, "--report", help="Write report.md and PNG figures here."),
+    engine: Optional[str] = typer.Option(None, "--engine", help="Check and refine the result on an engine (bullet or mujoco)."),
+    candidates: Optional[str] = typer.Option(None, "--candidates", help="Only these extensions (comma-separated)."),
+    config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML (material, links, damping)."),
+    json_output: bool = typer.Option(False, "--json", help="Print JSON."),
+) -> None:
+    """What the model gets wrong on measured data, and which model extension explains it."""
+    from pipeline.diagnosis.commands import run_diagnose
+
+    data, lines = run_diagnose(file, _model_config(config, {}).material, report, engine, candidates)
+    if json_output:
+        _print_json(data)
+    else:
+        typer.echo("\n".join(lines))
+
+
+@app.command()
+def synth(
+    config: Path = typer.Option(..., "--config", help="Synth config YAML (docs/measurements.md)."),
+    out: Path = typer.Option(..., "--out", help="Measurement file to write (.h5)."),
+    seed: Optional[int] = typer.Option(None, "--seed", help="Override the config's seed."),
+    json_output: bool = typer.Option(False, "--json", help="Print JSON."),
+) -> None:
+    """Write a synthetic measurement from the model with chosen extensions, noise and drives."""
+    from pipeline.diagnosis.commands import run_synth
+
+    data, lines = run_synth(config, out, seed)
+    if json_output:
+        _print_json(data)
+    else:
+        typer.echo("\n".join(lines))
+# --- end measured data ---
 
 
 def main() -> None:

@@ -1,0 +1,74 @@
+"""The candidate causes diagnose tries: one model extension each, its fitted parameters and
+where to start them (scaled to the whisker at hand).
+
+Scales: k_w = E·I_base/S, the rotational stiffness of the whole whisker about its base, and
+J_w = Σ m·|c|², its moment of inertia about the base. A follicle with k_f ≈ k_w is as
+compliant as the whisker itself; ζ_f = c_f/(2√(k_f·J_w)) is the follicle's damping ratio.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from pipeline.model.extensions import WhiskerPhysics
+
+
+@dataclass(frozen=True)
+class WhiskerScales:
+    stiffness_nm_per_rad: float     # k_w
+    inertia_kg_m2: float            # J_w
+
+    @classmethod
+    def of(cls, physics: WhiskerPhysics) -> "WhiskerScales":
+        chain = physics.chain
+        ei = chain.stiffness_nm_per_rad[0] * chain.link_length_m
+        a = chain.link_angles_rad
+        com = chain.nodes_m[:-1] + np.stack([np.cos(a), np.sin(a), 0 * a], 1) * chain.link_com_m[:, None]
+        return cls(ei / chain.geometry.arc_length_m, float(np.sum(chain.link_mass_kg * np.sum(com ** 2, 1))))
+
+    def follicle(self, stiffness_ratio: float, damping_ratio: float) -> dict[str, float]:
+        """follicle parameters for k_f = ratio·k_w and a follicle damping ratio ζ_f."""
+        k = stiffness_ratio * self.stiffness_nm_per_rad
+        return {"follicle.k_f": k, "follicle.c_f": 2 * damping_ratio * np.sqrt(k * self.inertia_kg_m2)}
+
+
+@dataclass(frozen=True)
+class Candidate:
+    name: str
+    params: tuple[str, ...]
+    starts: Callable[[WhiskerScales], list[dict[str, float]]]
+
+
+def _values(param: str, values) -> Callable[[WhiskerScales], list[dict[str, float]]]:
+    return lambda scales: [{param: v} for v in values]
+
+
+CANDIDATES: tuple[Candidate, ...] = (
+    Candidate("follicle", ("follicle.k_f", "follicle.c_f"),
+              lambda s: [s.follicle(r, 0.2) for r in (1.0, 5.0, 25.0)]),
+    Candidate("stiffness_gradient", ("stiffness_gradient.gamma",),
+              _values("stiffness_gradient.gamma", (-1.5, 0.0, 1.5))),
+    Candidate("damping_gradient", ("damping_gradient.gamma",), _values("damping_gradient.gamma", (-2.0, 0.0, 2.0))),
+    Candidate("density", ("density.gradient",), _values("density.gradient", (-1.5, 0.0, 1.5))),
+    Candidate("length", ("length.scale",), _values("length.scale", (0.8, 0.95, 1.1))),
+    Candidate("drag", ("drag.linear",), _values("drag.linear", (3e-5, 3e-4))),
+    Candidate("gravity", ("gravity.g",), _values("gravity.g", (5.0, 15.0))),
+    Candidate("twist", ("twist.g_over_e",), _values("twist.g_over_e", (0.05, 0.3, 1.0))),
+)
+CANDIDATE_NAMES = tuple(c.name for c in CANDIDATES)
+
+
+def starts_for(names, scales: WhiskerScales) -> list[dict[str, float]]:
+    """Starting values for the extension parameters among ``names``: every combination of the
+    starts of their candidates (restricted to the requested parameters)."""
+    import itertools
+
+    per_extension = []
+    for cand in CANDIDATES:
+        wanted = [n for n in cand.params if n in names]
+        if wanted:
+            per_extension.append([{k: v for k, v in s.items() if k in wanted} for s in cand.starts(scales)])
+    return [{k: v for part in combo for k, v in part.items()} for combo in itertools.product(*per_extension)]

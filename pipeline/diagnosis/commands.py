@@ -1,0 +1,119 @@
+"""One library function per command (``pipeline calibrate``, ``diagnose``, ``synth``): load the
+inputs, run, and return (JSON-ready result, human-readable lines). Non-finite numbers become
+``null`` in the JSON-ready result."""
+
+from __future__ import annotations
+
+import math
+from functools import partial
+from pathlib import Path
+
+from pipeline.diagnosis.fitting import engine_check
+
+
+def _jsonable(value):
+    """``value`` with numpy scalars as Python numbers and NaN/inf as None, recursively."""
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if hasattr(value, "item"):
+        value = value.item()
+    return None if isinstance(value, float) and not math.isfinite(value) else value
+
+
+def _format_params(params: dict) -> list[str]:
+    return [f"  {name:>26} = {p['value']:.5g} ± {p['sd']:.2g} {p['unit']}" for name, p in params.items()]
+
+
+def run_calibrate(path: Path, names: str, method: str, objective: str, material, engine, bootstrap: int,
+                  grid_points) -> tuple[dict, list[str]]:
+    from pipeline.diagnosis.calibrate import calibrate
+    from pipeline.diagnosis.parameters import parse_names
+    from pipeline.measurements import load_measurement
+
+    result = calibrate(load_measurement(path), parse_names(names), method, objective, material, engine,
+                       bootstrap, grid_points)
+    lines = [f"{path}: {result['metric']} = {result['error']:.4g} ({method}, {result['evaluations']} simulations)"]
+    lines += _format_params(result["params"])
+    lines += [f"  mode 1 of {w}: {m['f1_hz']:.2f} Hz, ζ1 = {m['zeta1']:.4f}" for w, m in result["modes"].items()]
+    if "engine" in result:
+        e = result["engine"]
+        lines.append(f"  {e['name']}: " + (e["error"] if "error" in e else
+                                           f"{result['metric']} {e['error_before']:.4g} → {e['error_after']:.4g}"))
+    lines += [f"  note: {n}" for n in result["notes"]]
+    return _jsonable(result), lines
+
+
+def run_diagnose(path: Path, material, report: Path | None, engine: str | None,
+                 candidates: str | None = None) -> tuple[dict, list[str]]:
+    from pipeline.diagnosis.threads import single_threaded_blas
+    from pipeline.measurements import ResonanceTable, load_measurement
+
+    measurement = load_measurement(path)
+    with single_threaded_blas():
+        if isinstance(measurement, ResonanceTable):
+            return _diagnose_table(measurement, material, report, engine)
+        chosen = [c.strip() for c in candidates.split(",") if c.strip()] if candidates else None
+        return _diagnose_series(measurement, material, report, engine, chosen)
+
+
+def _diagnose_series(measurement, material, report, engine, candidates) -> tuple[dict, list[str]]:
+    from pipeline.diagnosis.diagnose import diagnose
+    from pipeline.diagnosis.objective import TrajectoryObjective
+
+    result = diagnose(measurement, material, candidates)
+    data = result.as_dict()
+    lines = [f"{measurement.path}: cause = {result.cause}",
+             f"  held-out RMS {result.baseline_heldout * 1e3:.4f} mm (baseline) → {result.gain_after * 1e3:.4f} mm; "
+             f"noise {result.noise_m * 1e3:.4f} mm"]
+    lines += _format_params(result.final.params())
+    lines.append("  candidate             held-out (mm)  explained  ΔBIC      z")
+    lines += [f"  {c.name:<20} {c.heldout_error * 1e3:>12.4f} {c.score:>10.2f} {c.bic_delta:>7.0f} {c.z:>6.1f}"
+              for c in result.candidates]
+    lines += [f"  note: {n}" for n in result.notes]
+    if engine:
+        _check_on_engine(data, lines, result.final, partial(TrajectoryObjective, measurement), engine)
+    if report is not None:
+        from pipeline.diagnosis.report import write_report
+
+        lines.append(f"  report: {write_report(report, measurement, result)}")
+    return _jsonable(data), lines
+
+
+def _diagnose_table(table, material, report, engine) -> tuple[dict, list[str]]:
+    from pipeline.diagnosis.objective import TableObjective
+    from pipeline.diagnosis.table_diagnosis import diagnose_table
+
+    result = diagnose_table(table, material)
+    data = result.as_dict()
+    lines = [f"{table.path}: cause = {result.cause}", f"  {result.summary}"]
+    lines += _format_params(result.baseline.params())
+    lines += [f"  {i['name']}.{i['param'].split('.')[-1]}: {i['verdict']}" for i in result.identifiability]
+    lines += [f"  note: {n}" for n in result.notes]
+    if engine:
+        _check_on_engine(data, lines, result.final, partial(TableObjective, table), engine)
+    if report is not None:
+        from pipeline.diagnosis.report import write_table_report
+
+        lines.append(f"  report: {write_table_report(report, table, result)}")
+    return _jsonable(data), lines
+
+
+def _check_on_engine(data: dict, lines: list[str], model, objective, engine: str) -> None:
+    """Score the final model with the fast simulator and with `engine`; `objective(simulator=None)`."""
+    from pipeline.diagnosis.engine import EngineSimulator
+
+    data["engine"] = engine_check(model, objective(), objective(EngineSimulator(engine)), engine)
+    lines.append(f"  engine check: {data['engine']}")
+
+
+def run_synth(config: Path, out: Path, seed: int | None) -> tuple[dict, list[str]]:
+    from pipeline.diagnosis.synth import load_synth_config, synth
+    from pipeline.diagnosis.threads import single_threaded_blas
+
+    settings = load_synth_config(config, {"seed": seed})
+    with single_threaded_blas():
+        summary = synth(settings, out)
+    return summary, [f"{summary['file']}: {summary['trials']} trials, {summary['samples']} samples "
+                     f"({summary['engine']} engine)"]

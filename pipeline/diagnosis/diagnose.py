@@ -1,0 +1,224 @@
+"""What does the model get wrong on a measurement, and which extension explains it?
+
+Time series (positions of tracked points):
+
+1. Split the trials in two, stratified by drive (kind and main axis): a training half and a
+   held-out half (a drive type met only once goes to training).
+2. Baseline: fit E and ζ on the training trials (trajectory least squares from a start whose
+   FRF and δ match the data); its error on the held-out trials is e₀.
+3. Each candidate extension (:mod:`.candidates`): fit E, ζ and its parameters on the training
+   trials (best of a few starts), held-out error e_c, and BIC = n·ln(RSS/n) + p·ln(n) on the
+   training residuals. The ``LEADERS`` best candidates with ΔBIC < −``BIC_MIN`` continue
+   their fits (a short fit can stop short of a strong effect, letting a surrogate win).
+4. Tracking noise σ̂ on the held-out trials, from the second differences of the best model's
+   residuals (:mod:`.residuals`). The excess e₀² − σ̂² is the misfit to explain; a
+   candidate's score is the share it explains, φ = (e₀² − e_c²)/(e₀² − σ̂²). The excess is
+   significant when it exceeds ``SIGNIFICANT`` times its standard error ≈ 1.5·σ̂²/√n (n
+   held-out values, white noise).
+5. A candidate is supported when ΔBIC < −``BIC_MIN`` and the paired held-out test
+   z = (Σr₀² − Σr_c²)/(2σ̂·|p₀ − p_c|) > ``Z_MIN`` (r residuals, p predictions: the shared
+   noise cancels, so z measures the improvement against what noise alone could produce).
+   Cause: the supported candidate with the lowest held-out error, unless it leaves a
+   significant excess and explains less than ``EXPLAINED_MIN`` of it ("unexplained"); with
+   no supported candidate, "unexplained" if the baseline's excess is significant, else "none".
+6. The named model (or the baseline) is refitted on all trials for its parameters.
+
+Resonance tables (f1, δ per whisker): see :func:`diagnose_table`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pipeline.config.physics import MaterialConfig
+from pipeline.diagnosis.candidates import CANDIDATES, Candidate, WhiskerScales
+from pipeline.diagnosis.fitting import Fit, best_start, fit, matched_start
+from pipeline.diagnosis.objective import RESIDUAL_UNIT_M, FeatureObjective, TrajectoryObjective
+from pipeline.diagnosis.parameters import BASELINE_NAMES, ModelSpec
+from pipeline.diagnosis.residuals import analyse, noise_estimate
+from pipeline.measurements.timeseries import ReleaseDrive, TimeSeriesMeasurement
+
+BIC_MIN = 10.0             # "very strong" evidence on the Kass–Raftery scale
+Z_MIN = 3.0
+SIGNIFICANT = 3.0
+EXPLAINED_MIN = 0.5
+METRIC = "heldout_rms_m"
+CANDIDATE_ITERATIONS = 10   # first fits on the training half: enough to rank candidates
+LEADERS = 3                 # candidates whose fits then continue
+FINAL_ITERATIONS = 40       # continued fits, and the refit of the named model on all trials
+
+
+@dataclass
+class CandidateScore:
+    name: str
+    fit: Fit
+    heldout_error: float
+    bic_delta: float
+    heldout_residuals: np.ndarray
+    score: float = float("nan")
+    z: float = float("nan")
+
+    def as_dict(self) -> dict:
+        return {"name": self.name, "params": self.fit.params(), "heldout_error": self.heldout_error,
+                "score": self.score}
+
+
+@dataclass
+class Diagnosis:
+    baseline: Fit
+    baseline_heldout: float
+    candidates: list[CandidateScore]
+    cause: str
+    final: Fit
+    gain_after: float
+    noise_m: float
+    metric: str = METRIC
+    analysis: dict = field(default_factory=dict)       # residuals of the baseline (all trials)
+    cause_analysis: dict = field(default_factory=dict)
+    split: dict = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    simulated: dict = field(default_factory=dict)     # "baseline"/"cause" → positions per trial
+
+    def as_dict(self) -> dict:
+        """The JSON of ``pipeline diagnose --json`` (docs/measurements.md)."""
+        return {"baseline": {"params": self.baseline.params(), "error": self.baseline_heldout},
+                "candidates": [c.as_dict() for c in self.candidates],
+                "cause": self.cause, "params": self.final.params(),
+                "gain": {"metric": self.metric, "before": self.baseline_heldout, "after": self.gain_after}}
+
+
+def _signature(trial) -> tuple[str, int]:
+    """Drive kind and main axis (rotation: largest angle column; release: the larger of the
+    tip's y and z travel from the first frame to its final rest)."""
+    if isinstance(trial.drive, ReleaseDrive):
+        tip = trial.positions_m[:, int(np.argmax(trial.arc_fraction))]
+        travel = np.nanmean(tip[:5], axis=0) - np.nanmean(tip[-max(5, len(tip) // 10):], axis=0)
+        return "release", int(np.argmax(np.abs(travel[1:])))
+    return "rotation", int(np.argmax(np.abs(trial.drive.angles_rad).max(axis=0)))
+
+
+def split_trials(measurement: TimeSeriesMeasurement) -> tuple[list[str], list[str]]:
+    """(training, held-out) trial names: alternate within each drive signature."""
+    groups: dict[tuple, list[str]] = {}
+    for trial in measurement.trials:
+        groups.setdefault(_signature(trial), []).append(trial.name)
+    train, test = [], []
+    for names in groups.values():
+        for i, name in enumerate(names):
+            (train if i % 2 == 0 else test).append(name)
+    return train, test
+
+
+def _bic(residuals: np.ndarray, params: int) -> float:
+    n = residuals.size
+    return float(n * np.log(residuals @ residuals / n) + params * np.log(n))
+
+
+class _Session:
+    """Objectives on the training, held-out and all trials of one measurement."""
+
+    def __init__(self, measurement: TimeSeriesMeasurement, train: list[str], test: list[str]):
+        self.measurement = measurement
+        self.train = TrajectoryObjective(measurement.subset(train))
+        self.test = TrajectoryObjective(measurement.subset(test))
+        self.train_features = FeatureObjective(measurement.subset(train))
+
+    def heldout(self, spec: ModelSpec) -> np.ndarray:
+        return self.test.residuals(spec)
+
+
+def _fit_candidate(session: _Session, baseline: Fit, name: str, start: ModelSpec, names,
+                   iterations: int) -> CandidateScore:
+    result = fit(session.train, start, names, max_iterations=iterations)
+    heldout = session.heldout(result.spec)
+    return CandidateScore(name, result, session.test.error(heldout),
+                          _bic(result.residuals, len(result.names)) - _bic(baseline.residuals, 2), heldout)
+
+
+def _candidates(session: _Session, baseline: Fit, chosen: list[Candidate]) -> list[CandidateScore]:
+    scales = WhiskerScales.of(baseline.spec.physics(session.measurement.geometry))
+    scores = []
+    for c in chosen:
+        start = best_start(session.train, session.train_features, baseline.spec, c.starts(scales))
+        scores.append(_fit_candidate(session, baseline, c.name, start, BASELINE_NAMES + c.params,
+                                     CANDIDATE_ITERATIONS))
+    leaders = sorted((s for s in scores if s.bic_delta < -BIC_MIN), key=lambda s: s.heldout_error)[:LEADERS]
+    for lead in leaders:
+        scores[scores.index(lead)] = _fit_candidate(session, baseline, lead.name, lead.fit.spec, lead.fit.names,
+                                                    FINAL_ITERATIONS)
+    return scores
+
+
+def _significance(error: float, noise: float, n: int) -> float:
+    """Excess e² − σ̂² in units of its standard error for white noise, 1.5·σ̂²/√n."""
+    return float((error ** 2 - noise ** 2) / (1.5 * noise ** 2 / np.sqrt(n)))
+
+
+def _decide(r0: np.ndarray, noise: float, scores: list[CandidateScore], notes: list[str]) -> str:
+    """Name the cause from held-out residuals r0 (baseline) and the candidates' (0.1 mm units)."""
+    n, sigma = r0.size, noise / RESIDUAL_UNIT_M
+    e0 = float(np.sqrt(np.mean(r0 ** 2))) * RESIDUAL_UNIT_M
+    excess = e0 ** 2 - noise ** 2
+    for s in scores:
+        s.score = float((e0 ** 2 - s.heldout_error ** 2) / excess) if excess > 0 else 0.0
+        change = np.linalg.norm(r0 - s.heldout_residuals)
+        s.z = float((r0 @ r0 - s.heldout_residuals @ s.heldout_residuals) / (2 * sigma * change)) \
+            if change > 0 else 0.0
+    supported = [s for s in scores if s.bic_delta < -BIC_MIN and s.z > Z_MIN]
+    if not supported:
+        return "unexplained" if _significance(e0, noise, n) > SIGNIFICANT else "none"
+    best = min(supported, key=lambda s: s.heldout_error)
+    if _significance(best.heldout_error, noise, n) > SIGNIFICANT:
+        if best.score < EXPLAINED_MIN:
+            return "unexplained"
+        notes.append(f"{best.name} leaves a significant misfit ({best.heldout_error * 1e3:.4f} mm held out vs "
+                     f"noise {noise * 1e3:.4f} mm): a second effect may be present")
+    return best.name
+
+
+def diagnose(measurement: TimeSeriesMeasurement, material: MaterialConfig | None = None,
+             candidates=None) -> Diagnosis:
+    """Fit the baseline and every candidate (or those named in ``candidates``), name the cause
+    (see the module docstring)."""
+    from pipeline.diagnosis.threads import single_threaded_blas
+
+    with single_threaded_blas():
+        return _diagnose(measurement, material or MaterialConfig(), candidates)
+
+
+def _diagnose(measurement, material, candidates) -> Diagnosis:
+    unknown = set(candidates or ()) - {c.name for c in CANDIDATES}
+    if unknown:
+        from pipeline.errors import UserError
+
+        raise UserError(f"unknown candidate(s) {', '.join(sorted(unknown))} "
+                        f"(known: {', '.join(c.name for c in CANDIDATES)})")
+    chosen = [c for c in CANDIDATES if candidates is None or c.name in candidates]
+    train, test = split_trials(measurement)
+    notes = []
+    if not test:
+        notes.append("a single trial per drive type: held-out error = training error")
+        test = train
+    session = _Session(measurement, train, test)
+    start = matched_start(session.train_features, ModelSpec(material))
+    baseline = fit(session.train, start, BASELINE_NAMES)
+    r0 = session.heldout(baseline.spec)
+    e0 = session.test.error(r0)
+    scores = _candidates(session, baseline, chosen)
+    best = min([(e0, baseline.spec)] + [(s.heldout_error, s.fit.spec) for s in scores], key=lambda p: p[0])[1]
+    noise = noise_estimate(session.test.measurement, session.test.simulate(best))
+    cause = _decide(r0, noise, scores, notes)
+    whole = TrajectoryObjective(measurement)
+    named = next((s for s in scores if s.name == cause), None)
+    final_names = BASELINE_NAMES + (named.fit.names[2:] if named else ())
+    final = fit(whole, (named.fit if named else baseline).spec, final_names, max_iterations=FINAL_ITERATIONS)
+    baseline_all = fit(whole, baseline.spec, BASELINE_NAMES, max_iterations=FINAL_ITERATIONS)
+    simulated = {"baseline": whole.simulate(baseline_all.spec), "cause": whole.simulate(final.spec)}
+    return Diagnosis(
+        baseline=baseline_all, baseline_heldout=e0, candidates=scores, cause=cause, final=final,
+        gain_after=named.heldout_error if named else e0, noise_m=noise,
+        analysis=analyse(measurement, simulated["baseline"]),
+        cause_analysis=analyse(measurement, simulated["cause"]),
+        split={"train": train, "heldout": test}, notes=notes + final.notes, simulated=simulated)

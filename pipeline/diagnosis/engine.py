@@ -1,0 +1,144 @@
+"""Simulate measurement trials on a physics engine, for checking and refining fits.
+
+Same interface as :class:`~pipeline.diagnosis.fastsim.FastSimulator`: positions of the
+tracked points for a :class:`~pipeline.model.extensions.WhiskerPhysics`. The whisker is the
+bench whisker of :func:`pipeline.model.array.single_whisker` (whisker frame = head frame)
+with the extended chain and follicle, built by :func:`pipeline.engines.create_engine`.
+Limits of the present engine interface:
+
+- the base is driven by one signal θ(t) with fixed joint rates, so a rotation drive must be
+  rank one (angles(t) = r·θ(t)); independent yaw/pitch/roll are refused;
+- ``Engine.run`` starts from the rest shape. A release (or a start sagged under gravity)
+  needs the joints set at t = 0: :func:`_start_from` does that for Bullet by wrapping its
+  whiskers' ``reset``, a stop-gap until ``Engine.run`` takes initial joint angles;
+- no twist degree of freedom, no air drag, gravity only at 9.81 m/s² (:func:`check_supported`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.config.physics import EngineConfig, MaterialConfig, ModelConfig
+from pipeline.diagnosis.fastsim import PreparedTrial, release_state
+from pipeline.diagnosis.linear import linearise
+from pipeline.errors import UserError
+from pipeline.measurements.timeseries import ReleaseDrive
+from pipeline.model.extensions import GRAVITY_M_S2, WhiskerPhysics
+
+DRIVE_RESAMPLE_S = 1e-5
+ENGINE_DT_S = 1e-4
+
+
+def check_supported(physics: WhiskerPhysics, engine: str = "bullet") -> None:
+    """UserError naming every effect of ``physics`` the engine cannot simulate."""
+    missing = []
+    if physics.twist_stiffness_nm_per_rad is not None:
+        missing.append("twist (a third revolute joint per node)")
+    if physics.drag_linear_ns_per_m2 or physics.drag_coefficient:
+        missing.append("air drag (per-link external forces each step)")
+    if physics.gravity_m_s2 and abs(physics.gravity_m_s2 - GRAVITY_M_S2) > 0.01 * GRAVITY_M_S2:
+        missing.append(f"gravity of {physics.gravity_m_s2:.3g} m/s² (the engine has 9.81 or none)")
+    if missing:
+        raise UserError(f"the {engine} engine cannot simulate: {'; '.join(missing)}")
+
+
+def _rank_one(prepared: PreparedTrial):
+    """(joint rates r, θ samples on a fine grid) with angles = r·θ, or a UserError."""
+    from scipy.interpolate import PchipInterpolator
+
+    drive, t0 = prepared.trial.drive, prepared.trial.time_s[0]
+    _, sv, vt = np.linalg.svd(drive.angles_rad, full_matrices=False)
+    if sv[0] == 0 or sv[1] > 1e-6 * sv[0]:
+        raise UserError(f"trial '{prepared.trial.name}': the engine drives the base with one signal "
+                        "(angles proportional to one θ(t)); this drive has independent angles")
+    rates = vt[0] * np.sign(vt[0][np.argmax(np.abs(vt[0]))])
+    end = max(drive.time_s[-1], prepared.trial.time_s[-1]) - t0
+    times = np.arange(0.0, end + DRIVE_RESAMPLE_S, DRIVE_RESAMPLE_S)
+    clipped = np.clip(times + t0, drive.time_s[0], drive.time_s[-1])
+    theta = PchipInterpolator(drive.time_s, drive.angles_rad @ rates)(clipped)
+    return rates, times, theta
+
+
+def _pose_for(direction: np.ndarray):
+    """Head pose whose rotation takes the measurement's gravity direction to world −z."""
+    from scipy.spatial.transform import Rotation
+
+    from pipeline.model.kinematics import Pose
+
+    rot, _ = Rotation.align_vectors([[0.0, 0.0, -1.0]], [direction])
+    yaw, pitch, roll = rot.as_euler("ZYX")
+    return Pose((0.0, 0.0, 0.0), (yaw, pitch, roll)), rot.as_matrix()
+
+
+def _start_from(engine, initial: np.ndarray) -> None:
+    """Make every trial of ``engine`` start with the whisker joints at ``initial`` (rad)."""
+    if getattr(engine, "name", "") != "bullet":
+        raise UserError(f"engine '{engine.name}' cannot start a whisker from a deflected state "
+                        "(release trials and gravity need it; only the bullet engine is adapted)")
+    import pybullet as p
+
+    for _, world in engine.worlds:
+        for whisker in world.whiskers:
+            def reset(base_mm, orientation, drive, w=whisker, rest=whisker.reset):
+                rest(base_mm, orientation, drive)
+                for joint, value in zip(w.dofs[3:], initial):
+                    p.resetJointState(w.body, joint, float(value), 0.0, physicsClientId=w.client)
+
+            whisker.reset = reset
+
+
+class EngineSimulator:
+    """Positions of tracked points simulated by a physics engine (only ``bullet`` so far)."""
+
+    def __init__(self, name: str = "bullet", dt_s: float = ENGINE_DT_S):
+        self.name, self.dt_s = name, dt_s
+
+    def simulate(self, physics: WhiskerPhysics, prepared: list[PreparedTrial]) -> list[np.ndarray]:
+        check_supported(physics, self.name)
+        lin = linearise(physics)
+        return [self._trial(physics, lin, p) for p in prepared]
+
+    def _trial(self, physics, lin, prepared: PreparedTrial) -> np.ndarray:
+        from pipeline.engines import create_engine
+        from pipeline.model import kinematics
+        from pipeline.model.array import ArrayModel, WhiskerModel
+        from pipeline.model.kinematics import ProtractionDrive, still
+        from pipeline.scenes import empty
+
+        trial = prepared.trial
+        rate = trial.sampling_rate_hz
+        duration = (trial.samples - 1) / rate
+        gravity_lab = physics.gravity_m_s2 * prepared.direction
+        if isinstance(trial.drive, ReleaseDrive):
+            rates, drive = np.array([1.0, 0.0, 0.0]), still(duration)
+            initial = release_state(lin, trial.drive, gravity_lab)
+        else:
+            rates, times, theta = _rank_one(prepared)
+            drive = ProtractionDrive(times, theta, interpolation="linear")
+            rotation0 = kinematics.rot_z(rates[0] * theta[0]) @ kinematics.rot_y(rates[1] * theta[0]) \
+                @ kinematics.rot_x(rates[2] * theta[0])
+            initial = (lin.gravity @ (rotation0.T @ gravity_lab)) / np.diag(lin.stiffness)
+        whisker = WhiskerModel(name="W", side=1, row=1, col=0, chain=physics.chain, base_point_m=np.zeros(3),
+                               rest_joint_angles=np.array([0.0, 0.0, np.pi / 2]), joint_rates=rates,
+                               frame_offset=kinematics.rot_x(-np.pi / 2), follicle=physics.follicle)
+        material = MaterialConfig(links=physics.chain.links, gravity=bool(physics.gravity_m_s2))
+        steps = int(np.ceil(1.0 / (rate * self.dt_s) - 1e-9))
+        config = ModelConfig(material=material, engine=EngineConfig(
+            name=self.name, dt_s=1.0 / (rate * steps), output_rate_hz=rate))
+        pose, world_from_rest = _pose_for(prepared.direction)
+        with create_engine(config, ArrayModel((whisker,), material)) as engine:
+            if np.any(initial):
+                _start_from(engine, initial)
+            output = engine.run(empty(), pose, drive, duration)
+        nodes = output.node_positions_m[:, 0].astype(float) @ world_from_rest     # → rest frame
+        first = lin.points(initial[None], trial.arc_fraction)
+        if not isinstance(trial.drive, ReleaseDrive):
+            first = np.einsum("ab,tkb->tka", rotation0, first)
+        return np.concatenate([first, _points_on_nodes(lin, nodes, trial.arc_fraction)])
+
+
+def _points_on_nodes(lin, nodes: np.ndarray, fractions: np.ndarray) -> np.ndarray:
+    """[T, K, 3] points at arc fractions on straight links between node positions [T, N+1, 3]."""
+    links, along = lin.locate(fractions)
+    weight = along / lin.physics.chain.link_lengths_m[links]
+    return nodes[:, links] + (nodes[:, links + 1] - nodes[:, links]) * weight[None, :, None]

@@ -1,0 +1,242 @@
+"""The whisker chain linearised about its rest shape, in 3D, in the frame of the driven base.
+
+Degrees of freedom (generalised coordinates q, rad), in this order:
+follicle z, follicle y (compliant follicle only; axes ẑ and ŷ of the whisker frame through
+the base point); then per bending joint j = 1..N−1 (node j): z (axis ẑ), y (the rest link's
+local y, (−sin α_j, cos α_j, 0)) and, with twist, x (the rest link's axis). A joint rotates
+every link distal to it. These are the joints of the Bullet engine, composed the same way
+(R_j = R_{j−1}·Rz(bend_j + q_z)·Ry(q_y)·Rx(q_x)), so positions agree to first order and the
+forward kinematics of :meth:`LinearWhisker.points` is exact for given q.
+
+Equations of motion in the base frame, which rotates with body angular velocity ω(t) and
+acceleration α = ω̇ about the pinned base point, linearised in q (not in the base motion):
+
+    M q̈ + (C_j + C_d) q̇ + K q = −M_qb·α − H_cf·p(ω) − D_d·ω + H_g·g_b(t) + Q_quad
+
+M, K, C_j: mass, joint stiffness and joint damping matrices at rest; M_qb: inertial coupling
+of the chain to a base rotation; H_cf·p(ω): centrifugal and gyroscopic loads of the rest
+shape (p the six products ω_a·ω_b); C_d, D_d: linear air drag on the normal velocity
+(J_v·q̇ + ω × x); H_g·g_b: gravity g_b = g·R(t)ᵀ·d in the base frame; Q_quad: quadratic drag.
+Dropped (second order in q·ω): Coriolis and centrifugal stiffness terms, e.g. ω²/ω₁² ≈ 0.4 %
+for the paper's resonance pulse on the α whisker.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pipeline.model.extensions import AIR_DENSITY_KG_M3, WhiskerPhysics
+
+_EX, _EY, _EZ = np.eye(3)
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(3)
+# the six products ω_a·ω_b (a ≤ b) that centrifugal and gyroscopic loads depend on
+PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """[..., 3, 3] matrix of v × (·)."""
+    v = np.asarray(v, float)
+    out = np.zeros(v.shape[:-1] + (3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
+    return out
+
+
+def rotation(axis: int, angle: np.ndarray) -> np.ndarray:
+    """[..., 3, 3] rotations by ``angle`` (rad) about coordinate axis 0, 1 or 2."""
+    angle = np.asarray(angle, float)
+    c, s = np.cos(angle), np.sin(angle)
+    out = np.zeros(angle.shape + (3, 3))
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    out[..., axis, axis] = 1.0
+    out[..., i, i], out[..., j, j] = c, c
+    out[..., i, j], out[..., j, i] = -s, s
+    return out
+
+
+def rotation_zyx(yaw: np.ndarray, pitch: np.ndarray, roll: np.ndarray) -> np.ndarray:
+    """[..., 3, 3] Rz(yaw)·Ry(pitch)·Rx(roll), built in one go."""
+    ca, sa = np.cos(yaw), np.sin(yaw)
+    cb, sb = np.cos(pitch), np.sin(pitch)
+    cc, sc = np.cos(roll), np.sin(roll)
+    out = np.empty(np.shape(yaw) + (3, 3))
+    out[..., 0, 0], out[..., 0, 1], out[..., 0, 2] = ca * cb, ca * sb * sc - sa * cc, ca * sb * cc + sa * sc
+    out[..., 1, 0], out[..., 1, 1], out[..., 1, 2] = sa * cb, sa * sb * sc + ca * cc, sa * sb * cc - ca * sc
+    out[..., 2, 0], out[..., 2, 1], out[..., 2, 2] = -sb, cb * sc, cb * cc
+    return out
+
+
+@dataclass(frozen=True)
+class Dofs:
+    """The generalised coordinates: axis and pivot at rest (whisker frame), first link moved."""
+
+    axes: np.ndarray          # [n, 3]
+    pivots: np.ndarray        # [n, 3]
+    first_link: np.ndarray    # [n] every link from this index on is moved
+    stiffness: np.ndarray     # [n] N·m/rad
+    damping: np.ndarray       # [n] N·m·s/rad
+    labels: tuple[str, ...]   # 'follicle_z', 'z3', 'y3', 'x3', ...
+
+    @property
+    def n(self) -> int:
+        return len(self.stiffness)
+
+
+def _dofs(physics: WhiskerPhysics) -> Dofs:
+    chain = physics.chain
+    axes, pivots, first, k, c, labels = [], [], [], [], [], []
+
+    def add(axis, pivot, link, stiffness, damping, label):
+        axes.append(axis), pivots.append(pivot), first.append(link)
+        k.append(stiffness), c.append(damping), labels.append(label)
+
+    if physics.follicle is not None:
+        f = physics.follicle
+        add(_EZ, chain.nodes_m[0], 0, f.stiffness_nm_per_rad, f.damping_nms_per_rad, "follicle_z")
+        add(_EY, chain.nodes_m[0], 0, f.stiffness_nm_per_rad, f.damping_nms_per_rad, "follicle_y")
+    for j in range(1, chain.links):
+        a = chain.link_angles_rad[j]
+        kj, cj = chain.stiffness_nm_per_rad[j - 1], chain.damping_nms_per_rad[j - 1]
+        add(_EZ, chain.nodes_m[j], j, kj, cj, f"z{j}")
+        add(np.array([-np.sin(a), np.cos(a), 0.0]), chain.nodes_m[j], j, kj, cj, f"y{j}")
+        if physics.twist_stiffness_nm_per_rad is not None:
+            add(np.array([np.cos(a), np.sin(a), 0.0]), chain.nodes_m[j], j,
+                physics.twist_stiffness_nm_per_rad[j - 1], physics.twist_damping_nms_per_rad[j - 1],
+                f"x{j}")
+    return Dofs(np.array(axes, float), np.array(pivots, float), np.array(first, int),
+                np.array(k, float), np.array(c, float), tuple(labels))
+
+
+@dataclass(frozen=True)
+class LinearWhisker:
+    """Matrices of the linearised chain (see the module docstring), SI units."""
+
+    physics: WhiskerPhysics
+    dofs: Dofs
+    mass: np.ndarray            # [n, n] M
+    stiffness: np.ndarray       # [n, n] K
+    damping: np.ndarray         # [n, n] C_j + C_d
+    base_coupling: np.ndarray   # [n, 3] M_qb
+    centrifugal: np.ndarray     # [n, 6] H_cf
+    gravity: np.ndarray         # [n, 3] H_g (per unit g_b)
+    drag_base: np.ndarray       # [n, 3] D_d
+    drag_points: dict           # quadrature of the links for quadratic drag
+    cache: dict = field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def n(self) -> int:
+        return self.dofs.n
+
+    # -- kinematics ------------------------------------------------------------------------
+    def jacobian(self, points: np.ndarray, links: np.ndarray) -> np.ndarray:
+        return _jacobian(self.dofs, points, links)
+
+    def locate(self, fractions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Link index and distance along its chord (m) of points at arc fractions in [0, 1]."""
+        chain = self.physics.chain
+        scaled = np.clip(np.asarray(fractions, float), 0.0, 1.0) * chain.links
+        links = np.minimum(np.floor(scaled).astype(int), chain.links - 1)
+        return links, (scaled - links) * chain.link_lengths_m[links]
+
+    def rest_points(self, fractions: np.ndarray) -> np.ndarray:
+        links, along = self.locate(fractions)
+        chain = self.physics.chain
+        a = chain.link_angles_rad[links]
+        return chain.nodes_m[links] + along[:, None] * np.stack([np.cos(a), np.sin(a), 0 * a], axis=1)
+
+    def points(self, q: np.ndarray, fractions: np.ndarray) -> np.ndarray:
+        """[T, K, 3] positions (m, base frame) of the points at ``fractions`` for joint angles
+        q [T, n]: the chain's exact forward kinematics."""
+        chain = self.physics.chain
+        q = np.atleast_2d(q)
+        t = q.shape[0]
+        links, along = self.locate(fractions)
+        column = {label: i for i, label in enumerate(self.dofs.labels)}
+        zero = np.zeros(t)
+
+        def angle(label):
+            return q[:, column[label]] if label in column else zero
+
+        frame = rotation_zyx(angle("follicle_z"), angle("follicle_y"), zero) \
+            @ rotation(2, chain.link_angles_rad[0])
+        node = np.zeros((t, 3))
+        result = np.zeros((t, len(links), 3))
+        bend = chain.rest_bend_rad
+        for link in range(links.max() + 1):
+            if link > 0:
+                frame = frame @ rotation_zyx(bend[link - 1] + angle(f"z{link}"), angle(f"y{link}"),
+                                             angle(f"x{link}"))
+            on = links == link
+            if on.any():
+                result[:, on] = node[:, None, :] + frame[:, None, :, 0] * along[on][None, :, None]
+            node = node + frame[:, :, 0] * chain.link_lengths_m[link]
+        return result
+
+
+def _jacobian(dofs: Dofs, points: np.ndarray, links: np.ndarray) -> np.ndarray:
+    """[P, 3, n] velocity Jacobian at rest of ``points`` (whisker frame) on ``links``."""
+    arms = points[:, None, :] - dofs.pivots[None, :, :]
+    jac = np.cross(dofs.axes[None, :, :], arms) * (dofs.first_link[None, :] <= links[:, None])[..., None]
+    return np.transpose(jac, (0, 2, 1))
+
+
+def _link_frames(physics: WhiskerPhysics):
+    chain = physics.chain
+    a = chain.link_angles_rad
+    tangent = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=1)
+    com = chain.nodes_m[:-1] + tangent * chain.link_com_m[:, None]
+    rot = rotation(2, a)
+    inertia = rot @ (chain.link_inertia_kg_m2[:, :, None] * np.eye(3)) @ np.transpose(rot, (0, 2, 1))
+    return tangent, com, inertia
+
+
+def _quadrature(physics: WhiskerPhysics, tangent: np.ndarray):
+    """Gauss points along every link chord: position, weight (m), diameter, link, tangent."""
+    chain = physics.chain
+    s = 0.5 * (_GL_X + 1)                                            # [3] in 0..1
+    links = np.repeat(np.arange(chain.links), len(s))
+    frac = np.tile(s, chain.links)
+    length = chain.link_lengths_m[links]
+    points = chain.nodes_m[links] + tangent[links] * (frac * length)[:, None]
+    weight = np.tile(0.5 * _GL_W, chain.links) * length
+    r0, r1 = chain.node_radii_m[links], chain.node_radii_m[links + 1]
+    return points, weight, 2 * (r0 + (r1 - r0) * frac), links, tangent[links]
+
+
+def linearise(physics: WhiskerPhysics) -> LinearWhisker:
+    """Assemble the matrices of the module docstring for ``physics`` at its rest shape."""
+    chain = physics.chain
+    dofs = _dofs(physics)
+    tangent, com, inertia = _link_frames(physics)
+    links = np.arange(chain.links)
+    jv = _jacobian(dofs, com, links)                                    # [N, 3, n]
+    jw = dofs.axes.T[None, :, :] * (dofs.first_link[None, :] <= links[:, None])[:, None, :]
+    m = chain.link_mass_kg
+    mass = np.einsum("l,lai,laj->ij", m, jv, jv) + np.einsum("lai,lab,lbj->ij", jw, inertia, jw)
+    base_v = -skew(com)                                                # ω × c = −[c]× ω
+    coupling = np.einsum("l,lai,lab->ib", m, jv, base_v) + np.einsum("lai,lab->ib", jw, inertia)
+    centrifugal = np.zeros((dofs.n, len(PAIRS)))
+    for k, (a, b) in enumerate(PAIRS):
+        e_a, e_b = np.eye(3)[a], np.eye(3)[b]
+        if a == b:   # ω_a² terms of ω×(ω×c) = (ωωᵀ − |ω|²)c and of ω × Iω
+            linear = e_a[None, :] * com[:, a:a + 1] - com
+            gyro = np.cross(e_a, inertia @ e_a)
+        else:
+            linear = e_a[None, :] * com[:, b:b + 1] + e_b[None, :] * com[:, a:a + 1]
+            gyro = np.cross(e_a, inertia @ e_b) + np.cross(e_b, inertia @ e_a)
+        centrifugal[:, k] = np.einsum("l,lai,la->i", m, jv, linear) + np.einsum("lai,la->i", jw, gyro)
+    gravity = np.einsum("l,lai->ia", m, jv)
+    points, weight, diameter, plinks, ptangent = _quadrature(physics, tangent)
+    jp = _jacobian(dofs, points, plinks)                                 # [P, 3, n]
+    normal = np.eye(3)[None] - ptangent[:, :, None] * ptangent[:, None, :]
+    c_lin = physics.drag_linear_ns_per_m2
+    drag_q = c_lin * np.einsum("p,pai,pab,pbj->ij", weight, jp, normal, jp)
+    drag_base = -c_lin * np.einsum("p,pai,pab,pbc->ic", weight, jp, normal, skew(points))
+    damping = np.diag(dofs.damping) + drag_q
+    drag_points = {"points": points, "jacobian": jp, "normal": normal,
+                   "coefficient": 0.5 * AIR_DENSITY_KG_M3 * physics.drag_coefficient * diameter * weight}
+    return LinearWhisker(physics, dofs, mass, np.diag(dofs.stiffness), damping, coupling,
+                         centrifugal, gravity, drag_base, drag_points)

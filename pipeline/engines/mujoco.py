@@ -1,0 +1,677 @@
+"""MuJoCo engine: the same whisker chains as the Bullet engine, stepped by MuJoCo (≥ 4.0).
+
+Model. One MjModel per step size (the whiskers that share ``engine.dt_s / 2**j``, see
+:mod:`pipeline.engines.stepping`), built with ``mujoco.MjSpec`` in mm–mg–s
+(:mod:`pipeline.engines.units`: tip-link inertias are ~10⁻¹⁸ kg·m² in SI, and MuJoCo refuses
+anything below 10⁻¹⁵). A mocap body is the head (the pose of a trial). Under it, per whisker,
+a follicle body at the base point carries the three driven hinges Z, Y, X; link 1 hangs from
+it, rigidly or on the two compliant-follicle hinges about the whisker-frame z and y; every
+further link is a body with a z-hinge and a y-hinge at its proximal node, the rest bend built
+into the body's orientation so that the springs rest at q = 0. k_n and c_n are MuJoCo's
+native joint ``stiffness`` and ``damping``; masses, centres of mass and principal inertias
+are the chain's; each link collides as a capsule between its nodes.
+
+Integration. ``integrator="discrete"`` solves each step in the metric M + h·D + h²·K, which
+makes joint springs and dampers implicit, contacts included. Its right-hand side is backward
+Euler (−K·(q + h·v) − D·v), which damps every mode by ζ ≈ hω/2 on top of the model's own
+damping (+18 % on the α whisker's first mode at 10⁻⁴ s); the engine adds h·K·v as an applied
+joint force every step, which turns the step into the linearly implicit one of the Bullet
+engine, (M + h·D + h²·K)·a = −K·q − D·v + …: stable at any h, frequencies low by ≈ (hω)²/2,
+no numerical damping. Then v ← v + h·a, q ← q + h·v.
+
+Driven base. The follicle hinges (and the slide joints of moving obstacles) are kinematic:
+they carry an armature 10⁹ times the whisker's own moment of inertia about its base (10⁹ times
+an obstacle's mass), and every step receive the force armature·a* with
+a* = ((q*(t+h) − q)/h − v)/h, the acceleration that lands them on the prescribed
+q*(t+h) = rest + rate·θ(t+h). The whisker's reaction changes a* by ~10⁻⁹ of itself and the
+landing rule corrects that at the next step, so the base follows the drive to round-off
+while the chain feels the full inertial load of a moving base (a mocap follicle would move
+the whisker without that load, a position actuator would lag). ``stop_drive_on_contact``
+replaces q* by the angles a whisker had at its first contact.
+
+Base wrench. ``force`` and ``torque`` sensors on a site at link 1's proximal node read the
+wrench the follicle exerts on the whisker about the base point (MuJoCo's ``cfrc_int`` after
+the constraint solve: inertia, springs, contacts and applied forces included). The site is
+oriented as the whisker frame, so with a rigid follicle the reading is in the whisker frame;
+with a compliant one it is rotated back through the follicle hinges. Sensors and node
+positions describe the state at the start of a step, so sample k is read after the step
+that starts at t_k (one extra step at the end of a trial).
+
+Contacts. Soft constraints with a time constant of two steps, critically damped (inelastic),
+pyramidal Coulomb friction μ, projected Gauss–Seidel solver (the Newton solver of MuJoCo
+4.0.0 has a sparse-factorisation bug, fixed in 4.0.1, and its island-wide convergence test
+made a whisker's result depend on its neighbours' contacts by 10⁻¹⁵). Whisker capsules have
+contype 1 and obstacles conaffinity 1 only, so whiskers never touch each other. Link n stays
+within the arc length to its distal node of the base point, so before each trial the engine
+lets only the links that can reach an obstacle collide, and a world none of whose links can
+skips collision detection. A contact counts for its link when it penetrates (distance ≤ 0);
+flags are ORed over the steps that start in [t_{k−1}, t_k). Speculative contacts (MuJoCo's
+conservative advancement) stop thin, fast links from passing through pegs and edges within a
+step (at 540 °/s the collision protocol's Mz otherwise rebounds 7× too high); with mesh
+obstacles they made the step ~6× dearer and are off.
+
+Triangle meshes. MuJoCo collides a mesh geom as its convex hull, so a concave scan becomes one
+convex prism per face: the triangle and its copy moved along the inward normal (the winding's
+normal points out, as the pose sampler assumes) by half the distance to the next surface
+behind, clamped to :data:`PRISM_DEPTH_MM`; one contact point per capsule–prism pair (MuJoCo's
+multi-point convex contacts made whiskers jam between prisms). Only the faces some link can
+reach at the trial's pose are built, and the model is recompiled when that set changes
+(~0.05 ms per face). Alternative measured and dropped: the scan as one rigid 2-D ``flex``
+(every triangle a double-sided collision element inflated by a skin, Bullet's kind of contact):
+0.14 s and 30 MB to compile 40 363 faces and about as fast to step, but fast tips passed
+through it — full array, 100 ms beside a 40 k-face scan: 105 node paths crossing the surface
+between samples with a 10 µm skin, 20 with 0.1 mm; 33 with prisms, 42 for Bullet.
+
+Jams. A whisker whose accelerations MuJoCo flags as non-finite or huge (checked every step:
+one step later the solve has spread them to every whisker of the model) or whose base moment
+leaves the plausible range (a contact pushed it deep between faces) is taken out, the others
+of its world are simulated again without it, and it is then simulated alone with half the
+step, up to ``engine.jam_refinements`` times, as in the Bullet engine; the halvings are
+reported in the trial metadata (``jam_refined``).
+
+Independence and reuse. Each whisker is its own kinematic tree and, touching a static
+obstacle, its own constraint island: its result does not depend on which others are
+simulated with it (bit for bit, for pegs and edges; with a mesh the cropped face set, hence
+the contact order, depends on the world's whiskers). Until its first contact a whisker moves
+as in an empty scene, so one that touched nothing in an earlier trial with the same drive and
+keeps clear of this trial's obstacles is not simulated again: its outputs are reused, moved
+to the new pose (:class:`~pipeline.engines.common.FreeMotion`; off with gravity or a tip
+force).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pipeline.config.physics import EngineConfig
+from pipeline.engines import units as U
+from pipeline.engines.base import Engine, SimulationError
+from pipeline.engines.common import (GRAVITY_M_S2, ContactFlags, FaceIndex, FreeMotion,
+                                     bounding_radius_m, check_pose, implausible, link_reach_m,
+                                     output_samples, path_distance_m)
+from pipeline.engines.stepping import refinement_levels, steps_per_sample
+from pipeline.errors import UserError
+from pipeline.model.array import ArrayModel, WhiskerModel
+from pipeline.model.kinematics import Pose, ProtractionDrive, rot_y, rot_z
+from pipeline.model.outputs import TrialOutput
+from pipeline.model.whisker import WhiskerChain, link_centres_of_mass
+from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
+
+__all__ = ["MujocoEngine"]
+
+KINEMATIC_ARMATURE = 1e9       # × the whisker's inertia about its base (× an obstacle's mass)
+OBSTACLE_MASS_MG = 1e3         # moving obstacles: 1 g, made kinematic by the armature
+PRISM_DEPTH_MM = (0.05, 1.0)   # a face's prism reaches this far into the object (min, max)
+ARENA_BYTES = 512 << 20         # MuJoCo's per-step scratch: a capsule lying across many prisms
+                               # needs tens of MB; untouched pages cost no memory
+MAX_ACCELERATION = 1e10        # mjMAXVAL: MuJoCo's bound for a sane acceleration (rad/s², mm/s²)
+CONTACT_TIME_CONSTANT_STEPS = 2.0
+CONTACT_IMPEDANCE = (0.95, 0.99, 0.001)     # MuJoCo solimp: d0, dwidth, width (mm)
+WHISKER_CONTYPE = OBSTACLE_CONAFFINITY = 1
+_Z, _Y, _X = (0.0, 0.0, 1.0), (0.0, 1.0, 0.0), (1.0, 0.0, 0.0)
+
+
+def _quat(matrix: np.ndarray) -> np.ndarray:
+    """MuJoCo quaternion (w, x, y, z) of a rotation matrix."""
+    import mujoco
+
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(matrix, float).ravel())
+    return q
+
+
+def _rotation_z_to(axis) -> np.ndarray:
+    """A rotation taking the z axis onto the unit vector along ``axis``."""
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    v, c = np.cross([0.0, 0.0, 1.0], a), a[2]
+    if np.linalg.norm(v) < 1e-12:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + vx + vx @ vx / (1 + c)
+
+
+def base_inertia_mg_mm2(chain: WhiskerChain) -> float:
+    """Moment of inertia (mg·mm²) of the rest-shape whisker about an axis through its base,
+    bounded above by the polar one: the scale of the driven joints' armature."""
+    com = link_centres_of_mass(chain)
+    inertia = chain.link_mass_kg @ np.sum(com ** 2, axis=1) + chain.link_inertia_kg_m2[:, 1].sum()
+    return float(inertia * U.INERTIA)
+
+
+class MeshPrisms:
+    """A static triangle mesh as convex prisms, one per face (mm, world frame).
+
+    ``corners`` [F, 6, 3]: the face, then the face moved along its inward normal by half the
+    distance to the next surface behind it, clamped to :data:`PRISM_DEPTH_MM`; ``valid`` [F]
+    excludes degenerate faces. ``index`` finds the faces near points (m).
+    """
+
+    def __init__(self, mesh: TriangleMesh):
+        vertices = np.asarray(mesh.vertices_m, float)
+        faces = np.asarray(mesh.faces, np.int64)
+        self.index = FaceIndex(vertices, faces)
+        corners = vertices[faces]
+        normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        area2 = np.linalg.norm(normal, axis=1)
+        self.valid = area2 > 1e-12 * max(float(np.max(area2, initial=0.0)), 1e-30)
+        normal = normal / np.where(self.valid, area2, 1.0)[:, None]
+        depth = 0.5 * _depth_behind_m(vertices, faces, self.index.centroids, -normal) * U.LENGTH
+        depth = np.clip(depth, *PRISM_DEPTH_MM)
+        front = corners * U.LENGTH
+        self.corners = np.concatenate([front, front - (depth[:, None] * normal)[:, None]], axis=1)
+
+
+def _depth_behind_m(vertices: np.ndarray, faces: np.ndarray, origins: np.ndarray,
+                    directions: np.ndarray) -> np.ndarray:
+    """[F] distance (m) from each origin along its unit direction to the mesh (inf if none),
+    the origin's own face excluded."""
+    import open3d as o3d
+
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(vertices.astype(np.float32)),
+                        o3d.core.Tensor(faces.astype(np.uint32)))
+    start = origins + 1e-7 * directions
+    rays = np.hstack([start, directions]).astype(np.float32)
+    return scene.cast_rays(o3d.core.Tensor(rays), nthreads=1)["t_hit"].numpy().astype(float)
+
+
+@dataclass
+class WorldResult:
+    """Outputs of one world's whiskers (local order), SI."""
+
+    wrench: np.ndarray            # [T, w, 6] whisker frame
+    contact: np.ndarray           # [T, w, N]
+    nodes: np.ndarray             # [T, w, N+1, 3] m, world frame
+    touched: np.ndarray | None = None                         # [w] any contact, even unflagged
+    jammed: dict[int, str] = field(default_factory=dict)     # local index → why (not refined)
+    refined: dict[str, int] = field(default_factory=dict)    # whisker name → halvings of its step
+
+    @classmethod
+    def zeros(cls, samples: int, whiskers: int, links: int) -> "WorldResult":
+        return cls(np.zeros((samples, whiskers, 6), np.float32), np.zeros((samples, whiskers, links), bool),
+                   np.zeros((samples, whiskers, links + 1, 3), np.float32))
+
+    def put(self, whiskers, other: "WorldResult", columns=slice(None)) -> None:
+        """Copy ``other``'s whiskers ``columns`` into this result's ``whiskers``."""
+        for name in ("wrench", "contact", "nodes"):
+            getattr(self, name)[:, whiskers] = getattr(other, name)[:, columns]
+
+
+class _Jam(Exception):
+    """Whiskers whose base moment left the plausible range (a contact jammed)."""
+
+    def __init__(self, messages: dict[int, str]):
+        super().__init__("; ".join(messages.values()))
+        self.messages = messages
+
+
+@dataclass(frozen=True)
+class _Part:
+    """An obstacle as built: its scene index, the obstacle, and for a mesh the faces built
+    (None: all) and their prisms [F, 6, 3] (mm)."""
+
+    index: int
+    obstacle: object
+    faces: np.ndarray | None = None
+    prisms: np.ndarray | None = None
+
+    @property
+    def velocity_mm_s(self) -> np.ndarray:
+        return np.asarray(self.obstacle.velocity_m_s, float) * U.LENGTH
+
+    @property
+    def key(self) -> tuple:
+        return (self.index, None if self.faces is None else self.faces.tobytes())
+
+
+class MujocoWorld:
+    """One MjModel: whiskers stepping at one step size ``dt_s``, and what they can reach."""
+
+    def __init__(self, whiskers: list[WhiskerModel], config: EngineConfig, dt_s: float,
+                 gravity: bool, prisms: dict[tuple, MeshPrisms]):
+        """``prisms``: the engine's cache of static meshes as prisms, by (scene key, index)."""
+        self.whiskers, self.config, self.dt_s, self.gravity = whiskers, config, dt_s, gravity
+        self.steps_per_sample = int(round(1.0 / (config.output_rate_hz * dt_s)))
+        self.links = whiskers[0].chain.links
+        self.link_reach_m = link_reach_m(whiskers)                 # [w, N]
+        self._prisms = prisms
+        self._built_key: object = None
+        self.free = FreeMotion(whiskers)
+        self._build([], np.arange(len(whiskers)))
+
+    # -- model ---------------------------------------------------------------------------
+    def _contact_options(self, element) -> None:
+        element.condim = 3
+        element.friction = [self.config.contact_friction, 0.0, 0.0]
+        element.solref = [CONTACT_TIME_CONSTANT_STEPS * self.dt_s, 1.0]
+        element.solimp = [*CONTACT_IMPEDANCE, 0.5, 2.0]
+
+    def _build(self, parts: list[_Part], members: np.ndarray) -> None:
+        """Compile the whiskers ``members`` (indices into this world's) and ``parts`` into a new
+        model and data."""
+        import mujoco
+
+        spec = mujoco.MjSpec()
+        spec.modelname = "whiskers"
+        spec.memory = ARENA_BYTES
+        option = spec.option
+        option.timestep = self.dt_s
+        option.integrator = mujoco.mjtIntegrator.mjINT_DISCRETE
+        option.jacobian = mujoco.mjtJacobian.mjJAC_SPARSE     # same arithmetic for any selection
+        option.solver = mujoco.mjtSolver.mjSOL_PGS
+        option.gravity = [0.0, 0.0, -GRAVITY_M_S2 * U.LENGTH if self.gravity else 0.0]
+        option.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
+        option.disableflags |= mujoco.mjtDisableBit.mjDSBL_MULTICCD     # one point per capsule–prism
+        if not any(isinstance(p.obstacle, TriangleMesh) for p in parts):
+            option.enableflags |= mujoco.mjtEnableBit.mjENBL_SPECULATIVE
+        head = spec.worldbody.add_body(name="head", mocap=True)
+        for k in members:
+            self._add_whisker(spec, head, k, self.whiskers[k])
+        for part in parts:
+            self._add_obstacle(spec, part)
+        self.model = spec.compile()
+        self.data = mujoco.MjData(self.model)
+        self.members = members
+        self._index(parts)
+
+    def _add_whisker(self, spec, head, k: int, whisker: WhiskerModel) -> None:
+        import mujoco
+
+        chain = whisker.chain
+        hinge = mujoco.mjtJoint.mjJNT_HINGE
+        follicle = head.add_body(name=f"w{k}", pos=whisker.base_point_m * U.LENGTH)
+        # MuJoCo wants mass on a body whose child moves on joints of its own (compliant
+        # follicle); link 1's mass makes no difference to a kinematic follicle
+        follicle.explicitinertial = True
+        follicle.mass = chain.link_mass_kg[0] * U.MASS
+        follicle.inertia = chain.link_inertia_kg_m2[0] * U.INERTIA
+        armature = KINEMATIC_ARMATURE * base_inertia_mg_mm2(chain)
+        for axis, label in zip((_Z, _Y, _X), "zyx"):
+            follicle.add_joint(name=f"w{k}/drive_{label}", type=hinge, axis=axis, armature=armature)
+        a0 = chain.link_angles_rad[0]
+        link = follicle.add_body(name=f"w{k}/l0", quat=_quat(whisker.frame_offset @ rot_z(a0)))
+        if whisker.follicle is not None:
+            # about the follicle frame's z and y, expressed in link 1's (turned by a0 about z)
+            for axis, label in ((_Z, "z"), ((np.sin(a0), np.cos(a0), 0.0), "y")):
+                link.add_joint(name=f"w{k}/follicle_{label}", type=hinge, axis=axis,
+                               stiffness=whisker.follicle.stiffness_nm_per_rad * U.TORQUE,
+                               damping=whisker.follicle.damping_nms_per_rad * U.TORQUE)
+        link.add_site(name=f"w{k}/base", quat=_quat(rot_z(-a0)))
+        self._add_link(link, chain, k, 0)
+        for i in range(1, chain.links):
+            link = link.add_body(name=f"w{k}/l{i}", pos=[chain.link_lengths_m[i - 1] * U.LENGTH, 0, 0],
+                                 quat=_quat(rot_z(chain.rest_bend_rad[i - 1])))
+            for axis in (_Z, _Y):
+                link.add_joint(type=hinge, axis=axis,
+                               stiffness=chain.stiffness_nm_per_rad[i - 1] * U.TORQUE,
+                               damping=chain.damping_nms_per_rad[i - 1] * U.TORQUE)
+            self._add_link(link, chain, k, i)
+        link.add_site(name=f"w{k}/tip", pos=[chain.link_lengths_m[-1] * U.LENGTH, 0, 0])
+        for sensor in (mujoco.mjtSensor.mjSENS_FORCE, mujoco.mjtSensor.mjSENS_TORQUE):
+            spec.add_sensor(type=sensor, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=f"w{k}/base")
+
+    def _add_link(self, body, chain: WhiskerChain, k: int, i: int) -> None:
+        import mujoco
+
+        body.explicitinertial = True
+        body.mass = chain.link_mass_kg[i] * U.MASS
+        body.ipos = [chain.link_com_m[i] * U.LENGTH, 0.0, 0.0]
+        body.inertia = chain.link_inertia_kg_m2[i] * U.INERTIA
+        radius = 0.5 * (chain.node_radii_m[i] + chain.node_radii_m[i + 1]) * U.LENGTH
+        geom = body.add_geom(name=f"w{k}/g{i}", type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+                             fromto=[0, 0, 0, chain.link_lengths_m[i] * U.LENGTH, 0, 0],
+                             size=[radius, 0, 0], contype=WHISKER_CONTYPE, conaffinity=0)
+        self._contact_options(geom)
+
+    def _add_obstacle(self, spec, part: _Part) -> None:
+        """A static obstacle on a body without joints, a moving one on three kinematic slides."""
+        import mujoco
+
+        obstacle = part.obstacle
+        start = (np.zeros(3) if isinstance(obstacle, TriangleMesh)
+                 else np.asarray(obstacle.position_m, float) * U.LENGTH)
+        body = spec.worldbody.add_body(name=f"obstacle{part.index}", pos=start)
+        if part.velocity_mm_s.any():
+            body.explicitinertial = True
+            body.mass, body.inertia = OBSTACLE_MASS_MG, [OBSTACLE_MASS_MG] * 3
+            for axis, label in zip((_X, _Y, _Z), "xyz"):
+                body.add_joint(name=f"obstacle{part.index}/{label}", type=mujoco.mjtJoint.mjJNT_SLIDE,
+                               axis=axis, armature=KINEMATIC_ARMATURE * OBSTACLE_MASS_MG)
+        if isinstance(obstacle, TriangleMesh):
+            for f, prism in enumerate(part.prisms):
+                name = f"obstacle{part.index}/f{f}"
+                spec.add_mesh(name=name, uservert=prism.ravel())
+                self._obstacle_geom(body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name))
+        elif isinstance(obstacle, Cylinder):
+            self._obstacle_geom(body.add_geom(
+                type=mujoco.mjtGeom.mjGEOM_CYLINDER, quat=_quat(_rotation_z_to(obstacle.axis)),
+                size=[obstacle.radius_m * U.LENGTH, 0.5 * obstacle.length_m * U.LENGTH, 0]))
+        elif isinstance(obstacle, Box):
+            self._obstacle_geom(body.add_geom(
+                type=mujoco.mjtGeom.mjGEOM_BOX, quat=_quat(np.asarray(obstacle.rotation, float)),
+                size=np.asarray(obstacle.half_extents_m, float) * U.LENGTH))
+        else:
+            raise TypeError(f"unknown obstacle {type(obstacle).__name__}")
+
+    def _obstacle_geom(self, geom) -> None:
+        geom.contype, geom.conaffinity = 0, OBSTACLE_CONAFFINITY
+        self._contact_options(geom)
+
+    def _index(self, parts: list[_Part]) -> None:
+        """Addresses of the kinematic joints, springs, sensors, link bodies, geoms and tips."""
+        import mujoco
+
+        m, members = self.model, self.members
+
+        def named(kind, name):
+            return mujoco.mj_name2id(m, kind, name)
+
+        joint, body, geom = mujoco.mjtObj.mjOBJ_JOINT, mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM
+        moving = [p for p in parts if p.velocity_mm_s.any()]
+        driven = [m.jnt_qposadr[named(joint, f"w{k}/drive_{a}")] for k in members for a in "zyx"]
+        slides = [m.jnt_qposadr[named(joint, f"obstacle{p.index}/{a}")] for p in moving for a in "xyz"]
+        self.kinematic = np.array(driven + slides, np.int64)       # hinge/slide: qpos = dof address
+        self.armature = m.dof_armature[self.kinematic].copy()
+        self.n_driven = len(driven)
+        self.obstacle_velocity = (np.concatenate([p.velocity_mm_s for p in moving]) if moving
+                                  else np.zeros(0))
+        self.follicle = [np.array([m.jnt_qposadr[named(joint, f"w{k}/follicle_{a}")] for a in "zy"])
+                         if self.whiskers[k].follicle is not None else None for k in members]
+        self.link_bodies = np.array([[named(body, f"w{k}/l{i}") for i in range(self.links)]
+                                     for k in members])
+        self.tip_sites = np.array([named(mujoco.mjtObj.mjOBJ_SITE, f"w{k}/tip") for k in members])
+        self.whisker_geoms = np.array([named(geom, f"w{k}/g{i}") for k in members
+                                       for i in range(self.links)])
+        self.tree_member = np.full(m.ntree, -1, np.int64)        # kinematic tree → member
+        self.tree_member[m.body_treeid[[named(body, f"w{k}") for k in members]]] = np.arange(len(members))
+        self.link_of_geom = np.full(m.ngeom + 1, -1, np.int64)    # last entry: geom −1 (a flex)
+        self.link_of_geom[self.whisker_geoms] = np.arange(len(self.whisker_geoms))
+        stiffness = np.zeros(m.nv)
+        springs = m.jnt_stiffness > 0
+        stiffness[m.jnt_dofadr[springs]] = m.jnt_stiffness[springs]
+        self.spring_rate = self.dt_s * stiffness      # h·K per dof (module docstring, Integration)
+
+    # -- scene ---------------------------------------------------------------------------
+    def _mesh_prisms(self, scene: Scene, index: int) -> MeshPrisms:
+        """The prisms of the scene's mesh ``index`` (built on first use, shared by the worlds)."""
+        if (scene.key, index) not in self._prisms:
+            self._prisms[scene.key, index] = MeshPrisms(scene.obstacles[index])
+        return self._prisms[scene.key, index]
+
+    def _reachable(self, scene: Scene, pose: Pose, duration_s: float) -> tuple[list[_Part], np.ndarray]:
+        """The obstacle parts this world's whiskers can reach at ``pose`` within ``duration_s``
+        (a static mesh cropped to the faces within reach), and [w] a lower bound of each
+        whisker's distance from its base point to the nearest of them (inf if none)."""
+        bases = pose.apply(np.array([w.base_point_m for w in self.whiskers]))
+        reach = self.link_reach_m[:, -1]
+        gaps = np.full(len(self.whiskers), np.inf)
+        parts: list[_Part] = []
+        for index, obstacle in enumerate(scene.obstacles):
+            velocity = np.asarray(obstacle.velocity_m_s, float)
+            if isinstance(obstacle, TriangleMesh):
+                prisms = self._mesh_prisms(scene, index)
+            if isinstance(obstacle, TriangleMesh) and not velocity.any():
+                near, gap = prisms.index.near(bases, reach)
+                faces = np.unique(np.concatenate(near))
+                faces = faces[prisms.valid[faces]]
+                if faces.size:
+                    parts.append(_Part(index, obstacle, faces, prisms.corners[faces]))
+            else:
+                if isinstance(obstacle, TriangleMesh):
+                    lo, hi = obstacle.vertices_m.min(axis=0), obstacle.vertices_m.max(axis=0)
+                    centre, radius = 0.5 * (lo + hi), 0.5 * float(np.linalg.norm(hi - lo))
+                else:
+                    centre, radius = np.asarray(obstacle.position_m, float), bounding_radius_m(obstacle)
+                gap = path_distance_m(bases, centre, velocity, duration_s) - radius
+                gap[gap > reach] = np.inf
+                if np.isfinite(gap).any():
+                    mesh_prisms = (prisms.corners[prisms.valid] if isinstance(obstacle, TriangleMesh)
+                                   else None)
+                    parts.append(_Part(index, obstacle, prisms=mesh_prisms))
+            gaps = np.minimum(gaps, gap)
+        return parts, gaps
+
+    def _prepare(self, scene: Scene, parts: list[_Part], gaps: np.ndarray, members: np.ndarray) -> None:
+        """A model of the whiskers ``members`` and the obstacle ``parts`` (recompiled only when
+        they changed) in which only the links that can reach a part collide."""
+        import mujoco
+
+        key = (scene.key, tuple(p.key for p in parts), members.tobytes())
+        if key != self._built_key:
+            self._build(parts, members)
+            self._built_key = key
+        m = self.model
+        reach = self.link_reach_m[members] >= gaps[members, None]
+        contype = np.where(reach, WHISKER_CONTYPE, 0).ravel()
+        m.geom_contype[self.whisker_geoms] = contype
+        m.body_contype[self.link_bodies.ravel()] = contype
+        contact_bit = int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        m.opt.disableflags = (m.opt.disableflags & ~contact_bit if contype.any()
+                              else m.opt.disableflags | contact_bit)
+
+    # -- trial ---------------------------------------------------------------------------
+    def _reset(self, pose: Pose, drive: ProtractionDrive) -> tuple[np.ndarray, np.ndarray]:
+        """Rest shape at ``pose``; returns the kinematic targets' offsets and θ-rates."""
+        import mujoco
+
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        d.mocap_pos[0] = np.asarray(pose.position_m, float) * U.LENGTH
+        d.mocap_quat[0] = _quat(pose.rotation)
+        whiskers = [self.whiskers[k] for k in self.members]
+        rest = np.concatenate([w.rest_joint_angles for w in whiskers]).astype(float)
+        rates = np.concatenate([w.joint_rates for w in whiskers]).astype(float)
+        n_obstacle = len(self.obstacle_velocity)
+        offset = np.concatenate([rest, np.zeros(n_obstacle)])
+        theta_rate = np.concatenate([rates, np.zeros(n_obstacle)])
+        d.qpos[self.kinematic] = offset + theta_rate * float(drive(0.0))
+        d.qvel[self.kinematic] = theta_rate * float(drive(0.0, 1))
+        d.qvel[self.kinematic[self.n_driven:]] = self.obstacle_velocity
+        mujoco.mj_forward(m, d)
+        return offset, theta_rate
+
+    def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, samples: int, *,
+            stop_drive_on_contact: bool = False, external_tip_force_n=None,
+            refine: bool = True) -> WorldResult:
+        """``samples`` output intervals from rest (see :meth:`Engine.run`).
+
+        A whisker whose motion in an earlier trial with the same drive touched nothing and keeps
+        clear of this trial's obstacles is not simulated again (:class:`FreeMotion`). A whisker
+        whose base moment leaves the plausible range (a jammed contact) is taken out and the
+        others simulated again without it; it is then simulated alone with half the step, again
+        while it jams, ``engine.jam_refinements`` times (``refine=False``: only reported in
+        ``jammed``).
+        """
+        rate = self.config.output_rate_hz
+        options = dict(stop_drive_on_contact=stop_drive_on_contact, external_tip_force_n=external_tip_force_n)
+        self.free.select(drive, samples, depends_on_pose=self.gravity or external_tip_force_n is not None)
+        times = np.arange(1, samples + 1) / rate
+        reused = self.free.reusable(pose, scene, lambda i: self._mesh_prisms(scene, i).index, times)
+        result = WorldResult.zeros(samples, len(self.whiskers), self.links)
+        members = np.flatnonzero(~reused)
+        if members.size:
+            parts, gaps = self._reachable(scene, pose, samples / rate)
+        while members.size:
+            self._prepare(scene, parts, gaps, members)
+            try:
+                simulated = self._simulate(pose, drive, samples, **options)
+            except _Jam as jam:
+                result.jammed.update(jam.messages)
+                members = np.setdiff1d(members, list(jam.messages))
+                continue
+            result.put(members, simulated)
+            for j in np.flatnonzero(~simulated.touched):
+                self.free.remember(members[j], simulated.wrench[:, j], simulated.nodes[:, j], pose)
+            break
+        for k in np.flatnonzero(reused):
+            result.wrench[:, k], result.nodes[:, k] = self.free.recall(k, pose)
+        if refine:
+            for k, message in list(result.jammed.items()):
+                alone, result.refined[self.whiskers[k].name] = self._refine(k, message, scene, pose, drive,
+                                                                            samples, options)
+                result.put([k], alone)
+                del result.jammed[k]
+        return result
+
+    def _refine(self, k: int, message: str, scene: Scene, pose: Pose, drive: ProtractionDrive,
+                samples: int, options: dict) -> tuple[WorldResult, int]:
+        """Whisker k alone with half the step, again while it jams; (its result, halvings)."""
+        for halvings in range(1, self.config.jam_refinements + 1):
+            alone = MujocoWorld([self.whiskers[k]], self.config, self.dt_s / 2 ** halvings,
+                                self.gravity, self._prisms)
+            result = alone.run(scene, pose, drive, samples, refine=False, **options)
+            if not result.jammed:
+                return result, halvings
+            message = result.jammed[0]
+        raise SimulationError(f"{message} (contact jammed at every step down to "
+                              f"{self.dt_s / 2 ** self.config.jam_refinements:.3g} s: "
+                              "is a surface pressed against the whisker?)")
+
+    def _simulate(self, pose: Pose, drive: ProtractionDrive, samples: int,
+                  stop_drive_on_contact: bool, external_tip_force_n) -> WorldResult:
+        """Integrate the current model (its ``members``) for ``samples`` output intervals."""
+        import mujoco
+
+        m, d, h, spp = self.model, self.data, self.dt_s, self.steps_per_sample
+        offset, theta_rate = self._reset(pose, drive)
+        n_w, n_steps = len(self.members), samples * spp
+        times = np.arange(n_steps + 2) * h
+        thetas = np.asarray(drive(times), float)
+        slide_rate = np.concatenate([np.zeros(self.n_driven), self.obstacle_velocity])
+        result = WorldResult.zeros(samples, n_w, self.links)
+        flags = ContactFlags(n_w, self.links)
+        result.touched = np.zeros(n_w, bool)
+        held = np.zeros(n_w, bool)
+        tip_force = (None if external_tip_force_n is None
+                     else np.asarray(external_tip_force_n, float) * U.FORCE)
+        sensor_bit = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+        sensors_on, sensors_off = m.opt.disableflags & ~sensor_bit, m.opt.disableflags | sensor_bit
+        bad_acceleration = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
+        for step in range(n_steps + 1):
+            target = offset + theta_rate * thetas[step + 1] + slide_rate * times[step + 1]
+            np.multiply(self.spring_rate, d.qvel, out=d.qfrc_applied)
+            q, v = d.qpos[self.kinematic], d.qvel[self.kinematic]
+            d.qfrc_applied[self.kinematic] = self.armature * (((target - q) / h - v) / h)
+            if tip_force is not None:
+                self._apply_tip_force(tip_force)
+            sample, due = divmod(step, spp)
+            m.opt.disableflags = sensors_on if due == 0 and sample > 0 else sensors_off
+            mujoco.mj_step(m, d)
+            if bad_acceleration.number:
+                self._blown_up(step * h)
+            if due == 0 and sample > 0:
+                self._record(result, sample - 1, flags.take(), time_s=step * h)
+            if d.ncon:
+                flags.add(self._touched())
+                links = self.link_of_geom[d.contact.geom]
+                result.touched[links[links >= 0] // self.links] = True
+            if stop_drive_on_contact:
+                newly = flags.touching.any(axis=1) & ~held
+                for k in np.flatnonzero(newly):
+                    rows = slice(3 * k, 3 * k + 3)
+                    offset[rows], theta_rate[rows] = d.qpos[self.kinematic[rows]], 0.0
+                held |= newly
+        return result
+
+    def _blown_up(self, time_s: float) -> None:
+        """Raise :class:`_Jam` for the whiskers whose accelerations MuJoCo found non-finite or
+        huge: caught at once, before the next step's solve spreads them to every whisker."""
+        qacc = self.data.qacc
+        bad = ~np.isfinite(qacc) | (np.abs(qacc) > MAX_ACCELERATION)
+        members = np.unique(self.tree_member[self.model.dof_treeid[bad]])
+        if not np.any(members >= 0):
+            raise SimulationError(f"non-finite acceleration outside the whiskers at t = {time_s:.4f} s")
+        raise _Jam({int(self.members[j]): f"non-finite acceleration on {self.whiskers[self.members[j]].name} "
+                    f"at t = {time_s:.4f} s" for j in members[members >= 0]})
+
+    def _touched(self) -> np.ndarray:
+        """Flat link indices (whisker·N + link) in penetrating contact at the current step."""
+        contact = self.data.contact
+        links = self.link_of_geom[contact.geom[contact.dist <= 0.0]]
+        return links[links >= 0]
+
+    def _apply_tip_force(self, force: np.ndarray) -> None:
+        """``force`` (internal units, world) at every tip node, as a wrench about the tip links'
+        centres of mass (positions of the last computed state)."""
+        d, last = self.data, self.link_bodies[:, -1]
+        arm = d.site_xpos[self.tip_sites] - d.xipos[last]
+        d.xfrc_applied[last, :3] = force
+        d.xfrc_applied[last, 3:] = np.cross(arm, force)
+
+    def _record(self, result: WorldResult, sample: int, contact: np.ndarray, time_s: float) -> None:
+        """Base wrench (SI, whisker frame), node positions (m) and contact flags of one sample."""
+        d = self.data
+        wrench = d.sensordata.reshape(-1, 2, 3).copy()          # [w, (force, torque), 3], site frame
+        for k, joints in enumerate(self.follicle):
+            if joints is not None:
+                qz, qy = d.qpos[joints]
+                wrench[k] = wrench[k] @ (rot_z(qz) @ rot_y(qy)).T
+        with np.errstate(over="ignore", invalid="ignore"):           # a jam shows as inf/nan
+            result.wrench[sample] = np.concatenate([wrench[:, 0] / U.FORCE, wrench[:, 1] / U.TORQUE], axis=1)
+        nodes = np.concatenate([d.xpos[self.link_bodies], d.site_xpos[self.tip_sites][:, None]], axis=1)
+        result.nodes[sample] = nodes / U.LENGTH
+        result.contact[sample] = contact
+        bad = implausible(result.wrench[sample])
+        if bad.size:
+            moments = np.linalg.norm(result.wrench[sample, bad, 3:], axis=1)
+            raise _Jam({int(self.members[j]): f"non-physical base moment {moment:.3g} N·m on "
+                        f"{self.whiskers[self.members[j]].name} at t = {time_s:.4f} s"
+                        for j, moment in zip(bad, moments)})
+
+
+class MujocoEngine(Engine):
+    """The WHISKiT model on MuJoCo (see the module docstring for the scheme)."""
+
+    name = "mujoco"
+
+    def __init__(self, array: ArrayModel, config: EngineConfig, gravity: bool = False):
+        super().__init__(array)
+        self.config = config
+        steps_per_sample(config)                      # validates dt_s against the output rate
+        self.levels = refinement_levels(array, config)
+        start = time.perf_counter()
+        self._prisms: dict[tuple, MeshPrisms] = {}
+        self._scene_key: object = None
+        self.worlds: list[tuple[np.ndarray, MujocoWorld]] = []
+        for level in np.unique(self.levels):
+            members = np.flatnonzero(self.levels == level)
+            world = MujocoWorld([array.whiskers[k] for k in members], config,
+                                config.dt_s / 2 ** level, gravity, self._prisms)
+            self.worlds.append((members, world))
+        self.build_seconds = time.perf_counter() - start
+
+    def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float, *,
+            stop_drive_on_contact: bool = False, external_tip_force_n=None) -> TrialOutput:
+        start_wall, start_cpu = time.perf_counter(), time.process_time()
+        check_pose(pose)
+        samples = output_samples(duration_s, self.config.output_rate_hz)
+        if scene.key != self._scene_key:          # meshes of other scenes are not needed again
+            self._prisms.clear()
+            self._scene_key = scene.key
+        if external_tip_force_n is not None and np.shape(external_tip_force_n) != (3,):
+            raise UserError("external_tip_force_n must be three numbers (N, world frame)")
+        n_w, n_links = len(self.array.whiskers), self.array.links
+        wrench = np.zeros((samples, n_w, 6), np.float32)
+        contact = np.zeros((samples, n_w, n_links), bool)
+        nodes = np.zeros((samples, n_w, n_links + 1, 3), np.float32)
+        refined = {}
+        for members, world in self.worlds:
+            result = world.run(scene, pose, drive, samples, stop_drive_on_contact=stop_drive_on_contact,
+                               external_tip_force_n=external_tip_force_n)
+            wrench[:, members], contact[:, members], nodes[:, members] = (
+                result.wrench, result.contact, result.nodes)
+            refined.update(result.refined)
+        time_s = np.arange(1, samples + 1) / self.config.output_rate_hz
+        metadata = {"engine": self.name, "dt_s": self.config.dt_s,
+                    "dt_per_whisker_s": (self.config.dt_s / 2.0 ** self.levels).tolist(),
+                    "jam_refined": refined,
+                    "wall_seconds": time.perf_counter() - start_wall,
+                    "cpu_seconds": time.process_time() - start_cpu,
+                    "build_seconds": self.build_seconds}
+        return TrialOutput(time_s, wrench, contact, nodes, self.array.names, metadata)
+
+    def close(self) -> None:
+        self.worlds = []

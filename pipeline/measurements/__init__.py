@@ -1,0 +1,32 @@
+"""Measured whisker data: tracked time series (HDF5) and resonance tables (CSV).
+
+Formats and their versions are documented in docs/measurements.md; every loader validates
+its file and raises :class:`~pipeline.errors.UserError` naming file, trial (or line) and field.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pipeline.errors import UserError
+from pipeline.measurements.table import ResonanceRecord, ResonanceTable, load_table
+from pipeline.measurements.timeseries import (ReleaseDrive, RotationDrive, TimeSeriesMeasurement, Trial,
+                                              load_timeseries, write_timeseries)
+
+PAPER_ALPHA_B1 = Path(__file__).parent / "data" / "paper_alpha_b1.csv"
+
+
+def load_measurement(path: str | Path) -> TimeSeriesMeasurement | ResonanceTable:
+    """A time series (``.h5``/``.hdf5``) or a resonance table (``.csv``), validated."""
+    suffix = Path(path).suffix.lower()
+    if suffix in (".h5", ".hdf5"):
+        return load_timeseries(path)
+    if suffix == ".csv":
+        return load_table(path)
+    raise UserError(f"{path}: unknown measurement type '{suffix}' (.h5/.hdf5 time series or "
+                    ".csv resonance table)")
+
+
+__all__ = ["PAPER_ALPHA_B1", "ReleaseDrive", "ResonanceRecord", "ResonanceTable", "RotationDrive",
+           "TimeSeriesMeasurement", "Trial", "load_measurement", "load_table", "load_timeseries",
+           "write_timeseries"]

@@ -1,0 +1,143 @@
+"""Resonance tables (CSV), format ``whisker-pipeline/resonance-table`` version 1.
+
+One row per whisker: geometry (SI), the first natural frequency and optionally higher modes,
+the log decrement and/or damping ratio, each with an optional standard deviation. The first
+line names the format and version; further lines starting with ``#`` are comments (cite the
+source there). Contract: docs/measurements.md.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from pipeline.errors import UserError
+from pipeline.model.whisker import WhiskerGeometry
+
+FORMAT = "whisker-pipeline/resonance-table"
+VERSION = 1
+_HEADER = re.compile(r"#\s*" + re.escape(FORMAT) + r"\s+version\s+(\S+)\s*$")
+
+REQUIRED = ("whisker", "arc_length_m", "base_diameter_m", "tip_diameter_m", "f1_hz")
+OPTIONAL = ("curvature_per_m", "f1_sd_hz", "f2_hz", "f2_sd_hz", "f3_hz", "f3_sd_hz",
+            "log_decrement", "log_decrement_sd", "damping_ratio", "damping_ratio_sd", "trials")
+MODES = 3
+
+
+@dataclass(frozen=True)
+class ResonanceRecord:
+    """One measured whisker. Missing optional values are NaN; standard deviations ≥ 0."""
+
+    whisker: str
+    geometry: WhiskerGeometry
+    frequencies_hz: tuple[float, ...]      # f1, f2, f3 (NaN when not measured)
+    frequency_sd_hz: tuple[float, ...]
+    log_decrement: float
+    log_decrement_sd: float
+    damping_ratio: float
+    damping_ratio_sd: float
+    trials: float
+
+    @property
+    def decrement(self) -> float:
+        """δ, from the log decrement or else from the damping ratio: δ = 2πζ/√(1 − ζ²)."""
+        if math.isfinite(self.log_decrement):
+            return self.log_decrement
+        z = self.damping_ratio
+        return 2 * math.pi * z / math.sqrt(1 - z * z) if math.isfinite(z) and z < 1 else math.nan
+
+    @property
+    def decrement_sd(self) -> float:
+        if math.isfinite(self.log_decrement):
+            return self.log_decrement_sd
+        z, sd = self.damping_ratio, self.damping_ratio_sd
+        return 2 * math.pi * sd / (1 - z * z) ** 1.5 if math.isfinite(z) and z < 1 else math.nan
+
+
+@dataclass(frozen=True)
+class ResonanceTable:
+    records: tuple[ResonanceRecord, ...]
+    path: Path | None = None
+    comments: tuple[str, ...] = ()
+
+
+def _value(row: dict, column: str, where: str, required: bool = False, sign: str = "positive") -> float:
+    """The number in ``column`` (NaN if empty and optional); ``sign``: positive, non-negative, any."""
+    raw = (row.get(column) or "").strip()
+    if not raw:
+        if required:
+            raise UserError(f"{where}: column '{column}': missing value")
+        return math.nan
+    try:
+        value = float(raw)
+    except ValueError:
+        raise UserError(f"{where}: column '{column}': '{raw}' is not a number") from None
+    bad_sign = {"positive": value <= 0, "non-negative": value < 0, "any": False}[sign]
+    if not math.isfinite(value) or bad_sign:
+        raise UserError(f"{where}: column '{column}': {raw} must be a finite {sign} number")
+    return value
+
+
+def load_table(path: str | Path) -> ResonanceTable:
+    """Read and validate a resonance table; errors name file, line, whisker and column."""
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"{path}: measurement file not found")
+    lines = path.read_text(encoding="utf-8").splitlines()
+    match = _HEADER.match(lines[0]) if lines else None
+    if not match:
+        raise UserError(f"{path}: line 1: must be '# {FORMAT} version {VERSION}'")
+    if match.group(1) != str(VERSION):
+        raise UserError(f"{path}: line 1: version {match.group(1)} is not supported "
+                        f"(this reader knows version {VERSION})")
+    comments = tuple(line.lstrip("#").strip() for line in lines if line.startswith("#"))
+    numbered = [(i + 1, line) for i, line in enumerate(lines) if line.strip() and not line.startswith("#")]
+    if not numbered:
+        raise UserError(f"{path}: no header row")
+    reader = csv.DictReader([line for _, line in numbered])
+    columns = [c.strip() for c in reader.fieldnames or []]
+    reader.fieldnames = columns
+    missing = [c for c in REQUIRED if c not in columns]
+    unknown = [c for c in columns if c not in REQUIRED + OPTIONAL]
+    if missing:
+        raise UserError(f"{path}: line {numbered[0][0]}: missing column(s) {', '.join(missing)}")
+    if unknown:
+        raise UserError(f"{path}: line {numbered[0][0]}: unknown column(s) {', '.join(unknown)} "
+                        f"(known: {', '.join(REQUIRED + OPTIONAL)})")
+    records = []
+    for (line, _), row in zip(numbered[1:], reader):
+        if None in row:
+            raise UserError(f"{path}: line {line}: more values than columns")
+        name = (row["whisker"] or "").strip()
+        where = f"{path}: line {line} (whisker '{name}')"
+        if not name:
+            raise UserError(f"{path}: line {line}: column 'whisker': missing name")
+        length = _value(row, "arc_length_m", where, required=True)
+        base = _value(row, "base_diameter_m", where, required=True)
+        tip = _value(row, "tip_diameter_m", where, required=True)
+        curvature = _value(row, "curvature_per_m", where, sign="any")
+        try:
+            geometry = WhiskerGeometry(length, base / 2, tip / 2,
+                                       0.0 if math.isnan(curvature) else curvature)
+        except UserError as exc:
+            raise UserError(f"{where}: {exc}") from None
+        freqs = tuple(_value(row, f"f{m}_hz", where, required=m == 1) for m in range(1, MODES + 1))
+        sds = tuple(_value(row, f"f{m}_sd_hz", where, sign="non-negative") for m in range(1, MODES + 1))
+        record = ResonanceRecord(
+            name, geometry, freqs, sds,
+            _value(row, "log_decrement", where), _value(row, "log_decrement_sd", where, sign="non-negative"),
+            _value(row, "damping_ratio", where), _value(row, "damping_ratio_sd", where, sign="non-negative"),
+            _value(row, "trials", where))
+        if record.damping_ratio >= 1:
+            raise UserError(f"{where}: column 'damping_ratio': {record.damping_ratio} ≥ 1 is not a ringing whisker")
+        records.append(record)
+    if not records:
+        raise UserError(f"{path}: no data rows")
+    names = [r.whisker for r in records]
+    if len(set(names)) != len(names):
+        raise UserError(f"{path}: whisker names must be unique (repeated: "
+                        f"{', '.join(sorted({n for n in names if names.count(n) > 1}))})")
+    return ResonanceTable(tuple(records), path, comments)

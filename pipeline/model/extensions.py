@@ -1,0 +1,327 @@
+"""Model extensions: small composable physical effects added to the paper's whisker (SI units).
+
+Each extension is one frozen dataclass with its parameters (units and bounds in
+``PARAMETERS``), its equation in the docstring, and up to five hooks, applied in this order
+by :func:`build_physics`:
+
+1. ``material(MaterialConfig) -> MaterialConfig``   switches of the base model
+2. ``geometry(WhiskerGeometry) -> WhiskerGeometry``  shape before discretisation
+3. ``chain(WhiskerChain) -> WhiskerChain``           masses and stiffnesses (before damping)
+4. ``damping(WhiskerChain) -> WhiskerChain``         joint damping (after the damping model)
+5. ``physics(WhiskerPhysics) -> WhiskerPhysics``     effects that are not joint springs:
+                                                     follicle, twist, drag, gravity
+
+Hooks 1–4 produce an ordinary :class:`~pipeline.model.whisker.WhiskerChain`, so every engine
+can use them unchanged; hook 5 fills :class:`WhiskerPhysics`, which an engine must support
+field by field (the fast linear simulator of :mod:`pipeline.diagnosis` supports all of them;
+the Bullet engine has no twist or drag).
+
+Arc-length profiles use the position s of a joint (or link centre) along the arc S and are
+normalised at mid-length, ``exp(γ·(s/S − ½))``, so that γ changes the distribution and not
+the mean level (which stays with E, ζ or the density of the base model).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+from typing import ClassVar
+
+import numpy as np
+
+from pipeline.config.physics import MaterialConfig
+from pipeline.errors import UserError
+from pipeline.model.array import Follicle, follicle_of
+from pipeline.model.damping import damping_model
+from pipeline.model.whisker import WhiskerChain, WhiskerGeometry, build_chain
+
+GRAVITY_M_S2 = 9.81
+AIR_DENSITY_KG_M3 = 1.2
+MIN_TIP_RADIUS_M = 1.5e-6        # MODEL.md §3: tip radius floor
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One fitted quantity: name, unit, neutral value (the effect off or nominal), bounds."""
+
+    name: str
+    unit: str
+    neutral: float
+    lower: float
+    upper: float
+    log: bool
+    description: str
+
+
+@dataclass(frozen=True)
+class WhiskerPhysics:
+    """Everything that defines one whisker's mechanics (SI, whisker frame).
+
+    ``chain``: links, masses, joint stiffness k_n and damping c_n (both bending axes).
+    ``follicle``: compliant follicle (k_f, c_f about base y and z) or ``None`` (rigid).
+    ``twist_*``: per bending joint, a third (twist) degree of freedom about the link axis
+    with this stiffness (N·m/rad) and damping (N·m·s/rad); ``None``: no twist (the paper).
+    ``drag_*``: air drag per unit length on the velocity component normal to each link,
+    f = −c_lin·v_n − ½·ρ_air·C_d·d·|v_n|·v_n (N/m).
+    ``gravity_m_s2``: acceleration of gravity along the experiment's gravity direction.
+    """
+
+    chain: WhiskerChain
+    follicle: Follicle | None = None
+    twist_stiffness_nm_per_rad: np.ndarray | None = None
+    twist_damping_nms_per_rad: np.ndarray | None = None
+    drag_linear_ns_per_m2: float = 0.0
+    drag_coefficient: float = 0.0
+    gravity_m_s2: float = 0.0
+
+
+def _joint_arc_fraction(chain: WhiskerChain) -> np.ndarray:
+    """[N−1] s/S of the bending joints (nodes 1..N−1; nodes are equidistant along the arc)."""
+    return np.arange(1, chain.links) / chain.links
+
+
+def _link_arc_fraction(chain: WhiskerChain) -> np.ndarray:
+    """[N] s/S of the link mid-points."""
+    return (np.arange(chain.links) + 0.5) / chain.links
+
+
+def _profile(gamma: float, fraction: np.ndarray) -> np.ndarray:
+    return np.exp(gamma * (fraction - 0.5))
+
+
+class Extension:
+    """Base class: every hook is the identity; subclasses override the ones they need."""
+
+    name: ClassVar[str] = ""
+    PARAMETERS: ClassVar[tuple[Parameter, ...]] = ()
+
+    def values(self) -> dict[str, float]:
+        return {f.name: float(getattr(self, f.name)) for f in fields(self)}
+
+    def material(self, material: MaterialConfig) -> MaterialConfig:
+        return material
+
+    def geometry(self, geometry: WhiskerGeometry) -> WhiskerGeometry:
+        return geometry
+
+    def chain(self, chain: WhiskerChain) -> WhiskerChain:
+        return chain
+
+    def damping(self, chain: WhiskerChain) -> WhiskerChain:
+        return chain
+
+    def physics(self, physics: WhiskerPhysics) -> WhiskerPhysics:
+        return physics
+
+
+@dataclass(frozen=True)
+class CompliantFollicle(Extension):
+    """Compliant follicle (paper §2.4): a torsional spring-damper about the base y and z axes
+    between the driven follicle frame and the first link, τ = −k_f·q − c_f·q̇.
+
+    k_f in N·m/rad, c_f in N·m·s/rad. Rigid (the paper's default) is k_f → ∞.
+    """
+
+    name: ClassVar[str] = "follicle"
+    PARAMETERS: ClassVar[tuple[Parameter, ...]] = (
+        Parameter("k_f", "N*m/rad", 1e-4, 1e-8, 1e-2, True, "follicle rotational stiffness"),
+        Parameter("c_f", "N*m*s/rad", 1e-8, 1e-13, 1e-4, True, "follicle rotational damping"),
+    )
+    k_f: float = 1e-4
+    c_f: float = 1e-8
+
+    def physics(self, physics: WhiskerPhysics) -> WhiskerPhysics:
+        return replace(physics, follicle=Follicle(self.k_f, self.c_f))
+
+
+@dataclass(frozen=True)
+class StiffnessGradient(Extension):
+    """Young's modulus varying along the arc: E(s) = E·exp(γ·(s/S − ½)), so k_n (eq. 2) is
+    multiplied by exp(γ·(s_n/S − ½)) at joint n. E_tip/E_base = e^γ; E stays the value at
+    mid-length. γ dimensionless (negative: stiffer base, as the medulla and cuticle suggest)."""
+
+    name: ClassVar[str] = "stiffness_gradient"
+    PARAMETERS: ClassVar[tuple[Parameter, ...]] = (
+        Parameter("gamma", "1", 0.0, -4.0, 4.0, False, "ln(E_tip/E_base)"),
+    )
+    gamma: float = 0.0
+
+    def chain(self, chain: WhiskerChain) -> WhiskerChain:
+        return replace(chain, stiffness_nm_per_rad=chain.stiffness_nm_per_rad
+                       * _profile(self.gamma, _joint_arc_fraction(chain)))
+
+
+@dataclass(frozen=True)
+class DampingGradient(Extension):
+    """Damping varying along the arc: the damping model's c_n is multiplied by
+    exp(γ·(s_n/S − ½)) at joint n, i.e. ζ(s) = ζ·exp(γ·(s/S − ½)) in eq. 3. γ dimensionless
+    (negative: damping falls from base to tip, as the paper's discussion suggests)."""
+
+    name: ClassVar[str] = "damping_gradient"
+    PARAMETERS: ClassVar[tuple[Parameter, ...]] = (
+        Parameter("gamma", "1", 0.0, -5.0, 5.0, False, "ln(zeta_tip/zeta_base)"),
+    )
+    gamma: float = 0.0
+
+    def damping(self, chain: WhiskerChain) -> WhiskerChain:
+        return replace(chain, damping_nms_per_rad=chain.damping_nms_per_rad
+                       * _profile(self.gamma, _joint_arc_fraction(chain)))
+
+
+@dataclass(frozen=True)
+class DensityChange(Extension):
+    """Density scale and gradient on top of the nominal ramp ρ_0(s) (MODEL.md §2):
+    ρ(s) = scale·ρ_0(s)·exp(gradient·(s/S − ½)). Link masses and inertias scale with ρ at the
+    link centre; centres of mass do not move. Both dimensionless.
+
+    A uniform ``scale`` changes only the time scale, exactly as 1/E does: from positions
+    alone it is not distinguishable from E (base forces or gravity are needed)."""
+
+    name: ClassVar[str] = "density"
+    PARAMETERS: ClassVar[tuple[Parameter, ...]] = (
+        Parameter("gradient", "1", 0.0, -4.0, 4.0, False, "ln(density_tip/density_base) change"),
+        Parameter("scale", "1", 1.0, 0.2, 5.0, True, "density / nominal density"),
+    )
+    gradient: float = 0.0
+    scale: float = 1.0
+
+    def chain(self, chain: WhiskerChain) -> WhiskerChain:
+        factor = self.scale * _profile(self.gradient, _link_arc_fraction(chain))
+        return replace(chain, link_mass_kg=chain.link_mass_kg * factor,
+                       link_inertia_kg_m2=chain.link_inertia_kg_m2 * factor[:, None])
+
+
+@dataclass(frozen=True)
+class ArcLength(Extension):
+    """Arc length different from the nominal one (trimmed, broken or mis-measured tip):
+    S' = scale·S. The base radius and the taper slope are kept, so the tip radius becomes
+    r_base − scale·(r_base − r_tip) (floored at 1.5 µm), and the density ramp is the nominal
+    one over the remaining arc. ``scale`` dimensionless."""
+
+    name: ClassVar[str] = "length"
+    PARAMETERS: ClassVar[tuple[Parameter, ...]] = (
+        Parameter("scale", "1", 1.0, 0.3, 1.6, False, "true arc length / nominal arc length"),
+    )
+    scale: float = 1.0
+
+    def material(self, material: MaterialConfig) -> MaterialConfig:
+        rho_b, rho_t = material.density_base_kg_m3, material.density_tip_kg_m3
+        return material.model_copy(update={"density_tip_kg_m3": rho_b + self.scale * (rho_t - rho_b)})
+
+    def geometry(self, geometry: WhiskerGeometry) -> WhiskerGeometry:
+        r_b = geometry.base_radius_m
+        tip = max(r_b - self.scale * (r_b - geometry.tip_radius_m), MIN_TIP_RADIUS_M)
+        return replace(geometry, arc_length_m=geometry.arc_length_m * self.scale, tip_radius_m=tip)
+
+
+@dataclass(frozen=True)
+class AirDrag(Extension):
+    """Air drag per unit length on the velocity v_n normal to each link (relative to still air):
+    f = −c_lin·v_n − ½·ρ_air·C_d·d(s)·|v_n|·v_n  (N/m), ρ_air = 1.2 kg/m³, d the local diameter.
+
+    ``linear`` c_lin in N·s/m² (at whisker Reynolds numbers, Re ≈ 0.1–10, drag is close to
+    linear: Oseen's c_lin = 4πμ/(½ − γ_E − ln(Re/8)) ≈ 1e-4 N·s/m² in air); ``quadratic`` C_d
+    dimensionless (only the fast simulator integrates it, as an explicit force per step)."""
+
+    name: ClassVar[str] = "drag"
+    PARAMETERS: ClassVar[tuple[Parameter, ...]] = (
+        Parameter("linear", "N*s/m^2", 1e-4, 1e-7, 1e-2, True, "linear drag per length"),
+        Parameter("quadratic", "1", 0.0, 0.0, 50.0, False, "quadratic drag coefficient C_d"),
+    )
+    linear: float = 1e-4
+    quadratic: float = 0.0
+
+    def physics(self, physics: WhiskerPhysics) -> WhiskerPhysics:
+        return replace(physics, drag_linear_ns_per_m2=self.linear, drag_coefficient=self.quadratic)
+
+
+@dataclass(frozen=True)
+class Gravity(Extension):
+    """Gravity: a body force m·g on every link along the experiment's gravity direction
+    (given in the measurement, default −z of the whisker frame). ``g`` in m/s²."""
+
+    name: ClassVar[str] = "gravity"
+    PARAMETERS: ClassVar[tuple[Parameter, ...]] = (
+        Parameter("g", "m/s^2", GRAVITY_M_S2, 0.0, 40.0, False, "acceleration of gravity"),
+    )
+    g: float = GRAVITY_M_S2
+
+    def physics(self, physics: WhiskerPhysics) -> WhiskerPhysics:
+        return replace(physics, gravity_m_s2=self.g)
+
+
+@dataclass(frozen=True)
+class Twist(Extension):
+    """Torsional compliance: each bending joint gets a twist degree of freedom about the link
+    axis with k_t,n = G·J_n/l = 2·(G/E)·k_n (J = π r⁴/2 = 2 I for a round section) and damping
+    c_t,n = 2·(G/E)·c_n (the bending joint's c/k ratio). ``g_over_e`` = G/E, dimensionless
+    (0.385 for an isotropic material with ν = 0.3). Only curved whiskers couple twist to
+    bending; a straight one twists without moving its nodes."""
+
+    name: ClassVar[str] = "twist"
+    PARAMETERS: ClassVar[tuple[Parameter, ...]] = (
+        Parameter("g_over_e", "1", 0.385, 1e-3, 2.0, True, "shear modulus / Young's modulus"),
+    )
+    g_over_e: float = 0.385
+
+    def physics(self, physics: WhiskerPhysics) -> WhiskerPhysics:
+        chain = physics.chain
+        return replace(physics, twist_stiffness_nm_per_rad=2 * self.g_over_e * chain.stiffness_nm_per_rad,
+                       twist_damping_nms_per_rad=2 * self.g_over_e * chain.damping_nms_per_rad)
+
+
+EXTENSIONS: dict[str, type[Extension]] = {
+    cls.name: cls for cls in (CompliantFollicle, StiffnessGradient, DampingGradient, DensityChange,
+                              ArcLength, AirDrag, Gravity, Twist)
+}
+
+
+def make_extension(name: str, **values: float) -> Extension:
+    """The extension called ``name`` with the given parameters (others at their defaults)."""
+    if name not in EXTENSIONS:
+        raise UserError(f"unknown model extension '{name}' (known: {', '.join(EXTENSIONS)})")
+    cls = EXTENSIONS[name]
+    known = {p.name for p in cls.PARAMETERS}
+    unknown = set(values) - known
+    if unknown:
+        raise UserError(f"extension '{name}' has no parameter {', '.join(sorted(unknown))} "
+                        f"(parameters: {', '.join(sorted(known))})")
+    for p in cls.PARAMETERS:
+        if p.name in values and not p.lower <= float(values[p.name]) <= p.upper:
+            raise UserError(f"extension '{name}': {p.name} = {values[p.name]} {p.unit} is outside "
+                            f"[{p.lower:g}, {p.upper:g}]")
+    return cls(**{k: float(v) for k, v in values.items()})
+
+
+class _NoDamping:
+    """Placeholder damping model: the real one is applied after the chain hooks."""
+
+    @staticmethod
+    def coefficients(chain: WhiskerChain) -> np.ndarray:
+        return np.zeros(chain.links - 1)
+
+
+def build_physics(geometry: WhiskerGeometry, material: MaterialConfig,
+                  extensions=()) -> WhiskerPhysics:
+    """The whisker of ``material`` with every extension applied (hooks in the module's order).
+
+    The damping model of ``material`` (eq. 3 or Kelvin–Voigt) sees the final masses and
+    stiffnesses; ``material.follicle`` and ``material.gravity`` give the starting follicle and
+    gravity, which a ``follicle`` or ``gravity`` extension overrides.
+    """
+    for ext in extensions:
+        material = ext.material(material)
+    for ext in extensions:
+        geometry = ext.geometry(geometry)
+    chain = build_chain(geometry, material.links, material.youngs_modulus_gpa * 1e9,
+                        material.density_base_kg_m3, material.density_tip_kg_m3, _NoDamping())
+    for ext in extensions:
+        chain = ext.chain(chain)
+    coefficients = damping_model(material.damping_model, material.damping_ratio).coefficients(chain)
+    chain = replace(chain, damping_nms_per_rad=np.asarray(coefficients, float))
+    for ext in extensions:
+        chain = ext.damping(chain)
+    physics = WhiskerPhysics(chain, follicle=follicle_of(material),
+                             gravity_m_s2=GRAVITY_M_S2 if material.gravity else 0.0)
+    for ext in extensions:
+        physics = ext.physics(physics)
+    return physics

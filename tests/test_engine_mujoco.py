@@ -1,0 +1,190 @@
+"""The MuJoCo engine against the Bullet engine and the chain's own statics (MODEL.md §1, §2, §5)."""
+
+import numpy as np
+import pytest
+
+from pipeline.config.physics import EngineConfig, FollicleConfig, MaterialConfig, ModelConfig
+from pipeline.engines import create_engine
+from pipeline.errors import UserError
+from pipeline.model.array import build_array, make_chain, single_whisker
+from pipeline.model.kinematics import Pose, sinusoidal_whisk, still
+from pipeline.model.morphology import model_rat
+from pipeline.model.whisker import WhiskerGeometry
+from pipeline.protocols.collision import hann_smooth, run_collision
+from pipeline.protocols.resonance import run_resonance
+from pipeline.scenes import Scene, active_pegs, empty
+from pipeline.scenes.library import beside_right_array, load_mesh
+
+ALPHA = WhiskerGeometry(29.6e-3, 60e-6, 17.5e-6)
+B1 = WhiskerGeometry(34.1e-3, 65.5e-6, 15e-6)
+
+
+def _config(engine: str, material: MaterialConfig = MaterialConfig(), **options) -> ModelConfig:
+    return ModelConfig(material=material, engine=EngineConfig(name=engine, **options))
+
+
+def _chain_tip_deflection(chain, load: float) -> float:
+    """Exact small-deflection tip displacement of a straight chain under a transverse tip load:
+    joint j turns by P·(x_tip − x_j)/k_j."""
+    x = chain.nodes_m[:, 0]
+    turn = load * (x[-1] - x[1:-1]) / chain.stiffness_nm_per_rad
+    return float(np.sum(turn * (x[-1] - x[1:-1])))
+
+
+@pytest.mark.parametrize("geometry", [ALPHA, B1], ids=["alpha", "B1"])
+def test_resonance_f1_and_decrement_match_bullet(geometry):
+    material = MaterialConfig(youngs_modulus_gpa=5.0, damping_ratio=0.33)
+    bullet = run_resonance(geometry, _config("bullet", material))
+    mujoco = run_resonance(geometry, _config("mujoco", material))
+    assert mujoco.f1_hz == pytest.approx(bullet.f1_hz, rel=0.01)
+    # same linearly implicit scheme: the ring decays alike (no numerical damping added)
+    assert mujoco.log_decrement == pytest.approx(bullet.log_decrement, rel=0.05)
+
+
+@pytest.mark.parametrize("follicle", ["rigid", "compliant"])
+def test_static_tip_load_gives_balancing_base_wrench(follicle):
+    """A tip load P along +y: follicle force −P, moment about the base −P·x_tip (MODEL.md §1)."""
+    material = MaterialConfig(youngs_modulus_gpa=5.0, damping_ratio=1.0,
+                              follicle=FollicleConfig(kind=follicle, stiffness_nm_per_rad=1e-4))
+    load = 1e-6
+    with create_engine(_config("mujoco", material), single_whisker(ALPHA, material)) as engine:
+        out = engine.run(empty(), Pose(), still(0.3), 0.3, external_tip_force_n=[0, load, 0])
+    fx, fy, fz, mx, my, mz = out.base_wrench[-1, 0].astype(float)
+    tip = out.node_positions_m[-1, 0, -1].astype(float)
+    assert fy == pytest.approx(-load, rel=1e-5)
+    assert mz == pytest.approx(-load * tip[0], rel=1e-5)
+    assert max(abs(fx), abs(fz)) < 1e-3 * load and max(abs(mx), abs(my)) < 1e-6 * load
+    if follicle == "rigid":       # the chain's own statics (Bullet's explicit tip force overshoots)
+        chain = make_chain(ALPHA, material)
+        assert tip[1] == pytest.approx(_chain_tip_deflection(chain, load), rel=3e-3)
+
+
+def _whisk(selection: str, scene: Scene, duration: float = 0.03):
+    config = _config("mujoco")
+    array = build_array(model_rat().select(selection), config.material)
+    drive = sinusoidal_whisk(duration_s=duration)
+    with create_engine(config, array) as engine:
+        first = engine.run(scene, Pose(), drive, duration)
+        engine.run(empty(), Pose((0.001, 0, 0)), drive, duration)      # something else between
+        again = engine.run(scene, Pose(), drive, duration)
+    return first, again
+
+
+def test_runs_are_deterministic_and_whiskers_independent():
+    scene = active_pegs(lateral_m=0.025, y_m=-0.012)      # RC1 touches its peg early
+    alone, alone_again = _whisk("RC1", scene)
+    assert np.array_equal(alone.base_wrench, alone_again.base_wrench)
+    assert np.array_equal(alone.contact, alone_again.contact)
+    assert alone.contact.any()
+    group, _ = _whisk("RC1,RC2,RB1,LC1,RA0,RE3", scene)
+    k = group.index("RC1")
+    # MuJoCo factorises the whiskers sharing a step size together: the sums run in another order,
+    # so agreement is to rounding (measured 2e-9 of the peak), not to the bit.
+    scale = np.abs(alone.base_wrench).max(axis=0)
+    np.testing.assert_allclose(group.base_wrench[:, k], alone.base_wrench[:, 0], rtol=0, atol=1e-7 * scale.max())
+    np.testing.assert_allclose(group.node_positions_m[:, k], alone.node_positions_m[:, 0], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(group.contact[:, k], alone.contact[:, 0])
+
+
+def test_whiskers_out_of_reach_reuse_their_free_motion():
+    """A whisker that can touch nothing moves, relative to the head, as in any earlier trial with
+    the same drive: the engine reuses it at the new pose; the result is the simulated one."""
+    config = _config("mujoco")
+    array = build_array(model_rat().select("RC1,RA4,LC1"), config.material)
+    scene, pose = active_pegs(lateral_m=0.025, y_m=-0.012), Pose((0.0005, -0.001, 0.0), (0.05, 0.0, 0.02))
+    drive = sinusoidal_whisk(duration_s=0.03)
+    with create_engine(config, array) as engine:
+        engine.run(empty(), Pose(), drive, 0.03)                  # every whisker moves freely
+        reused = engine.run(scene, pose, drive, 0.03)
+    with create_engine(config, array) as engine:
+        fresh = engine.run(scene, pose, drive, 0.03)
+    k = reused.index("RA4")                                         # short: reaches no peg
+    assert not fresh.contact[:, k].any() and fresh.contact.any()
+    np.testing.assert_array_equal(reused.base_wrench, fresh.base_wrench)
+    np.testing.assert_allclose(reused.node_positions_m, fresh.node_positions_m, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("speed_deg_s", [90, 540])
+def test_collision_onset_and_base_signals_match_bullet(speed_deg_s):
+    bullet = run_collision(ALPHA, _config("bullet"), speed_deg_s)
+    mujoco = run_collision(ALPHA, _config("mujoco"), speed_deg_s)
+    assert abs(mujoco.contact_time_s - bullet.contact_time_s) <= 1e-3
+    assert mujoco.first_contact_link == bullet.first_contact_link == 18
+    a = hann_smooth(mujoco.output.base_wrench[:, 0].astype(float))
+    b = hann_smooth(bullet.output.base_wrench[:, 0].astype(float))
+    # the in-plane signals; Fx, Fz, Mx, My are ~10³× smaller and numerical noise in both engines
+    for signal in (1, 5):
+        assert np.corrcoef(a[:, signal], b[:, signal])[0, 1] >= 0.95
+    moment_a, moment_b = np.linalg.norm(a[:, 3:], axis=1), np.linalg.norm(b[:, 3:], axis=1)
+    assert np.corrcoef(moment_a, moment_b)[0, 1] >= 0.95
+
+
+WALL_DISTANCE_M = 0.036       # beyond the rest tips: the long whiskers reach it as they protract
+
+
+def _wavy_wall(path) -> Scene:
+    """A corrugated wall (concave grooves 3 mm deep, 12 mm apart) lateral of the right array,
+    written as OBJ in metres and loaded like a cleaned scan."""
+    import trimesh
+
+    y, z = np.meshgrid(np.linspace(-0.04, 0.04, 81), np.linspace(-0.03, 0.03, 61), indexing="ij")
+    x = 0.0015 * np.sin(2 * np.pi * y / 0.012)
+    vertices = np.stack([x, y, z], axis=-1).reshape(-1, 3)
+    rows, cols = y.shape
+    index = np.arange(rows * cols).reshape(rows, cols)
+    a, b, c, d = index[:-1, :-1], index[1:, :-1], index[1:, 1:], index[:-1, 1:]
+    faces = np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
+    trimesh.Trimesh(vertices, faces, process=False).export(path / "wavy.obj")
+    mesh = beside_right_array(load_mesh(path / "wavy.obj"), distance_m=WALL_DISTANCE_M)
+    return Scene("mesh:wavy", (mesh,))
+
+
+def test_concave_mesh_gives_contacts_and_stays_physical(tmp_path):
+    scene = _wavy_wall(tmp_path)
+    config = _config("mujoco")
+    array = build_array(model_rat().select("RB1,RB2,RC1,RC2,RD1"), config.material)
+    with create_engine(config, array) as engine:
+        out = engine.run(scene, Pose(), sinusoidal_whisk(duration_s=0.06), 0.06)
+    assert out.contact.any(axis=(0, 2)).sum() >= 2
+    assert np.all(np.isfinite(out.base_wrench)) and np.all(np.isfinite(out.node_positions_m))
+    assert np.linalg.norm(out.base_wrench[..., 3:], axis=-1).max() < 1e-4      # N·m
+    node_speed = np.linalg.norm(np.diff(out.node_positions_m, axis=0), axis=-1) * out.sample_rate_hz
+    assert node_speed.max() < 50.0                                                 # m/s
+    # no node passes through the wall: at most the depth of a face's prism (1 mm) behind it
+    x, y = out.node_positions_m[..., 0], out.node_positions_m[..., 1]
+    surface = WALL_DISTANCE_M + 0.0015 + 0.0015 * np.sin(2 * np.pi * y / 0.012)
+    assert (x - surface).max() < 1e-3
+
+
+def test_moving_peg_onset_and_base_signals_match_bullet():
+    from pipeline.scenes import passive_peg
+
+    scene = passive_peg(lateral_m=0.012, start_y_m=0.005)
+    outputs = {}
+    for engine_name in ("bullet", "mujoco"):
+        config = _config(engine_name)
+        array = build_array(model_rat().select("RC1,RD2"), config.material)
+        with create_engine(config, array) as engine:
+            outputs[engine_name] = engine.run(scene, Pose(), still(0.08), 0.08)
+    a, b = outputs["mujoco"], outputs["bullet"]
+    assert a.contact.any(axis=(0, 2)).all()
+    onset_a, onset_b = a.contact.any(axis=2).argmax(axis=0), b.contact.any(axis=2).argmax(axis=0)
+    assert np.abs(onset_a - onset_b).max() <= 1                                   # samples (1 ms)
+    for k in range(2):
+        wa = hann_smooth(a.base_wrench[:, k].astype(float))
+        wb = hann_smooth(b.base_wrench[:, k].astype(float))
+        for signal in (1, 5):
+            assert np.corrcoef(wa[:, signal], wb[:, signal])[0, 1] >= 0.95
+
+
+def test_bad_input_is_a_user_error():
+    config = _config("mujoco")
+    with create_engine(config, single_whisker(ALPHA, config.material)) as engine:
+        with pytest.raises(UserError):
+            engine.run(empty(), Pose((np.nan, 0, 0)), still(0.01), 0.01)
+        with pytest.raises(UserError):
+            engine.run(empty(), Pose(), still(0.01), 1e-5)
+        with pytest.raises(UserError):
+            engine.run(empty(), Pose(), still(0.01), 0.01, external_tip_force_n=[1.0, 2.0])
+    with pytest.raises(UserError):
+        create_engine(_config("mujoco", dt_s=3e-4), single_whisker(ALPHA, config.material))
