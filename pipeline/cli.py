@@ -15,7 +15,7 @@ from typing import Optional
 import click
 import typer
 
-from pipeline.errors import UserError
+from pipeline.errors import SimulationError, UserError
 
 app = typer.Typer(
     name="pipeline",
@@ -426,6 +426,11 @@ def main() -> None:
             traceback.print_exc()
         typer.echo(f"error: {exc}", err=True)
         sys.exit(2)
+    except SimulationError as exc:
+        if debug:
+            traceback.print_exc()
+        typer.echo(f"error: simulation failed: {exc}", err=True)
+        sys.exit(1)
 
 
 if __name__ == "__main__":

@@ -43,3 +43,11 @@ def cantilever_tip_deflection(length, r_base, r_tip, youngs_modulus, load, sampl
     r = r_base + (r_tip - r_base) * x / length
     ei = youngs_modulus * np.pi * r ** 4 / 4
     return float(np.trapezoid(load * (length - x) ** 2 / ei, x))
+
+
+def chain_tip_deflection(chain, load: float) -> float:
+    """Exact small-deflection tip displacement of a straight chain under a transverse tip load:
+    joint j turns by P·(x_tip − x_j)/k_j."""
+    x = chain.nodes_m[:, 0]
+    turn = load * (x[-1] - x[1:-1]) / chain.stiffness_nm_per_rad
+    return float(np.sum(turn * (x[-1] - x[1:-1])))

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from beam_reference import cantilever_frequencies, cantilever_tip_deflection
+from beam_reference import cantilever_frequencies, cantilever_tip_deflection, chain_tip_deflection
 from pipeline.config.physics import EngineConfig, MaterialConfig, ModelConfig
 from pipeline.engines import create_engine
 from pipeline.model.array import build_array, make_chain, single_whisker
@@ -30,10 +30,13 @@ def test_static_tip_load_gives_balancing_base_wrench():
     assert abs(fx) < 1e-4 * load and abs(fz) < 1e-6 * load
     assert mz == pytest.approx(-load * tip[0], rel=1e-4)
     assert abs(mx) < 1e-9 * load and abs(my) < 1e-9 * load
-    # tip deflection against the Euler–Bernoulli integral (the 20-link chain: +1.3 %)
+    # the engine reproduces the chain's exact statics (the tip load is inside the implicit solve)
+    chain = chain_tip_deflection(make_chain(ALPHA, material), load)
+    assert tip[1] == pytest.approx(chain, rel=3e-3)
+    # and the 20-link chain the Euler–Bernoulli integral (measured −2.2 %)
     reference = cantilever_tip_deflection(ALPHA.arc_length_m, ALPHA.base_radius_m,
                                           ALPHA.tip_radius_m, 5e9, load)
-    assert tip[1] == pytest.approx(reference, rel=0.03)
+    assert chain == pytest.approx(reference, rel=0.03)
 
 
 def test_resonance_alpha_against_chain_and_continuum():
@@ -116,3 +119,35 @@ def test_scan_mesh_scene_gives_contacts_and_stays_physical(shared_dir):
     assert np.linalg.norm(out.base_wrench[..., 3:], axis=-1).max() < 1e-4      # N·m
     node_speed = np.linalg.norm(np.diff(out.node_positions_m, axis=0), axis=-1) * out.sample_rate_hz
     assert node_speed.max() < 50.0                                                 # m/s
+
+
+def test_link_inertias_reach_bullet():
+    """pybullet drops localInertiaDiagonal when it shares a changeDynamics call with damping
+    settings; the engine must end up with the model's link inertias, not Bullet's capsule ones."""
+    import pybullet as p
+
+    from pipeline.engines import units as U
+    from pipeline.engines.bullet_whisker import BulletWhisker
+
+    array = single_whisker(ALPHA, MaterialConfig())
+    client = p.connect(p.DIRECT)
+    try:
+        whisker = BulletWhisker(client, array.whiskers[0])
+        got = np.array([p.getDynamicsInfo(whisker.body, link, physicsClientId=client)[2]
+                        for link in whisker.whisker_links])
+    finally:
+        p.disconnect(client)
+    np.testing.assert_allclose(got, array.whiskers[0].chain.link_inertia_kg_m2 * U.INERTIA, rtol=1e-6)
+
+
+def test_compliant_follicle_resonance_agrees_with_mujoco():
+    """A driven pulse with a compliant follicle (whose joints are parallel to driven ones) rings
+    at the frequency MuJoCo finds for the same model, and lower than with a rigid follicle."""
+    geometry = WhiskerGeometry(30e-3, 60e-6, 15e-6)
+    compliant = MaterialConfig(follicle={"kind": "compliant", "stiffness_nm_per_rad": 1e-5,
+                                         "damping_nms_per_rad": 1e-8})
+    bullet = run_resonance(geometry, ModelConfig(material=compliant))
+    mujoco = run_resonance(geometry, ModelConfig(material=compliant, engine=EngineConfig(name="mujoco")))
+    rigid = run_resonance(geometry, ModelConfig())
+    assert bullet.f1_hz == pytest.approx(mujoco.f1_hz, rel=0.005)
+    assert bullet.f1_hz < rigid.f1_hz

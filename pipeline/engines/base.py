@@ -9,14 +9,11 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 
+from pipeline.errors import SimulationError  # noqa: F401  (raised by engines, re-exported)
 from pipeline.model.array import ArrayModel
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.outputs import TrialOutput
 from pipeline.scenes.obstacles import Scene
-
-
-class SimulationError(RuntimeError):
-    """The simulation left the physically plausible range; the trial is not usable."""
 
 
 class Engine(ABC):

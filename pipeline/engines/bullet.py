@@ -43,9 +43,9 @@ import numpy as np
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, SimulationError
+from pipeline.engines.common import GRAVITY_M_S2, check_pose, implausible, output_samples
 from pipeline.engines.bullet_whisker import IDENTITY_QUAT, BulletWhisker, quat
 from pipeline.engines.stepping import refinement_levels, steps_per_sample
-from pipeline.errors import UserError
 from pipeline.model.array import ArrayModel, WhiskerModel
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.outputs import TrialOutput
@@ -54,10 +54,6 @@ from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
 __all__ = ["BulletEngine", "SimulationError"]
 
 WHISKER_GROUP, OBSTACLE_GROUP = 1, 2
-# A base moment above this is no whisker's (they break near 10⁻⁴ N·m): the contact solver has
-# jammed, typically a surface pressed against the whisker by the rigid drive.
-MAX_PLAUSIBLE_MOMENT_NM = 1e-3
-GRAVITY_M_S2 = 9.81
 PARKED_MM = 1e6          # obstacles of other scenes and jammed whiskers wait this far away
 
 
@@ -212,9 +208,7 @@ class BulletWorld:
             for k in active:
                 w = self.whiskers[k]
                 target = held[k] if held[k] is not None else w.driven_targets(drive, t + h)[0]
-                w.apply_implicit_torques(target, h)
-                if tip_force is not None:
-                    w.apply_tip_force(tip_force)
+                w.apply_implicit_torques(target, h, tip_force)
             if moving:
                 self._place_obstacles(t + h)
             p.stepSimulation(physicsClientId=c)
@@ -230,7 +224,7 @@ class BulletWorld:
                     result.nodes[sample, k] = self.whiskers[k].node_positions()
                 result.contact[sample] = touching
                 touching[:] = False
-                for k in self._implausible(result.wrench[sample], active):
+                for k in [active[i] for i in implausible(result.wrench[sample, active])]:
                     result.jammed[k] = (f"non-physical base moment {np.linalg.norm(result.wrench[sample, k, 3:]):.3g} "
                                         f"N·m on {self.whiskers[k].model.name} at t = {(step + 1) * h:.4f} s")
                     self._park(k, drive)
@@ -238,22 +232,17 @@ class BulletWorld:
         return result
 
     def _collect_contacts(self, touching: np.ndarray) -> None:
-        """OR this step's whisker–obstacle contacts into ``touching`` [w, N]."""
+        """OR this step's whisker–obstacle contacts into ``touching`` [w, N]: a link touches when it
+        penetrates or the solver pushed on it (a resting contact can sit a hair above zero)."""
         import pybullet as p
 
         for obstacle in self.obstacles:
             for point in p.getContactPoints(bodyA=obstacle.body, physicsClientId=self.client):
                 k = self._owner.get(point[2])
-                if k is not None and point[8] <= 0.0:
+                if k is not None and (point[8] <= 0.0 or point[9] > 0.0):
                     link = self.whiskers[k].local_link.get(point[4])
                     if link is not None:
                         touching[k, link] = True
-
-    @staticmethod
-    def _implausible(wrench: np.ndarray, active: list[int]) -> list[int]:
-        moments = np.linalg.norm(wrench[active, 3:], axis=1)
-        bad = ~np.isfinite(moments) | (moments > MAX_PLAUSIBLE_MOMENT_NM)
-        return [active[i] for i in np.flatnonzero(bad)]
 
     def close(self) -> None:
         import pybullet as p
@@ -285,11 +274,8 @@ class BulletEngine(Engine):
     def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float, *,
             stop_drive_on_contact: bool = False, external_tip_force_n=None) -> TrialOutput:
         start_wall, start_cpu = time.perf_counter(), time.process_time()
-        if not (np.all(np.isfinite(pose.position_m)) and np.all(np.isfinite(pose.yaw_pitch_roll_rad))):
-            raise UserError(f"head pose has non-finite values: {pose}")
-        samples = int(round(duration_s * self.config.output_rate_hz))
-        if samples < 1:
-            raise UserError(f"duration {duration_s} s is shorter than one output sample")
+        check_pose(pose)
+        samples = output_samples(duration_s, self.config.output_rate_hz)
         n_w, n_links = len(self.array.whiskers), self.array.links
         wrench = np.zeros((samples, n_w, 6), np.float32)
         contact = np.zeros((samples, n_w, n_links), bool)

@@ -70,9 +70,15 @@ class BulletWhisker:
         self.model = model
         chain = model.chain
         links = LinkList()
-        yaw = links.add(-1, p.JOINT_REVOLUTE, (0, 0, 1))
-        pitch = links.add(yaw, p.JOINT_REVOLUTE, (0, 1, 0))
-        roll = links.add(pitch, p.JOINT_REVOLUTE, (1, 0, 0))
+        # The driven links carry the whisker's mass and inertia about its base: their motion is
+        # prescribed, so this changes only the torque that drives them, but without it Bullet's
+        # articulated inertia of a driven joint vanishes when a follicle joint is parallel to it
+        # (only massless links in between), and the drive stops moving the follicle.
+        mass = float(chain.link_mass_kg.sum())
+        drive_body = dict(mass=mass * U.MASS, inertia=[mass * chain.link_lengths_m.sum() ** 2 / 3 * U.INERTIA] * 3)
+        yaw = links.add(-1, p.JOINT_REVOLUTE, (0, 0, 1), **drive_body)
+        pitch = links.add(yaw, p.JOINT_REVOLUTE, (0, 1, 0), **drive_body)
+        roll = links.add(pitch, p.JOINT_REVOLUTE, (1, 0, 0), **drive_body)
         parent, link1_rotation = roll, model.frame_offset @ rot_z(chain.link_angles_rad[0])
         stiffness, damping = [], []
         if model.follicle is not None:
@@ -109,9 +115,11 @@ class BulletWhisker:
         if self.body < 0:
             raise RuntimeError(f"Bullet refused to build whisker {model.name}")
         for index, inertia in enumerate(links.inertia):
-            p.changeDynamics(self.body, index, linearDamping=0, angularDamping=0,
-                             localInertiaDiagonal=inertia, maxJointVelocity=1e6,
+            # Two calls: pybullet 3.2.6 drops localInertiaDiagonal when damping or
+            # maxJointVelocity come in the same changeDynamics call (tested in test_engine_physics).
+            p.changeDynamics(self.body, index, linearDamping=0, angularDamping=0, maxJointVelocity=1e6,
                              jointDamping=0, physicsClientId=client)
+            p.changeDynamics(self.body, index, localInertiaDiagonal=inertia, physicsClientId=client)
         p.changeDynamics(self.body, -1, linearDamping=0, angularDamping=0,
                          activationState=p.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=client)
         self.dofs = [j for j, t in enumerate(links.columns["linkJointTypes"]) if t == p.JOINT_REVOLUTE]
@@ -153,8 +161,12 @@ class BulletWhisker:
         return np.array([s[0] for s in p.getJointStates(self.body, self.dofs[:3],
                                                           physicsClientId=self.client)])
 
-    def apply_implicit_torques(self, q_target: np.ndarray, h: float) -> None:
-        """Joint torques of one linearly implicit step of size h (s) toward driven angles q_target."""
+    def apply_implicit_torques(self, q_target: np.ndarray, h: float, tip_force=None) -> None:
+        """Joint torques of one linearly implicit step of size h (s) toward driven angles q_target.
+
+        ``tip_force`` (internal units, world frame) is an external force on the tip node: it enters
+        the implicit solve as the generalised force Jᵀ·F and is applied to Bullet's body too, so
+        the step Bullet takes is the implicit one."""
         import pybullet as p
 
         c = self.client
@@ -165,6 +177,9 @@ class BulletWhisker:
         mass = np.array(p.calculateMassMatrix(self.body, q_list, physicsClientId=c))
         bias = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, [0.0] * self.n_dof,
                                                    physicsClientId=c))
+        if tip_force is not None:                       # Bullet adds Jᵀ·F itself: take it out
+            bias = bias - self._tip_jacobian(q_list).T @ np.asarray(tip_force, float)
+            self._apply_tip_force(tip_force)
         accel = np.zeros(self.n_dof)
         d, f = self.driven_dofs, self.free_dofs
         accel[d] = ((q_target - q[d]) / h - v[d]) / h
@@ -176,7 +191,19 @@ class BulletWhisker:
         p.setJointMotorControlArray(self.body, self.dofs, p.TORQUE_CONTROL, forces=torque.tolist(),
                                     physicsClientId=c)
 
-    def apply_tip_force(self, force: list[float]) -> None:
+    def _tip_jacobian(self, q: list[float]) -> np.ndarray:
+        """[3, n_dof] world-frame linear Jacobian of the tip node (internal units). pybullet takes
+        the point in the link frame (not the centre-of-mass frame): checked by the static tip load
+        test, whose deflection is then independent of the step size."""
+        import pybullet as p
+
+        zeros = [0.0] * self.n_dof
+        linear, _ = p.calculateJacobian(self.body, self.whisker_links[-1],
+                                        [self.tip_offset, 0.0, 0.0], q, zeros, zeros,
+                                        physicsClientId=self.client)
+        return np.asarray(linear)
+
+    def _apply_tip_force(self, force: list[float]) -> None:
         """A force (internal units, world frame) on the tip node for the next step."""
         import pybullet as p
 
