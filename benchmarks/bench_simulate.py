@@ -1,6 +1,7 @@
 """Throughput of `pipeline simulate` on a scan scene with 1 and 2 local workers.
 
-Run: .venv/bin/python benchmarks/bench_simulate.py [--trials 8] [--whiskers R] [--duration 0.05]
+Run: .venv/bin/python benchmarks/bench_simulate.py [--trials 8] [--whiskers all] [--duration 0.125]
+     [--engine mujoco|bullet]
 
 Prints trials per hour (end to end: cluster start, engine builds, sampling, physics, recording,
 writing), the scaling efficiency from 1 to 2 workers, where the time goes outside the physics,
@@ -37,7 +38,8 @@ def mesh_folder(scratch: Path) -> Path:
 
 def run(workers: int, args, meshes: Path, root: Path) -> dict:
     config = SimulateConfig.model_validate({
-        "trials": args.trials, "seed": 1, "model": {"whiskers": args.whiskers},
+        "trials": args.trials, "seed": 1,
+        "model": {"whiskers": args.whiskers, "engine": {"name": args.engine}},
         "whisk": {"duration_s": args.duration},
         "scenes": {"folder": str(meshes), "include": [f"mesh:{SCENE}"]},
         "dataset": {"root": str(root), "name": f"bench-{workers}"},
@@ -59,14 +61,15 @@ def run(workers: int, args, meshes: Path, root: Path) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", type=int, default=8)
-    parser.add_argument("--whiskers", default="R")
-    parser.add_argument("--duration", type=float, default=0.05, help="simulated seconds per trial")
+    parser.add_argument("--whiskers", default="all")
+    parser.add_argument("--duration", type=float, default=0.125, help="simulated seconds per trial")
+    parser.add_argument("--engine", default="mujoco", choices=("mujoco", "bullet"))
     parser.add_argument("--record-every", type=int, default=4)
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as scratch:
         meshes = mesh_folder(Path(scratch))
         rows = [run(workers, args, meshes, Path(scratch) / "datasets") for workers in (1, 2)]
-    print(f"\n`pipeline simulate` on mesh:{SCENE}: {args.trials} trials of {args.whiskers} whiskers, "
+    print(f"\n`pipeline simulate --engine {args.engine}` on mesh:{SCENE}: {args.trials} trials of {args.whiskers} whiskers, "
           f"{args.duration * 1e3:.0f} ms each, recording every {args.record_every}th ({os.cpu_count()} cores)")
     print(f"{'workers':>7} | {'trials/h':>9} | {'wall s':>6} | {'CPU s/trial':>11} | {'physics s':>9} | "
           f"{'outside physics':>15} | {'sampling':>8} | {'recording':>9} | {'writing':>7} | failed")

@@ -76,12 +76,13 @@ def tip_residual_spectra(measurement: TimeSeriesMeasurement, simulated: list[np.
     from scipy.signal import welch
 
     spectra, freq = {d: [] for d in DIRECTIONS}, None
+    segment = min(256, *(len(trial.time_s) for trial in measurement.trials))   # one frequency grid
     for trial, sim in zip(measurement.trials, simulated):
         tip = _body_residuals(trial, sim)[:, int(np.argmax(trial.arc_fraction))]
         for i, d in enumerate(DIRECTIONS):
             series = tip[:, i]
             good = np.isfinite(series)
             series = np.interp(np.arange(len(series)), np.flatnonzero(good), series[good])
-            freq, psd = welch(series, trial.sampling_rate_hz, nperseg=min(256, len(series)))
+            freq, psd = welch(series, trial.sampling_rate_hz, nperseg=segment)
             spectra[d].append(psd)
     return freq, {d: np.mean(v, axis=0) for d, v in spectra.items()}

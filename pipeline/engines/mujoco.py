@@ -628,9 +628,14 @@ class MujocoEngine(Engine):
     name = "mujoco"
 
     def __init__(self, array: ArrayModel, config: EngineConfig, gravity: bool = False):
+        import mujoco
+
         super().__init__(array)
         self.config = config
         steps_per_sample(config)                      # validates dt_s against the output rate
+        # MuJoCo would print its warnings and append them to ./MUJOCO_LOG.TXT; the engine reads
+        # the same conditions from data.warning and handles them (jam refinement)
+        mujoco.set_mju_user_warning(lambda message: None)
         self.levels = refinement_levels(array, config)
         start = time.perf_counter()
         self._prisms: dict[tuple, MeshPrisms] = {}
