@@ -52,7 +52,8 @@ class MaterialFit:
     results: dict[str, ResonanceResult]
 
 
-def _with_material(config: ModelConfig, e_gpa: float, zeta: float) -> ModelConfig:
+def with_material(config: ModelConfig, e_gpa: float, zeta: float) -> ModelConfig:
+    """``config`` with Young's modulus ``e_gpa`` (GPa) and damping ratio ``zeta`` (eq. 3)."""
     material = config.material.model_copy(update={"youngs_modulus_gpa": e_gpa, "damping_ratio": zeta})
     return config.model_copy(update={"material": material})
 
@@ -72,14 +73,14 @@ def fit_material(measurements=PAPER_TABLE_1, config: ModelConfig | None = None,
     e0 = config.material.youngs_modulus_gpa
 
     def delta_error(zeta: float) -> float:
-        results = simulate_all(measurements, _with_material(config, e0, zeta))
+        results = simulate_all(measurements, with_material(config, e0, zeta))
         return float(np.sum([np.log(results[m.name].log_decrement / m.log_decrement) ** 2
                              for m in measurements]))
 
     zeta = float(minimize_scalar(delta_error, bounds=zeta_bounds, method="bounded",
                                  options={"xatol": 5e-3}).x)
-    results = simulate_all(measurements, _with_material(config, e0, zeta))
+    results = simulate_all(measurements, with_material(config, e0, zeta))
     f_ratio = np.mean([np.log(m.f1_hz / results[m.name].f1_hz) for m in measurements])
     e_fit = float(e0 * np.exp(2 * f_ratio))
-    final = simulate_all(measurements, _with_material(config, e_fit, zeta))
+    final = simulate_all(measurements, with_material(config, e_fit, zeta))
     return MaterialFit(e_fit, zeta, msa(log_ratios(measurements, final)), final)
