@@ -197,18 +197,23 @@ def write_figures(stats: dict, out: Path) -> list[Path]:
             scenes_figure(stats, out / "scenes.png")]
 
 
+MIN_CONTACT = 0.01      # contact probability for a whisker to enter the "strongest pairs" list
+
 def _top(values, names, k: int = 5) -> str:
     values = np.array([np.nan if v is None else v for v in values], float)
     best = [i for i in np.argsort(-np.nan_to_num(values, nan=-np.inf))[:k] if np.isfinite(values[i])]
     return ", ".join(f"{names[i]} {number(values[i], 3)}" for i in best) or "–"
 
 
-def _strongest_pairs(corr: dict, k: int = 5) -> str:
-    """The ``k`` largest |r| between whiskers, left/right twins left out (mirror images whisk alike)."""
+def _strongest_pairs(corr: dict, touching: set[str], k: int = 5) -> str:
+    """The ``k`` largest |r| between whiskers that both touch (``touching``), left/right twins
+    left out: whiskers that never touch carry only the drive's inertial moment, the same time
+    course for all of them, and would top the list with r ≈ 1."""
     matrix = np.array([[np.nan if v is None else v for v in row] for row in corr["matrix"]], float)
     names = corr["order"]
     upper = tuple(np.array([(i, j) for i, j in zip(*np.triu_indices(len(matrix), 1))
-                            if names[i][1:] != names[j][1:]], int).reshape(-1, 2).T)
+                            if names[i][1:] != names[j][1:] and {names[i], names[j]} <= touching],
+                           int).reshape(-1, 2).T)
     values = matrix[upper]
     best = np.argsort(-np.nan_to_num(np.abs(values), nan=-1))[:k]
     return ", ".join(f"{corr['order'][upper[0][i]]}–{corr['order'][upper[1][i]]} {number(values[i], 3)}"
@@ -252,8 +257,10 @@ def write_report(stats: dict, figures: list[Path], path: Path) -> Path:
                   "the time steps.")
     doc.image("whiskers in contact", figure["whiskers_in_contact"])
     doc.heading("Cross-whisker correlation of moment magnitude")
+    touching = {n for n, p in zip(names, stats["contact_probability"]) if p is not None and p >= MIN_CONTACT}
     doc.paragraph("Pearson correlation of M over all time steps, whiskers ordered by side, row and column. "
-                  f"Strongest pairs (left/right twins aside): {_strongest_pairs(stats['moment_correlation'])}.")
+                  f"Strongest pairs of whiskers in contact ≥ {MIN_CONTACT:.0%} of the time (left/right twins "
+                  f"aside): {_strongest_pairs(stats['moment_correlation'], touching)}.")
     doc.image("moment correlation", figure["moment_correlation"])
     doc.heading("Scenes and scene classes")
     rows = []
