@@ -21,11 +21,14 @@ from pipeline.scenes.library import beside_right_array, load_mesh
 
 def whisk_beside_meshes(config_path: str | Path | None, meshes: str = "outputs/meshes",
                         out: str = "outputs/trials", whiskers: str = "R",
-                        duration_s: float = 0.25, distance_mm: float = 28.0) -> dict:
-    """Run one trial per ``<meshes>/*.obj`` and write ``<out>/<mesh>.rrd``; returns a summary."""
+                        duration_s: float = 0.25, distance_mm: float = 28.0,
+                        engine: str | None = None) -> dict:
+    """Run one trial per ``<meshes>/*.obj`` and write ``<out>/<mesh>.rrd``; returns a summary.
+    ``engine`` (bullet or mujoco) overrides the model config's engine."""
     from pipeline.recordings import write_recording
 
-    config, _ = load_config(ModelConfig, config_path, env_prefix="PIPELINE_MODEL_")
+    overrides = {"engine": {"name": engine}} if engine else None
+    config, _ = load_config(ModelConfig, config_path, env_prefix="PIPELINE_MODEL_", overrides=overrides)
     paths = sorted(Path(meshes).glob("*.obj"))
     if not paths:
         raise UserError(f"no meshes in {meshes}: run `pipeline build-meshes` first")
