@@ -43,9 +43,9 @@ import numpy as np
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, SimulationError
-from pipeline.engines.common import GRAVITY_M_S2, check_pose, implausible, output_samples
+from pipeline.engines.common import GRAVITY_M_S2, check_pose, empty_signals, implausible, output_samples
 from pipeline.engines.bullet_whisker import IDENTITY_QUAT, BulletWhisker, quat
-from pipeline.engines.stepping import refinement_levels, steps_per_sample
+from pipeline.engines.stepping import refinement_levels, step_groups, steps_per_sample
 from pipeline.model.array import ArrayModel, WhiskerModel
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.outputs import TrialOutput
@@ -263,12 +263,9 @@ class BulletEngine(Engine):
         steps_per_sample(config)                      # validates dt_s against the output rate
         self.levels = refinement_levels(array, config)
         start = time.perf_counter()
-        self.worlds: list[tuple[np.ndarray, BulletWorld]] = []
-        for level in np.unique(self.levels):
-            members = np.flatnonzero(self.levels == level)
-            world = BulletWorld([array.whiskers[k] for k in members], config,
-                                config.dt_s / 2 ** level, gravity)
-            self.worlds.append((members, world))
+        self.worlds: list[tuple[np.ndarray, BulletWorld]] = [
+            (members, BulletWorld([array.whiskers[k] for k in members], config, dt_s, gravity))
+            for members, dt_s in step_groups(self.levels, config.dt_s)]
         self.build_seconds = time.perf_counter() - start
 
     def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float, *,
@@ -276,10 +273,7 @@ class BulletEngine(Engine):
         start_wall, start_cpu = time.perf_counter(), time.process_time()
         check_pose(pose)
         samples = output_samples(duration_s, self.config.output_rate_hz)
-        n_w, n_links = len(self.array.whiskers), self.array.links
-        wrench = np.zeros((samples, n_w, 6), np.float32)
-        contact = np.zeros((samples, n_w, n_links), bool)
-        nodes = np.zeros((samples, n_w, n_links + 1, 3), np.float32)
+        wrench, contact, nodes = empty_signals(samples, len(self.array.whiskers), self.array.links)
         options = dict(stop_drive_on_contact=stop_drive_on_contact,
                        external_tip_force_n=external_tip_force_n)
         steps, refined = 0, {}

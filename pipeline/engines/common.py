@@ -36,6 +36,12 @@ def output_samples(duration_s: float, output_rate_hz: float) -> int:
     return samples
 
 
+def empty_signals(samples: int, whiskers: int, links: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Zeroed outputs of a trial: base wrench [T, W, 6] float32, contact flags [T, W, N] bool,
+    node positions [T, W, N+1, 3] float32."""
+    return (np.zeros((samples, whiskers, 6), np.float32), np.zeros((samples, whiskers, links), bool),
+            np.zeros((samples, whiskers, links + 1, 3), np.float32))
+
 def implausible(wrench: np.ndarray) -> np.ndarray:
     """Indices of the whiskers of ``wrench`` [W, 6] (SI) whose base moment is non-finite or
     above :data:`MAX_PLAUSIBLE_MOMENT_NM`."""

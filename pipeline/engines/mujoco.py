@@ -89,10 +89,10 @@ import numpy as np
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, SimulationError
-from pipeline.engines.common import (GRAVITY_M_S2, ContactFlags, FaceIndex, FreeMotion,
+from pipeline.engines.common import (GRAVITY_M_S2, ContactFlags, FaceIndex, FreeMotion, empty_signals,
                                      bounding_radius_m, check_pose, implausible, link_reach_m,
                                      output_samples, path_distance_m)
-from pipeline.engines.stepping import refinement_levels, steps_per_sample
+from pipeline.engines.stepping import refinement_levels, step_groups, steps_per_sample
 from pipeline.errors import UserError
 from pipeline.model.array import ArrayModel, WhiskerModel
 from pipeline.model.kinematics import Pose, ProtractionDrive, rot_y, rot_z
@@ -640,12 +640,9 @@ class MujocoEngine(Engine):
         start = time.perf_counter()
         self._prisms: dict[tuple, MeshPrisms] = {}
         self._scene_key: object = None
-        self.worlds: list[tuple[np.ndarray, MujocoWorld]] = []
-        for level in np.unique(self.levels):
-            members = np.flatnonzero(self.levels == level)
-            world = MujocoWorld([array.whiskers[k] for k in members], config,
-                                config.dt_s / 2 ** level, gravity, self._prisms)
-            self.worlds.append((members, world))
+        self.worlds: list[tuple[np.ndarray, MujocoWorld]] = [
+            (members, MujocoWorld([array.whiskers[k] for k in members], config, dt_s, gravity, self._prisms))
+            for members, dt_s in step_groups(self.levels, config.dt_s)]
         self.build_seconds = time.perf_counter() - start
 
     def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float, *,
@@ -658,10 +655,7 @@ class MujocoEngine(Engine):
             self._scene_key = scene.key
         if external_tip_force_n is not None and np.shape(external_tip_force_n) != (3,):
             raise UserError("external_tip_force_n must be three numbers (N, world frame)")
-        n_w, n_links = len(self.array.whiskers), self.array.links
-        wrench = np.zeros((samples, n_w, 6), np.float32)
-        contact = np.zeros((samples, n_w, n_links), bool)
-        nodes = np.zeros((samples, n_w, n_links + 1, 3), np.float32)
+        wrench, contact, nodes = empty_signals(samples, len(self.array.whiskers), self.array.links)
         refined = {}
         for members, world in self.worlds:
             result = world.run(scene, pose, drive, samples, stop_drive_on_contact=stop_drive_on_contact,

@@ -40,3 +40,9 @@ def refinement_levels(array: ArrayModel, config: EngineConfig) -> np.ndarray:
         return np.zeros(len(array.whiskers), int)
     largest = np.sqrt(config.f1_tolerance) / (2 * np.pi * first_frequency_hz(array))
     return np.maximum(0, np.ceil(np.log2(config.dt_s / largest) - 1e-9)).astype(int)
+
+
+def step_groups(levels: np.ndarray, dt_s: float) -> list[tuple[np.ndarray, float]]:
+    """(indices of the whiskers, their step in s) for each refinement level, coarsest first:
+    the whiskers that share a step share one simulator world."""
+    return [(np.flatnonzero(levels == level), dt_s / 2 ** level) for level in np.unique(levels)]
