@@ -8,8 +8,15 @@ cd "$(dirname "$0")/.."
 SYSTEM_PACKAGES="libusb-1.0-0 libgl1 libegl1 libx11-6 libudev1 libidn2-0 libgomp1"
 EXTRA_PACKAGES="${EXTRA_PACKAGES:-}"   # e.g. chromium for the web-viewer test
 
+PYTHON="${PYTHON:-python3}"
+"$PYTHON" -c 'import sys; sys.exit(sys.version_info < (3, 11))' 2>/dev/null \
+    || { echo "bootstrap: error: $PYTHON is missing or older than 3.11 (set PYTHON=...)" >&2; exit 2; }
+# Debian's own python3 ships without ensurepip, which `python -m venv` needs.
+VENV_PACKAGE=""
+"$PYTHON" -c "import ensurepip" >/dev/null 2>&1 || VENV_PACKAGE="python3-venv"
+
 missing=""
-for pkg in $SYSTEM_PACKAGES $EXTRA_PACKAGES; do
+for pkg in $SYSTEM_PACKAGES $EXTRA_PACKAGES $VENV_PACKAGE; do
     dpkg -s "$pkg" >/dev/null 2>&1 || missing="$missing $pkg"
 done
 if [ -n "$missing" ]; then
@@ -19,7 +26,6 @@ if [ -n "$missing" ]; then
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends $missing >/dev/null
 fi
 
-PYTHON="${PYTHON:-python3}"
 if [ ! -x .venv/bin/python ]; then
     echo "bootstrap: creating .venv with $($PYTHON --version)"
     "$PYTHON" -m venv .venv
