@@ -10,7 +10,7 @@ from typing import Any
 
 import pipeline
 
-KEY_DEPENDENCIES = ("pybullet", "open3d-cpu", "open3d", "trimesh", "numpy", "scipy", "h5py",
+KEY_DEPENDENCIES = ("pybullet", "mujoco", "open3d-cpu", "open3d", "trimesh", "numpy", "scipy", "h5py",
                     "dask", "distributed", "rerun-sdk", "pydantic", "typer")
 
 
