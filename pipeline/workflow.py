@@ -1,9 +1,10 @@
 """Run a workflow file: stages in order, each skipped when its inputs and config are unchanged.
 
 A workflow YAML names stages; each stage has a ``config`` file, ``inputs`` (files or
-folders whose content is hashed) and ``args`` passed to the stage function. The hash of
-all of it (plus the package version) is stored in ``outputs/.workflow/<name>/<stage>.json``
-after the stage succeeds; a later run with the same hash skips the stage.
+folders whose content is hashed), ``outputs`` (what the stage writes) and ``args`` passed to
+the stage function. The hash of config, inputs and args (plus the package version) is stored
+in ``outputs/.workflow/<name>/<stage>.json`` after the stage succeeds; a later run with the
+same hash skips the stage, unless one of its outputs has gone missing.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ class StageSpec(BaseModel):
     stage: str
     config: Path | None = None
     inputs: list[Path] = Field(default_factory=list)
+    outputs: list[Path] = Field(default_factory=list)
     args: dict[str, Any] = Field(default_factory=dict)
 
 
@@ -82,10 +84,15 @@ def run_workflow(path: Path, *, force: bool = False, echo: Callable[[str], None]
             {"inputs": hash_paths(hashed), "args": stage.args, "version": pipeline.__version__},
             sort_keys=True, default=str).encode()).hexdigest()
         state_file = STATE_DIR / spec.name / f"{stage.stage}.json"
-        if not force and state_file.is_file() and json.loads(state_file.read_text()).get("key") == key:
+        missing = [str(out) for out in stage.outputs if not out.exists()]
+        unchanged = state_file.is_file() and json.loads(state_file.read_text()).get("key") == key
+        if not force and unchanged and not missing:
             echo(f"[{stage.stage}] unchanged, skipped")
             continue
-        echo(f"[{stage.stage}] running")
+        reason = "forced" if force else ("outputs missing: " + ", ".join(missing) if unchanged
+                                          else "inputs, config or args changed" if state_file.is_file()
+                                          else "first run")
+        echo(f"[{stage.stage}] running ({reason})")
         summary = functions[stage.stage](stage.config, **stage.args)
         state_file.parent.mkdir(parents=True, exist_ok=True)
         state_file.write_text(json.dumps({"key": key, "summary": summary}, indent=2, default=str))
