@@ -33,5 +33,6 @@ if [ ! -x .venv/bin/python ]; then
 fi
 echo "bootstrap: installing whisker-pipeline into .venv"
 .venv/bin/python -m pip install -q --disable-pip-version-check -e ".[dev]" 2>&1 | grep -v "is ignored: it is neither" || true
-.venv/bin/python -c "import pipeline, open3d, pybullet" >/dev/null
+check=$(.venv/bin/python -c "import pipeline, open3d, pybullet, mujoco" 2>&1) \
+    || { echo "$check" >&2; echo "bootstrap: error: the installed package does not import (above)" >&2; exit 1; }
 echo "bootstrap: ready"
