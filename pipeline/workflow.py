@@ -85,12 +85,13 @@ def run_workflow(path: Path, *, force: bool = False, echo: Callable[[str], None]
             sort_keys=True, default=str).encode()).hexdigest()
         state_file = STATE_DIR / spec.name / f"{stage.stage}.json"
         missing = [str(out) for out in stage.outputs if not out.exists()]
-        unchanged = state_file.is_file() and json.loads(state_file.read_text()).get("key") == key
+        state = json.loads(state_file.read_text()) if state_file.is_file() else {}
+        unchanged = state.get("key") == key
         if not force and unchanged and not missing:
-            echo(f"[{stage.stage}] unchanged, skipped")
+            echo(f"[{stage.stage}] unchanged, skipped; last run: {json.dumps(state.get('summary'))}")
             continue
         reason = "forced" if force else ("outputs missing: " + ", ".join(missing) if unchanged
-                                          else "inputs, config or args changed" if state_file.is_file()
+                                          else "inputs, config or args changed" if state
                                           else "first run")
         echo(f"[{stage.stage}] running ({reason})")
         summary = functions[stage.stage](stage.config, **stage.args)
