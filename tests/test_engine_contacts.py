@@ -80,3 +80,38 @@ def test_switching_scenes_reuses_their_bodies():
             counts.append([p.getNumBodies(physicsClientId=world.client) for _, world in engine.worlds])
     assert counts[1] == counts[-1]          # built once per scene, then reused
     assert len(counts[0]) == 2               # RA0 and RE4 step at different sizes: two worlds
+
+
+@pytest.mark.parametrize("engine", ["bullet", "mujoco"])
+def test_a_whisker_through_an_obstacle_at_the_start_is_an_impossible_pose(engine):
+    """A box, a peg or a mesh that a whisker's starting shape passes through is refused with
+    one clear line (simulators would otherwise jam, or report no contact from inside a solid)."""
+    from pipeline.errors import UserError
+    from pipeline.scenes import wall
+    from pipeline.scenes.obstacles import Cylinder
+
+    config = with_engine(name=engine)
+    through = {
+        "box": wall(distance_m=0.025),                           # RC1 reaches x = 32 mm at rest
+        "peg": Scene("peg", (Cylinder(0.0005, 0.05, (0.0195, -0.0169, 0.0)),)),   # on link 10
+        "mesh": Scene("sheet", (beside_right_array(bumpy_sheet(), 0.025),)),
+    }
+    for kind, scene in through.items():
+        with pytest.raises(UserError, match=r"impossible head pose .* whisker RC1 passes through "
+                                            r"obstacle 0") as info:
+            run_trial(config, scene, Pose(), 0.01, "RC1,RC6")
+        assert "\n" not in str(info.value), kind
+    # the head moved away, the same scenes are fine; the default wall clears every whisker
+    away = Pose(position_m=(-0.02, 0.0, 0.0))
+    for scene in through.values():
+        run_trial(config, scene, away, 0.01, "RC1,RC6")
+    out = run_trial(config, wall(), Pose(), 0.125, "RC0,RD0,RC6")
+    assert out.contact[:, out.index("RC0")].any() and out.contact[:, out.index("RD0")].any()
+    assert not out.contact[0].any()                              # nothing touches at the start
+
+
+def test_impossible_pose_exits_2_on_the_command_line(pipeline_cli):
+    result = pipeline_cli("trial", "--scene", "pegs-active", "--pose", "10.5,6.9,0,0,0,0",
+                          "--whiskers", "RC1", "--duration-s", "0.01")
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.startswith("error: impossible head pose") and "Traceback" not in result.stderr

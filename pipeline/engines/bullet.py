@@ -43,7 +43,7 @@ import numpy as np
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, SimulationError
-from pipeline.engines.common import GRAVITY_M_S2, check_pose, empty_signals, implausible, output_samples
+from pipeline.engines.common import GRAVITY_M_S2, check_pose, check_start_clear, empty_signals, implausible, output_samples
 from pipeline.engines.bullet_whisker import IDENTITY_QUAT, BulletWhisker, quat
 from pipeline.engines.stepping import refinement_levels, step_groups, steps_per_sample
 from pipeline.model.array import ArrayModel, WhiskerModel
@@ -272,6 +272,7 @@ class BulletEngine(Engine):
             stop_drive_on_contact: bool = False, external_tip_force_n=None) -> TrialOutput:
         start_wall, start_cpu = time.perf_counter(), time.process_time()
         check_pose(pose)
+        check_start_clear(self.array, scene, pose, float(drive(0.0)))
         samples = output_samples(duration_s, self.config.output_rate_hz)
         wrench, contact, nodes = empty_signals(samples, len(self.array.whiskers), self.array.links)
         options = dict(stop_drive_on_contact=stop_drive_on_contact,

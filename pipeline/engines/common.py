@@ -10,6 +10,8 @@ touch nothing (:class:`FreeMotion`).
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from pipeline.errors import UserError
@@ -26,6 +28,71 @@ def check_pose(pose: Pose) -> None:
     """Raise :class:`UserError` for a head pose with non-finite values."""
     if not (np.all(np.isfinite(pose.position_m)) and np.all(np.isfinite(pose.yaw_pitch_roll_rad))):
         raise UserError(f"head pose has non-finite values: {pose}")
+
+
+def solid_contains(obstacle, points_m: np.ndarray) -> np.ndarray:
+    """[P] whether each point (m, world) lies strictly inside a peg or a box at t = 0."""
+    from pipeline.scenes.obstacles import Box
+
+    relative = points_m - np.asarray(obstacle.position_m, float)
+    if isinstance(obstacle, Box):
+        local = relative @ np.asarray(obstacle.rotation, float)
+        return np.all(np.abs(local) < np.asarray(obstacle.half_extents_m), axis=1)
+    axis = np.asarray(obstacle.axis, float) / np.linalg.norm(obstacle.axis)
+    along = relative @ axis
+    radial = np.linalg.norm(relative - along[:, None] * axis, axis=1)
+    return (np.abs(along) < 0.5 * obstacle.length_m) & (radial < obstacle.radius_m)
+
+
+def smallest_size_m(obstacle) -> float:
+    """The thinnest dimension (m) of a peg (its radius) or a box (its smallest half extent)."""
+    from pipeline.scenes.obstacles import Box
+
+    if isinstance(obstacle, Box):
+        return float(min(obstacle.half_extents_m))
+    return float(min(obstacle.radius_m, 0.5 * obstacle.length_m))
+
+
+def along_links(nodes_m: np.ndarray, spacing_m: float) -> np.ndarray:
+    """[W, P, 3] points along the links of chains ``nodes_m`` [W, N+1, 3], at most
+    ``spacing_m`` apart, both ends of every link included."""
+    steps = np.diff(nodes_m, axis=1)                                    # [W, N, 3]
+    per_link = max(1, int(np.ceil(np.linalg.norm(steps, axis=2).max() / spacing_m)))
+    fractions = np.arange(per_link) / per_link
+    inner = nodes_m[:, :-1, None] + fractions[:, None] * steps[:, :, None]  # [W, N, m, 3]
+    return np.concatenate([inner.reshape(len(nodes_m), -1, 3), nodes_m[:, -1:]], axis=1)
+
+
+def check_start_clear(array, scene, pose: Pose, theta0_rad: float) -> None:
+    """Raise :class:`UserError` when a whisker's rest shape at the start of the trial (head
+    ``pose``, protraction ``theta0_rad``) has a node inside a peg or a box, or a link crossing a
+    mesh surface: no simulator can start from there (the contact solver jams or, with the whole
+    whisker inside a solid, reports nothing)."""
+    from pipeline.scenes.obstacles import TriangleMesh
+
+    if not scene.obstacles:
+        return
+    nodes = np.array([pose.apply(w.rest_nodes_head(theta0_rad)) for w in array.whiskers])
+    for index, obstacle in enumerate(scene.obstacles):
+        if isinstance(obstacle, TriangleMesh):
+            blocked = _surface_queries(obstacle).segments_cross(nodes)
+        else:
+            points = along_links(nodes, 0.5 * smallest_size_m(obstacle))
+            blocked = solid_contains(obstacle, points.reshape(-1, 3)).reshape(points.shape[:2]).any(axis=1)
+        if blocked.any():
+            names = [array.whiskers[k].name for k in np.flatnonzero(blocked)]
+            more = f" and {len(names) - 1} more" if len(names) > 1 else ""
+            raise UserError(f"impossible head pose {pose}: at the start of the trial whisker "
+                            f"{names[0]}{more} passes through obstacle {index} "
+                            f"({type(obstacle).__name__}) of scene '{scene.name}'; move the head "
+                            "or the obstacle")
+
+
+@lru_cache(maxsize=8)
+def _surface_queries(mesh):
+    from pipeline.scenes.poses import SurfaceQueries
+
+    return SurfaceQueries(mesh)
 
 
 def output_samples(duration_s: float, output_rate_hz: float) -> int:

@@ -90,7 +90,7 @@ from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, SimulationError
 from pipeline.engines.common import (GRAVITY_M_S2, ContactFlags, FaceIndex, FreeMotion, empty_signals,
-                                     bounding_radius_m, check_pose, implausible, link_reach_m,
+                                     bounding_radius_m, check_pose, check_start_clear, implausible, link_reach_m,
                                      output_samples, path_distance_m)
 from pipeline.engines.stepping import refinement_levels, step_groups, steps_per_sample
 from pipeline.errors import UserError
@@ -649,6 +649,7 @@ class MujocoEngine(Engine):
             stop_drive_on_contact: bool = False, external_tip_force_n=None) -> TrialOutput:
         start_wall, start_cpu = time.perf_counter(), time.process_time()
         check_pose(pose)
+        check_start_clear(self.array, scene, pose, float(drive(0.0)))
         samples = output_samples(duration_s, self.config.output_rate_hz)
         if scene.key != self._scene_key:          # meshes of other scenes are not needed again
             self._prisms.clear()

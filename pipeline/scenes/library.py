@@ -29,8 +29,12 @@ def active_pegs(lateral_m: float = 0.030, y_m: float = -0.010, diameter_m: float
     return Scene("pegs-active", pegs)
 
 
-def wall(distance_m: float = 0.025, side: int = 1) -> Scene:
-    """A large flat wall parallel to the y–z plane at x = side·distance (lateral of the array)."""
+def wall(distance_m: float = 0.040, side: int = 1) -> Scene:
+    """A large flat wall parallel to the y–z plane at x = side·distance (lateral of the array).
+
+    The default 40 mm clears every whisker of the model rat at the start of the default whisk
+    (they reach x ≤ 35.5 mm there) and is reached by the long caudal whiskers as they protract
+    (up to 59 mm)."""
     thickness = 0.005
     box = Box((thickness / 2, 0.1, 0.1), (side * (distance_m + thickness / 2), 0.0, 0.0))
     return Scene("wall", (box,))

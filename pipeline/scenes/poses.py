@@ -85,6 +85,13 @@ class SurfaceQueries:
         hits = self.scene.cast_rays(self._o3d.core.Tensor(rays.astype(np.float32)), nthreads=1)
         return hits["t_hit"].numpy().astype(float), hits["primitive_normals"].numpy().astype(float)
 
+    def segments_cross(self, nodes: np.ndarray) -> np.ndarray:
+        """[..., W] whether a segment between consecutive nodes of ``nodes`` [..., W, N+1, 3]
+        crosses the surface."""
+        nodes = np.asarray(nodes, float)
+        t_hit, _ = self.cast(nodes[..., :-1, :], np.diff(nodes, axis=-2))
+        return (t_hit.reshape(nodes.shape[:-2] + (-1,)) <= 1.0).any(axis=-1)
+
     def random_point(self, rng: np.random.Generator) -> np.ndarray:
         """A point drawn uniformly over the surface area."""
         face = int(np.searchsorted(self._cumulative_area, rng.uniform(0.0, self._cumulative_area[-1]),
@@ -146,11 +153,8 @@ class PoseSampler:
 
     def crossings(self, pose: Pose, shapes: np.ndarray) -> np.ndarray:
         """[K, W] whether a link of whisker w's rest shape at angle k crosses the surface."""
-        return self._crossings(pose.apply(shapes))
+        return self.surface.segments_cross(pose.apply(shapes))
 
-    def _crossings(self, world: np.ndarray) -> np.ndarray:
-        t_hit, _ = self.surface.cast(world[:, :, :-1], np.diff(world, axis=2))
-        return (t_hit.reshape(world.shape[:2] + (-1,)) <= 1.0).any(axis=2)
 
     def sweeps(self, pose: Pose, envelope: np.ndarray) -> np.ndarray:
         """[W] whether whisker w crosses the surface at an angle of the envelope, or one of its
@@ -159,7 +163,7 @@ class PoseSampler:
         k, w = world.shape[:2]
         t_hit, _ = self.surface.cast(world[:-1, :, 1:], np.diff(world[:, :, 1:], axis=0))
         swept = (t_hit.reshape(k - 1, w, -1) <= 1.0).any(axis=(0, 2))
-        return self._crossings(world).any(axis=0) | swept
+        return self.surface.segments_cross(world).any(axis=0) | swept
 
     def sample(self, rng: np.random.Generator, theta_range_rad: tuple[float, float],
                theta_start_rad: float) -> PoseSample:
