@@ -215,3 +215,13 @@ def test_documentation_names_every_column_and_array():
     doc = (REPO / "docs" / "dataset.md").read_text()
     for name in [*ARRAYS, *TRIAL_COLUMNS, *WHISKER_COLUMNS]:
         assert f"`{name}`" in doc, name
+
+
+def test_trial_arrays_refuse_whiskers_not_in_the_table_order():
+    output = fake_output(0)
+    theta = np.zeros(T)
+    trial_arrays(output, theta, layout())
+    swapped = TrialOutput(output.time_s, output.base_wrench[:, ::-1], output.contact[:, ::-1],
+                          output.node_positions_m[:, ::-1], NAMES[::-1], output.metadata)
+    with pytest.raises(ValueError, match="not the dataset's whisker table RC1,RC2,LA0"):
+        trial_arrays(swapped, theta, layout())

@@ -89,6 +89,10 @@ def trial_arrays(output: TrialOutput, protraction_rad: np.ndarray, layout: Layou
     t = len(output.time_s)
     if t > layout.samples:
         raise ValueError(f"trial has {t} samples; the dataset holds {layout.samples}")
+    table = [name.decode() for name in layout.whiskers["name"]]
+    if list(output.whisker_names) != table:
+        raise ValueError(f"trial whiskers {','.join(output.whisker_names)} are not the dataset's "
+                         f"whisker table {','.join(table)} (same names in the same order)")
 
     def padded(name: str, value: np.ndarray) -> np.ndarray:
         spec = ARRAYS[name]
