@@ -232,5 +232,5 @@ def test_active_pegs_contacts_agree_with_bullet():
 
 
 def test_scan_scene_contacts_agree_with_bullet(branch_scan):
-    scene = Scene("mesh:branch", (beside_right_array(branch_scan, distance_m=0.022),))
+    scene = Scene("mesh:branch", (beside_right_array(branch_scan, distance_m=0.028),))
     assert _onsets_agree(scene, "R") >= 3
