@@ -75,9 +75,10 @@ def load_mesh(path: str | Path) -> TriangleMesh:
     return TriangleMesh(vertices, faces, source=str(path.resolve()))
 
 
-def beside_right_array(mesh: TriangleMesh, distance_m: float = 0.022) -> TriangleMesh:
+def beside_right_array(mesh: TriangleMesh, distance_m: float = 0.028) -> TriangleMesh:
     """The mesh translated so that its nearest face of the bounding box is ``distance_m`` lateral
-    (+x) of the array origin, centred in y and z: a quick placement that the right whiskers reach."""
+    (+x) of the array origin, centred in y and z: a quick placement that the right whiskers reach.
+    Closer than about 28 mm, whiskers of the model rat may start inside the surface (refused)."""
     v = mesh.vertices_m
     centre = v.mean(axis=0)
     offset = np.array([distance_m - v[:, 0].min(), -centre[1], -centre[2]])
