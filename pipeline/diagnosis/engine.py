@@ -3,14 +3,16 @@
 Same interface as :class:`~pipeline.diagnosis.fastsim.FastSimulator`: positions of the
 tracked points for a :class:`~pipeline.model.extensions.WhiskerPhysics`. The whisker is the
 bench whisker of :func:`pipeline.model.array.single_whisker` (whisker frame = head frame)
-with the extended chain and follicle, built by :func:`pipeline.engines.create_engine`.
+with the extended chain and follicle, built by :func:`pipeline.engines.create_engine`
+(``bullet`` or ``mujoco``). A trial starts where the fast simulator starts it: a release
+from its static deflection, any other trial sagged under gravity, passed to ``Engine.run``
+as initial joint angles (the coordinates of :mod:`pipeline.diagnosis.linear` are the
+engines' free joints, in the same order).
+
 Limits of the present engine interface:
 
 - the base is driven by one signal θ(t) with fixed joint rates, so a rotation drive must be
   rank one (angles(t) = r·θ(t)); independent yaw/pitch/roll are refused;
-- ``Engine.run`` starts from the rest shape. A release (or a start sagged under gravity)
-  needs the joints set at t = 0: :func:`_start_from` does that for Bullet by wrapping its
-  whiskers' ``reset``, a stop-gap until ``Engine.run`` takes initial joint angles;
 - no twist degree of freedom, no air drag, gravity only at 9.81 m/s² (:func:`check_supported`).
 """
 
@@ -70,25 +72,8 @@ def _pose_for(direction: np.ndarray):
     return Pose((0.0, 0.0, 0.0), (yaw, pitch, roll)), rot.as_matrix()
 
 
-def _start_from(engine, initial: np.ndarray) -> None:
-    """Make every trial of ``engine`` start with the whisker joints at ``initial`` (rad)."""
-    if getattr(engine, "name", "") != "bullet":
-        raise UserError(f"engine '{engine.name}' cannot start a whisker from a deflected state "
-                        "(release trials and gravity need it; only the bullet engine is adapted)")
-    import pybullet as p
-
-    for _, world in engine.worlds:
-        for whisker in world.whiskers:
-            def reset(base_mm, orientation, drive, w=whisker, rest=whisker.reset):
-                rest(base_mm, orientation, drive)
-                for joint, value in zip(w.dofs[3:], initial):
-                    p.resetJointState(w.body, joint, float(value), 0.0, physicsClientId=w.client)
-
-            whisker.reset = reset
-
-
 class EngineSimulator:
-    """Positions of tracked points simulated by a physics engine (only ``bullet`` so far)."""
+    """Positions of tracked points simulated by a physics engine (``bullet`` or ``mujoco``)."""
 
     def __init__(self, name: str = "bullet", dt_s: float = ENGINE_DT_S):
         self.name, self.dt_s = name, dt_s
@@ -127,9 +112,7 @@ class EngineSimulator:
             name=self.name, dt_s=1.0 / (rate * steps), output_rate_hz=rate))
         pose, world_from_rest = _pose_for(prepared.direction)
         with create_engine(config, ArrayModel((whisker,), material)) as engine:
-            if np.any(initial):
-                _start_from(engine, initial)
-            output = engine.run(empty(), pose, drive, duration)
+            output = engine.run(empty(), pose, drive, duration, initial_joint_angles_rad=initial)
         nodes = output.node_positions_m[:, 0].astype(float) @ world_from_rest     # → rest frame
         first = lin.points(initial[None], trial.arc_fraction)
         if not isinstance(trial.drive, ReleaseDrive):

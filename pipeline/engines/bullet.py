@@ -42,7 +42,7 @@ import numpy as np
 
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
-from pipeline.engines.base import Engine, SimulationError
+from pipeline.engines.base import Engine, SimulationError, initial_angles
 from pipeline.engines.common import GRAVITY_M_S2, check_pose, check_start_clear, empty_signals, implausible, output_samples
 from pipeline.engines.bullet_whisker import IDENTITY_QUAT, BulletWhisker, quat
 from pipeline.engines.stepping import refinement_levels, step_groups, steps_per_sample
@@ -166,7 +166,7 @@ class BulletWorld:
                                                   physicsClientId=self.client)
 
     # -- trial ---------------------------------------------------------------------------
-    def _reset(self, pose: Pose, drive: ProtractionDrive) -> None:
+    def _reset(self, pose: Pose, drive: ProtractionDrive, initial: list[np.ndarray]) -> None:
         import pybullet as p
 
         rotation = pose.rotation
@@ -175,24 +175,26 @@ class BulletWorld:
         # Clear cached contact manifolds so a trial does not depend on the previous one.
         self._place_obstacles(0.0, far=True)
         p.performCollisionDetection(physicsClientId=self.client)
-        for w in self.whiskers:
-            w.reset((position + rotation @ w.model.base_point_m) * U.LENGTH, orientation, drive)
+        for k, w in enumerate(self.whiskers):
+            w.reset((position + rotation @ w.model.base_point_m) * U.LENGTH, orientation, drive, initial[k])
         self._place_obstacles(0.0)
         p.performCollisionDetection(physicsClientId=self.client)
 
     def _park(self, k: int, drive: ProtractionDrive) -> None:
         """Move whisker k (jammed) far away at rest: it no longer touches anything."""
         w = self.whiskers[k]
-        w.reset(np.full(3, PARKED_MM) * (k + 2), list(IDENTITY_QUAT), drive)
+        w.reset(np.full(3, PARKED_MM) * (k + 2), list(IDENTITY_QUAT), drive, np.zeros(len(w.free_dofs)))
 
     def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, samples: int, *,
-            stop_drive_on_contact: bool = False, external_tip_force_n=None) -> WorldResult:
-        """Simulate ``samples`` output intervals from rest (see :meth:`Engine.run`)."""
+            initial: list[np.ndarray], stop_drive_on_contact: bool = False,
+            external_tip_force_n=None) -> WorldResult:
+        """Simulate ``samples`` output intervals from the free-joint angles ``initial`` (per
+        whisker of this world, [J] rad; see :meth:`Engine.run`)."""
         import pybullet as p
 
         c, h = self.client, self.dt_s
         self.set_scene(scene)
-        self._reset(pose, drive)
+        self._reset(pose, drive, initial)
         n_w, n_links = len(self.whiskers), self.whiskers[0].model.chain.links
         result = WorldResult(np.zeros((samples, n_w, 6), np.float32),
                              np.zeros((samples, n_w, n_links), bool),
@@ -269,9 +271,11 @@ class BulletEngine(Engine):
         self.build_seconds = time.perf_counter() - start
 
     def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float, *,
-            stop_drive_on_contact: bool = False, external_tip_force_n=None) -> TrialOutput:
+            stop_drive_on_contact: bool = False, external_tip_force_n=None,
+            initial_joint_angles_rad=None) -> TrialOutput:
         start_wall, start_cpu = time.perf_counter(), time.process_time()
         check_pose(pose)
+        initial = initial_angles(self.array, initial_joint_angles_rad)
         check_start_clear(self.array, scene, pose, float(drive(0.0)))
         samples = output_samples(duration_s, self.config.output_rate_hz)
         wrench, contact, nodes = empty_signals(samples, len(self.array.whiskers), self.array.links)
@@ -279,12 +283,12 @@ class BulletEngine(Engine):
                        external_tip_force_n=external_tip_force_n)
         steps, refined = 0, {}
         for members, world in self.worlds:
-            result = world.run(scene, pose, drive, samples, **options)
+            result = world.run(scene, pose, drive, samples, initial=[initial[k] for k in members], **options)
             steps += samples * world.steps_per_sample * len(members)
             for local, message in result.jammed.items():
                 k = members[local]
-                alone, levels, extra = self._rerun_alone(k, world.dt_s, message, scene, pose, drive,
-                                                         samples, options)
+                alone, levels, extra = self._rerun_alone(k, world.dt_s, message, scene, pose, drive, samples,
+                                                         dict(options, initial=[initial[k]]))
                 for name in ("wrench", "contact", "nodes"):
                     getattr(result, name)[:, local] = getattr(alone, name)[:, 0]
                 refined[self.array.whiskers[k].name] = levels

@@ -144,15 +144,18 @@ class BulletWhisker:
         theta, omega = float(drive(t)), float(drive(t, 1))
         return self.rest_driven + self.rates * theta, self.rates * omega
 
-    def reset(self, base_mm: np.ndarray, orientation: list[float], drive: ProtractionDrive) -> None:
-        """Rest shape, base at ``base_mm`` (world, mm) with the head ``orientation`` quaternion."""
+    def reset(self, base_mm: np.ndarray, orientation: list[float], drive: ProtractionDrive,
+              free_angles: np.ndarray) -> None:
+        """Base at ``base_mm`` (world, mm) with the head ``orientation`` quaternion, driven joints
+        as the drive at t = 0, free joints (``dofs[3:]``, in the order of
+        :mod:`pipeline.engines.base`) at ``free_angles`` [J] (rad; zeros: rest shape), not moving."""
         import pybullet as p
 
         p.resetBasePositionAndOrientation(self.body, base_mm.tolist(), orientation,
                                           physicsClientId=self.client)
         q_driven, v_driven = self.driven_targets(drive, 0.0)
         for k, joint in enumerate(self.dofs):
-            q, v = (q_driven[k], v_driven[k]) if k < 3 else (0.0, 0.0)
+            q, v = (q_driven[k], v_driven[k]) if k < 3 else (free_angles[k - 3], 0.0)
             p.resetJointState(self.body, joint, q, v, physicsClientId=self.client)
 
     def driven_angles(self) -> np.ndarray:
