@@ -76,7 +76,7 @@ the contact order, depends on the world's whiskers). Until its first contact a w
 as in an empty scene, so one that touched nothing in an earlier trial with the same drive and
 keeps clear of this trial's obstacles is not simulated again: its outputs are reused, moved
 to the new pose (:class:`~pipeline.engines.common.FreeMotion`; off with gravity or a tip
-force).
+force). Only rest starts are remembered and reused: a whisker started bent is simulated.
 """
 
 from __future__ import annotations
@@ -88,7 +88,7 @@ import numpy as np
 
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
-from pipeline.engines.base import Engine, SimulationError
+from pipeline.engines.base import Engine, SimulationError, initial_angles
 from pipeline.engines.common import (GRAVITY_M_S2, ContactFlags, FaceIndex, FreeMotion, empty_signals,
                                      bounding_radius_m, check_pose, check_start_clear, implausible, link_reach_m,
                                      output_samples, path_distance_m)
@@ -145,8 +145,9 @@ class MeshPrisms:
     """A static triangle mesh as convex prisms, one per face (mm, world frame).
 
     ``corners`` [F, 6, 3]: the face, then the face moved along its inward normal by half the
-    distance to the next surface behind it, clamped to :data:`PRISM_DEPTH_MM`; ``valid`` [F]
-    excludes degenerate faces. ``index`` finds the faces near points (m).
+    distance to the next surface behind it (clamped to :data:`PRISM_DEPTH_MM`) and widened
+    (:func:`_taper`); ``valid`` [F] excludes degenerate faces. ``index`` finds the faces near
+    points (m).
     """
 
     def __init__(self, mesh: TriangleMesh):
@@ -161,7 +162,38 @@ class MeshPrisms:
         depth = 0.5 * _depth_behind_m(vertices, faces, self.index.centroids, -normal) * U.LENGTH
         depth = np.clip(depth, *PRISM_DEPTH_MM)
         front = corners * U.LENGTH
-        self.corners = np.concatenate([front, front - (depth[:, None] * normal)[:, None]], axis=1)
+        centre = front.mean(axis=1, keepdims=True)
+        outward = (front - centre) / np.maximum(np.linalg.norm(front - centre, axis=2, keepdims=True), 1e-12)
+        widen = (_taper(vertices, faces) * depth)[:, None, None] * outward
+        back = front - (depth[:, None] * normal)[:, None] + widen
+        self.corners = np.concatenate([front, back], axis=1)
+
+
+def _taper(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """[F] how far each prism's back face is widened, per unit depth.
+
+    With straight side walls, a thin link pressed into a prism near its edge is pushed out
+    sideways into the neighbouring prism rather than back through the face, and slowly sinks
+    through the surface (on a closed sphere of 1.1 mm faces: nodes up to 2.4 mm inside).
+    Side walls sloping out at 45° (taper 1) keep the face the nearest way out. Across a convex
+    edge whose faces' normals differ by φ > 45°, a widened back would poke out through the
+    neighbour's surface, so the taper there is cot φ; faces on the mesh boundary keep straight
+    walls (a ledge beyond the scanned surface would be felt by whiskers reaching around it).
+    """
+    import trimesh
+
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    taper = np.ones(len(faces))
+    pairs = mesh.face_adjacency[mesh.face_adjacency_convex]
+    angles = mesh.face_adjacency_angles[mesh.face_adjacency_convex]
+    limit = 1.0 / np.tan(np.clip(angles, 1e-9, np.pi / 2))
+    for column in (0, 1):
+        np.minimum.at(taper, pairs[:, column], limit)
+    edges = mesh.edges_sorted
+    _, inverse, counts = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
+    on_boundary = (counts[inverse.ravel()] == 1).reshape(-1, 3).any(axis=1)
+    taper[on_boundary] = 0.0
+    return np.clip(taper, 0.0, 1.0)
 
 
 def _depth_behind_m(vertices: np.ndarray, faces: np.ndarray, origins: np.ndarray,
@@ -382,6 +414,14 @@ class MujocoWorld:
                          if self.whiskers[k].follicle is not None else None for k in members]
         self.link_bodies = np.array([[named(body, f"w{k}/l{i}") for i in range(self.links)]
                                      for k in members])
+
+        def joints(b):
+            return np.arange(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
+
+        # per member, the qpos of its free joints from the base out: the follicle's z, y on link 1
+        # (if compliant), then the z, y hinges of each further link
+        self.free_qpos = [m.jnt_qposadr[np.concatenate([joints(b) for b in bodies])]
+                          for bodies in self.link_bodies]
         self.tip_sites = np.array([named(mujoco.mjtObj.mjOBJ_SITE, f"w{k}/tip") for k in members])
         self.whisker_geoms = np.array([named(geom, f"w{k}/g{i}") for k in members
                                        for i in range(self.links)])
@@ -453,8 +493,10 @@ class MujocoWorld:
                               else m.opt.disableflags | contact_bit)
 
     # -- trial ---------------------------------------------------------------------------
-    def _reset(self, pose: Pose, drive: ProtractionDrive) -> tuple[np.ndarray, np.ndarray]:
-        """Rest shape at ``pose``; returns the kinematic targets' offsets and θ-rates."""
+    def _reset(self, pose: Pose, drive: ProtractionDrive,
+               initial: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """Head at ``pose``, driven joints as the drive at t = 0, free joints still at ``initial``
+        (per whisker of the world, rad); returns the kinematic targets' offsets and θ-rates."""
         import mujoco
 
         m, d = self.model, self.data
@@ -470,16 +512,20 @@ class MujocoWorld:
         d.qpos[self.kinematic] = offset + theta_rate * float(drive(0.0))
         d.qvel[self.kinematic] = theta_rate * float(drive(0.0, 1))
         d.qvel[self.kinematic[self.n_driven:]] = self.obstacle_velocity
+        for qpos, k in zip(self.free_qpos, self.members):
+            d.qpos[qpos] = initial[k]
         mujoco.mj_forward(m, d)
         return offset, theta_rate
 
     def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, samples: int, *,
-            stop_drive_on_contact: bool = False, external_tip_force_n=None,
-            refine: bool = True) -> WorldResult:
-        """``samples`` output intervals from rest (see :meth:`Engine.run`).
+            initial: list[np.ndarray], stop_drive_on_contact: bool = False,
+            external_tip_force_n=None, refine: bool = True) -> WorldResult:
+        """``samples`` output intervals from the free-joint angles ``initial`` (per whisker of
+        this world, [J] rad; see :meth:`Engine.run`).
 
-        A whisker whose motion in an earlier trial with the same drive touched nothing and keeps
-        clear of this trial's obstacles is not simulated again (:class:`FreeMotion`). A whisker
+        A whisker starting at rest whose motion in an earlier trial with the same drive, also
+        from rest, touched nothing and keeps clear of this trial's obstacles is not simulated
+        again (:class:`FreeMotion`; a deflected start neither reuses nor is kept). A whisker
         whose base moment leaves the plausible range (a jammed contact) is taken out and the
         others simulated again without it; it is then simulated alone with half the step, again
         while it jams, ``engine.jam_refinements`` times (``refine=False``: only reported in
@@ -489,7 +535,8 @@ class MujocoWorld:
         options = dict(stop_drive_on_contact=stop_drive_on_contact, external_tip_force_n=external_tip_force_n)
         self.free.select(drive, samples, depends_on_pose=self.gravity or external_tip_force_n is not None)
         times = np.arange(1, samples + 1) / rate
-        reused = self.free.reusable(pose, scene, lambda i: self._mesh_prisms(scene, i).index, times)
+        at_rest = np.array([not angles.any() for angles in initial])
+        reused = at_rest & self.free.reusable(pose, scene, lambda i: self._mesh_prisms(scene, i).index, times)
         result = WorldResult.zeros(samples, len(self.whiskers), self.links)
         members = np.flatnonzero(~reused)
         if members.size:
@@ -497,21 +544,21 @@ class MujocoWorld:
         while members.size:
             self._prepare(scene, parts, gaps, members)
             try:
-                simulated = self._simulate(pose, drive, samples, **options)
+                simulated = self._simulate(pose, drive, samples, initial, **options)
             except _Jam as jam:
                 result.jammed.update(jam.messages)
                 members = np.setdiff1d(members, list(jam.messages))
                 continue
             result.put(members, simulated)
-            for j in np.flatnonzero(~simulated.touched):
+            for j in np.flatnonzero(~simulated.touched & at_rest[members]):
                 self.free.remember(members[j], simulated.wrench[:, j], simulated.nodes[:, j], pose)
             break
         for k in np.flatnonzero(reused):
             result.wrench[:, k], result.nodes[:, k] = self.free.recall(k, pose)
         if refine:
             for k, message in list(result.jammed.items()):
-                alone, result.refined[self.whiskers[k].name] = self._refine(k, message, scene, pose, drive,
-                                                                            samples, options)
+                alone, result.refined[self.whiskers[k].name] = self._refine(
+                    k, message, scene, pose, drive, samples, dict(options, initial=[initial[k]]))
                 result.put([k], alone)
                 del result.jammed[k]
         return result
@@ -530,13 +577,13 @@ class MujocoWorld:
                               f"{self.dt_s / 2 ** self.config.jam_refinements:.3g} s: "
                               "is a surface pressed against the whisker?)")
 
-    def _simulate(self, pose: Pose, drive: ProtractionDrive, samples: int,
+    def _simulate(self, pose: Pose, drive: ProtractionDrive, samples: int, initial: list[np.ndarray],
                   stop_drive_on_contact: bool, external_tip_force_n) -> WorldResult:
         """Integrate the current model (its ``members``) for ``samples`` output intervals."""
         import mujoco
 
         m, d, h, spp = self.model, self.data, self.dt_s, self.steps_per_sample
-        offset, theta_rate = self._reset(pose, drive)
+        offset, theta_rate = self._reset(pose, drive, initial)
         n_w, n_steps = len(self.members), samples * spp
         times = np.arange(n_steps + 2) * h
         thetas = np.asarray(drive(times), float)
@@ -646,9 +693,11 @@ class MujocoEngine(Engine):
         self.build_seconds = time.perf_counter() - start
 
     def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float, *,
-            stop_drive_on_contact: bool = False, external_tip_force_n=None) -> TrialOutput:
+            stop_drive_on_contact: bool = False, external_tip_force_n=None,
+            initial_joint_angles_rad=None) -> TrialOutput:
         start_wall, start_cpu = time.perf_counter(), time.process_time()
         check_pose(pose)
+        initial = initial_angles(self.array, initial_joint_angles_rad)
         check_start_clear(self.array, scene, pose, float(drive(0.0)))
         samples = output_samples(duration_s, self.config.output_rate_hz)
         if scene.key != self._scene_key:          # meshes of other scenes are not needed again
@@ -659,7 +708,8 @@ class MujocoEngine(Engine):
         wrench, contact, nodes = empty_signals(samples, len(self.array.whiskers), self.array.links)
         refined = {}
         for members, world in self.worlds:
-            result = world.run(scene, pose, drive, samples, stop_drive_on_contact=stop_drive_on_contact,
+            result = world.run(scene, pose, drive, samples, initial=[initial[k] for k in members],
+                               stop_drive_on_contact=stop_drive_on_contact,
                                external_tip_force_n=external_tip_force_n)
             wrench[:, members], contact[:, members], nodes[:, members] = (
                 result.wrench, result.contact, result.nodes)
