@@ -234,3 +234,27 @@ def test_active_pegs_contacts_agree_with_bullet():
 def test_scan_scene_contacts_agree_with_bullet(branch_scan):
     scene = Scene("mesh:branch", (beside_right_array(branch_scan, distance_m=0.028),))
     assert _onsets_agree(scene, "R") >= 3
+
+
+def test_whisker_tips_barely_sink_into_a_closed_surface():
+    """A closed sphere (inside is exact): the caudal whiskers pressed into it for 250 ms stay
+    outside but for the soft-contact give of their nanogram tip links. Measured: 33 of 390
+    contact samples with a node > 0.1 mm inside, at most 0.30 mm, all tips; with straight-walled
+    prisms 123 samples and 1.34 mm, mid-whisker nodes included (the bounds fail there)."""
+    import trimesh
+
+    from pipeline.scenes.obstacles import TriangleMesh
+
+    centre = np.array([0.045, -0.010, 0.0])
+    ico = trimesh.creation.icosphere(subdivisions=4, radius=0.015)                 # 1.1 mm faces
+    scene = Scene("sphere", (TriangleMesh(np.asarray(ico.vertices) + centre, np.asarray(ico.faces), "ball"),))
+    config = _config("mujoco")
+    with create_engine(config, build_array(model_rat().select("RC0,RC1,RC2"), config.material)) as engine:
+        out = engine.run(scene, Pose(), sinusoidal_whisk(duration_s=0.25), 0.25)
+    nodes = out.node_positions_m.astype(float) - centre
+    inside = trimesh.proximity.signed_distance(ico, nodes.reshape(-1, 3)).reshape(nodes.shape[:3])  # m, > 0 in
+    in_contact = out.contact.any(axis=2)
+    assert in_contact.sum() >= 300
+    sunk = (inside > 1e-4).any(axis=2)
+    assert sunk.sum() < 0.15 * in_contact.sum()
+    assert inside.max() < 6e-4
