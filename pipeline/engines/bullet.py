@@ -25,6 +25,13 @@ normals; the impulses then grow without bound. A whisker whose base moment leave
 plausible range is parked out of the way (the rest of its world goes on) and simulated again
 alone with half the step, up to ``engine.jam_refinements`` times; only then does the trial fail.
 
+Triangle meshes. Bullet's triangles have no thickness, and a thin link that crosses one within
+a step is then pushed out on the far side (on a closed sphere: nodes up to 2.8 mm inside). A
+mesh therefore gets a collision margin of :data:`MESH_MARGIN_MM` — a skin Bullet detects
+contacts in, wide enough to catch a link before it crosses — with its vertices moved inward
+by the same distance along their normals, so that the skin's outer side is the scanned surface
+(sphere: ≤ 0.5 mm, tips only, as MuJoCo; ``benchmarks/bench_penetration.py``).
+
 Obstacle shapes cannot be freed in pybullet (``removeBody`` on a static mesh body fails and
 ``removeCollisionShape`` refuses shapes in use), so each world keeps the bodies of every scene
 it has seen and parks those of other scenes far away: memory grows with the number of distinct
@@ -55,6 +62,7 @@ __all__ = ["BulletEngine", "SimulationError"]
 
 WHISKER_GROUP, OBSTACLE_GROUP = 1, 2
 PARKED_MM = 1e6          # obstacles of other scenes and jammed whiskers wait this far away
+MESH_MARGIN_MM = 0.3     # contact skin of triangle meshes (0.1 mm let links through; see above)
 
 
 @dataclass
@@ -94,8 +102,11 @@ def obstacle_shape(client: int, obstacle) -> tuple[int, list[float]]:
                                        halfExtents=[v * U.LENGTH for v in obstacle.half_extents_m])
         return shape, quat(np.asarray(obstacle.rotation))
     if isinstance(obstacle, TriangleMesh):
-        shape = p.createCollisionShape(p.GEOM_MESH, physicsClientId=client,
-                                       vertices=(obstacle.vertices_m * U.LENGTH).tolist(),
+        import trimesh
+
+        normals = trimesh.Trimesh(obstacle.vertices_m, obstacle.faces, process=False).vertex_normals
+        inner = obstacle.vertices_m * U.LENGTH - MESH_MARGIN_MM * normals
+        shape = p.createCollisionShape(p.GEOM_MESH, physicsClientId=client, vertices=inner.tolist(),
                                        indices=obstacle.faces.astype(int).ravel().tolist())
         return shape, list(IDENTITY_QUAT)
     raise TypeError(f"unknown obstacle {type(obstacle).__name__}")
@@ -150,6 +161,8 @@ class BulletWorld:
                          else np.asarray(obstacle.position_m) * U.LENGTH)
                 body = p.createMultiBody(0.0, shape, -1, (start + PARKED_MM).tolist(), orientation,
                                          physicsClientId=self.client)
+                if isinstance(obstacle, TriangleMesh):
+                    p.changeDynamics(body, -1, collisionMargin=MESH_MARGIN_MM, physicsClientId=self.client)
                 self._set_contact_properties(body, [-1], OBSTACLE_GROUP, WHISKER_GROUP)
                 built.append(_Obstacle(body, start, np.asarray(obstacle.velocity_m_s, float) * U.LENGTH))
             self._scenes[scene.key] = built
