@@ -49,8 +49,8 @@ import numpy as np
 
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
-from pipeline.engines.base import Engine, SimulationError, initial_angles
-from pipeline.engines.common import GRAVITY_M_S2, check_pose, check_start_clear, empty_signals, implausible, output_samples
+from pipeline.engines.base import Engine, SimulationError
+from pipeline.engines.common import GRAVITY_M_S2, empty_signals, implausible, start_trial
 from pipeline.engines.bullet_whisker import IDENTITY_QUAT, BulletWhisker, quat
 from pipeline.engines.stepping import refinement_levels, step_groups, steps_per_sample
 from pipeline.model.array import ArrayModel, WhiskerModel
@@ -287,10 +287,8 @@ class BulletEngine(Engine):
             stop_drive_on_contact: bool = False, external_tip_force_n=None,
             initial_joint_angles_rad=None) -> TrialOutput:
         start_wall, start_cpu = time.perf_counter(), time.process_time()
-        check_pose(pose)
-        initial = initial_angles(self.array, initial_joint_angles_rad)
-        check_start_clear(self.array, scene, pose, float(drive(0.0)))
-        samples = output_samples(duration_s, self.config.output_rate_hz)
+        samples, initial = start_trial(self.array, scene, pose, drive, duration_s, self.config.output_rate_hz,
+                                       initial_joint_angles_rad)
         wrench, contact, nodes = empty_signals(samples, len(self.array.whiskers), self.array.links)
         options = dict(stop_drive_on_contact=stop_drive_on_contact,
                        external_tip_force_n=external_tip_force_n)

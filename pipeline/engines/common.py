@@ -1,6 +1,6 @@
 """Checks and bookkeeping shared by the engines (SI at the interface).
 
-Every engine validates a trial the same way (:func:`check_pose`, :func:`output_samples`),
+Every engine validates a trial the same way (:func:`start_trial`),
 flags the same whiskers as non-physical (:func:`implausible`) and ORs per-step contacts
 into per-sample flags the same way (:class:`ContactFlags`). What a whisker can reach
 (:func:`link_reach_m`, :class:`FaceIndex`, :func:`clearance_m`) lets an engine skip the
@@ -14,6 +14,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from pipeline.engines.base import initial_angles
 from pipeline.errors import UserError
 from pipeline.model.kinematics import Pose
 
@@ -22,6 +23,16 @@ from pipeline.model.kinematics import Pose
 MAX_PLAUSIBLE_MOMENT_NM = 1e-3
 GRAVITY_M_S2 = 9.81
 CLEARANCE_MARGIN_M = 2e-4     # extra distance a reused free motion keeps from every obstacle
+
+
+def start_trial(array, scene, pose: Pose, drive, duration_s: float, output_rate_hz: float,
+                initial_joint_angles_rad=None) -> tuple[int, list[np.ndarray]]:
+    """Every engine's checks of a trial before it steps: (output samples, each whisker's
+    free-joint angles at t = 0 in rad) or a :class:`UserError` naming the problem."""
+    check_pose(pose)
+    initial = initial_angles(array, initial_joint_angles_rad)
+    check_start_clear(array, scene, pose, float(drive(0.0)))
+    return output_samples(duration_s, output_rate_hz), initial
 
 
 def check_pose(pose: Pose) -> None:

@@ -88,10 +88,10 @@ import numpy as np
 
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
-from pipeline.engines.base import Engine, SimulationError, initial_angles
+from pipeline.engines.base import Engine, SimulationError
 from pipeline.engines.common import (GRAVITY_M_S2, ContactFlags, FaceIndex, FreeMotion, empty_signals,
-                                     bounding_radius_m, check_pose, check_start_clear, implausible, link_reach_m,
-                                     output_samples, path_distance_m)
+                                     bounding_radius_m, implausible, link_reach_m, path_distance_m,
+                                     start_trial)
 from pipeline.engines.stepping import refinement_levels, step_groups, steps_per_sample
 from pipeline.errors import UserError
 from pipeline.model.array import ArrayModel, WhiskerModel
@@ -189,10 +189,7 @@ def _taper(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     limit = 1.0 / np.tan(np.clip(angles, 1e-9, np.pi / 2))
     for column in (0, 1):
         np.minimum.at(taper, pairs[:, column], limit)
-    edges = mesh.edges_sorted
-    _, inverse, counts = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
-    on_boundary = (counts[inverse.ravel()] == 1).reshape(-1, 3).any(axis=1)
-    taper[on_boundary] = 0.0
+    taper[mesh.edges_face[trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1)]] = 0.0
     return np.clip(taper, 0.0, 1.0)
 
 
@@ -696,10 +693,8 @@ class MujocoEngine(Engine):
             stop_drive_on_contact: bool = False, external_tip_force_n=None,
             initial_joint_angles_rad=None) -> TrialOutput:
         start_wall, start_cpu = time.perf_counter(), time.process_time()
-        check_pose(pose)
-        initial = initial_angles(self.array, initial_joint_angles_rad)
-        check_start_clear(self.array, scene, pose, float(drive(0.0)))
-        samples = output_samples(duration_s, self.config.output_rate_hz)
+        samples, initial = start_trial(self.array, scene, pose, drive, duration_s, self.config.output_rate_hz,
+                                       initial_joint_angles_rad)
         if scene.key != self._scene_key:          # meshes of other scenes are not needed again
             self._prisms.clear()
             self._scene_key = scene.key
