@@ -14,7 +14,8 @@ from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial, damped_mode
 from pipeline.diagnosis.linear import linearise
 from pipeline.errors import UserError
 from pipeline.measurements import PAPER_ALPHA_B1, ReleaseDrive, RotationDrive, Trial, load_measurement
-from pipeline.model.extensions import build_physics, make_extension
+from pipeline.model.extensions import make_extension
+from pipeline.model.physics import build_physics
 from pipeline.model.whisker import WhiskerGeometry, planar_modes
 
 ALPHA = WhiskerGeometry(29.6e-3, 60e-6, 17.5e-6)
@@ -45,7 +46,7 @@ def test_each_extension_changes_what_its_equation_says():
     assert short.geometry.arc_length_m == pytest.approx(0.024)
     assert short.geometry.tip_radius_m == pytest.approx(60e-6 - 0.8 * 45e-6)
     assert short.links == 20
-    assert with_("follicle", k_f=2e-6, c_f=3e-9).follicle.stiffness_nm_per_rad == 2e-6
+    assert with_("follicle", k_f=2e-6, c_f=3e-9).follicle.k_f == 2e-6
     assert with_("drag", linear=2e-4).drag_linear_ns_per_m2 == 2e-4
     assert with_("gravity").gravity_m_s2 == 9.81
     twist = with_("twist", g_over_e=0.4)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from pipeline.config.physics import ModelConfig
-from pipeline.engines.base import SimulationError
+from pipeline.errors import SimulationError
 from pipeline.engines.stepping import first_frequency_hz, refinement_levels
 from pipeline.model.array import build_array
 from pipeline.model.kinematics import Pose

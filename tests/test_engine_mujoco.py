@@ -8,7 +8,8 @@ from conftest import REPO
 from pipeline.config.physics import EngineConfig, FollicleConfig, MaterialConfig, ModelConfig
 from pipeline.engines import create_engine
 from pipeline.errors import UserError
-from pipeline.model.array import build_array, make_chain, single_whisker
+from pipeline.model.array import build_array, single_whisker
+from pipeline.model.physics import build_physics
 from pipeline.model.kinematics import Pose, sinusoidal_whisk, still
 from pipeline.model.morphology import model_rat
 from pipeline.model.whisker import WhiskerGeometry
@@ -49,7 +50,7 @@ def test_static_tip_load_gives_balancing_base_wrench(follicle):
     assert mz == pytest.approx(-load * tip[0], rel=1e-5)
     assert max(abs(fx), abs(fz)) < 1e-3 * load and max(abs(mx), abs(my)) < 1e-6 * load
     if follicle == "rigid":       # the chain's own statics
-        chain = make_chain(ALPHA, material)
+        chain = build_physics(ALPHA, material).chain
         assert tip[1] == pytest.approx(chain_tip_deflection(chain, load), rel=3e-3)
 
 

@@ -7,11 +7,11 @@ import pytest
 from pipeline.config.physics import EngineConfig, MaterialConfig, ModelConfig
 from pipeline.diagnosis.linear import linearise
 from pipeline.engines import create_engine
-from pipeline.engines.base import free_joints
+
 from pipeline.engines.stepping import first_frequency_hz
 from pipeline.errors import SimulationError, UserError
 from pipeline.model.array import build_array, single_whisker
-from pipeline.model.extensions import WhiskerPhysics
+from pipeline.model.physics import WhiskerPhysics
 from pipeline.model.kinematics import Pose, sinusoidal_whisk, still
 from pipeline.model.morphology import model_rat
 from pipeline.model.whisker import WhiskerGeometry
@@ -33,7 +33,7 @@ def _config(engine: str, material: MaterialConfig = MATERIAL, **options) -> Mode
 
 def _chain(whisker):
     """The whisker's chain linearised: its exact forward kinematics in the whisker frame."""
-    return linearise(WhiskerPhysics(whisker.chain, whisker.follicle))
+    return linearise(whisker.physics)
 
 
 def _nodes(lin, q: np.ndarray) -> np.ndarray:
@@ -172,7 +172,7 @@ def test_a_whisker_simulated_again_alone_starts_bent_too(engine, monkeypatch):
 @pytest.mark.parametrize("engine", ENGINES)
 def test_bad_initial_angles_are_user_errors(engine):
     array = single_whisker(ALPHA, MATERIAL)
-    n = free_joints(array.whiskers[0])
+    n = array.whiskers[0].layout.n
     with create_engine(_config(engine), array) as sim:
         for bad in (np.zeros(n - 1), np.zeros((2, n)), np.zeros((1, n, 1)), np.full(n, np.nan),
                     np.r_[np.zeros(n - 1), np.inf], "bent"):
@@ -187,7 +187,7 @@ def test_no_initial_angles_is_the_rest_start(engine):
     drive = sinusoidal_whisk(duration_s=0.02)
     outs = []
     for angles in ({}, {"initial_joint_angles_rad": None},
-                   {"initial_joint_angles_rad": np.zeros(free_joints(array.whiskers[0]))}):
+                   {"initial_joint_angles_rad": np.zeros(array.whiskers[0].layout.n)}):
         with create_engine(config, array) as sim:
             outs.append(sim.run(empty(), Pose(), drive, 0.02, **angles))
     for out in outs[1:]:
@@ -200,7 +200,8 @@ def test_engine_simulator_release_agrees_between_engines():
     from pipeline.diagnosis.engine import EngineSimulator
     from pipeline.diagnosis.fastsim import PreparedTrial
     from pipeline.measurements import ReleaseDrive, Trial
-    from pipeline.model.extensions import build_physics, make_extension
+    from pipeline.model.extensions import make_extension
+    from pipeline.model.physics import build_physics
 
     physics = build_physics(CURVED, MaterialConfig(), (make_extension("follicle", k_f=5e-6, c_f=2e-9),))
     rest = linearise(physics).rest_points(np.array([0.6]))[0]

@@ -5,7 +5,7 @@ import pytest
 
 from beam_reference import cantilever_frequencies
 from pipeline.config.physics import MaterialConfig
-from pipeline.model.array import make_chain
+from pipeline.model.physics import build_physics
 from pipeline.model.damping import KelvinVoigtDamping, PaperDamping
 from pipeline.model.whisker import (WhiskerGeometry, build_chain, frustum_mass_properties,
                                     planar_modes, rest_nodes)
@@ -93,7 +93,7 @@ def test_paper_damping_ratio_falls_with_refinement():
 
 
 def test_make_chain_follows_config():
-    chain = make_chain(ALPHA, MaterialConfig(links=30, youngs_modulus_gpa=3.0))
+    chain = build_physics(ALPHA, MaterialConfig(links=30, youngs_modulus_gpa=3.0)).chain
     assert chain.links == 30
     assert chain.stiffness_nm_per_rad[0] == pytest.approx(
         3e9 * np.pi * chain.node_radii_m[1] ** 4 / 4 / chain.link_length_m)

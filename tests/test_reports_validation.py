@@ -13,7 +13,7 @@ import pytest
 
 from pipeline.analysis.material_fit import PAPER_TABLE_1
 from pipeline.config.physics import ModelConfig
-from pipeline.model.array import make_chain
+from pipeline.model.physics import build_physics
 from pipeline.model.morphology import model_rat
 from pipeline.model.outputs import TrialOutput
 from pipeline.model.whisker import WhiskerGeometry, planar_modes
@@ -94,8 +94,8 @@ def test_array_resonance_section_and_report_json(tmp_path):
     s = section.summary
     spec = model_rat()["RC1"]
     k = s["whiskers"].index("RC1")
-    chain = planar_modes(make_chain(WhiskerGeometry(spec.arc_length_m, spec.base_radius_m, spec.tip_radius_m),
-                                    config.material))[0][0]
+    chain = planar_modes(build_physics(WhiskerGeometry(spec.arc_length_m, spec.base_radius_m, spec.tip_radius_m),
+                                    config.material).chain)[0][0]
     assert s["f1_hz"][k] == pytest.approx(chain)
     assert s["fit_f1_hz"][k] == pytest.approx(8963 * (spec.arc_length_m * 1e3) ** -1.4 - 3.8)
     assert len(s["whiskers"]) == 60

@@ -13,7 +13,7 @@ from typing import Callable
 
 import numpy as np
 
-from pipeline.model.extensions import WhiskerPhysics
+from pipeline.model.physics import WhiskerPhysics
 
 
 @dataclass(frozen=True)

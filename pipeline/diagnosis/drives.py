@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.diagnosis.linear import rotation
+from pipeline.model.rotations import rot_x, rot_y, rot_z
 from pipeline.measurements.timeseries import ReleaseDrive, RotationDrive
 
 
@@ -36,7 +36,7 @@ def base_motion(drive: RotationDrive | ReleaseDrive, times: np.ndarray) -> BaseM
     clipped = np.clip(times, drive.time_s[0], drive.time_s[-1])
     yaw, pitch, roll = spline(clipped).T
     rates = spline(clipped, 1) * inside[:, None]
-    rx, ry, rz = rotation(0, roll), rotation(1, pitch), rotation(2, yaw)
+    rx, ry, rz = rot_x(roll), rot_y(pitch), rot_z(yaw)
     rxt, ryt = np.transpose(rx, (0, 2, 1)), np.transpose(ry, (0, 2, 1))
     zero = np.zeros(s)
     omega = (rxt @ ryt @ np.stack([zero, zero, rates[:, 0]], 1)[..., None])[..., 0] \

@@ -9,11 +9,10 @@ from its static deflection, any other trial sagged under gravity, passed to ``En
 as initial joint angles (the coordinates of :mod:`pipeline.diagnosis.linear` are the
 engines' free joints, in the same order).
 
-Limits of the present engine interface:
-
-- the base is driven by one signal θ(t) with fixed joint rates, so a rotation drive must be
-  rank one (angles(t) = r·θ(t)); independent yaw/pitch/roll are refused;
-- no twist degree of freedom, no air drag, gravity only at 9.81 m/s² (:func:`check_supported`).
+Every extension runs on both engines (twist as a third hinge per node, drag and gravity as
+per-link loads). Limit of the engine interface: the base is driven by one signal θ(t) with
+fixed joint rates, so a rotation drive must be rank one (angles(t) = r·θ(t)); independent
+yaw/pitch/roll are refused.
 """
 
 from __future__ import annotations
@@ -25,23 +24,10 @@ from pipeline.diagnosis.fastsim import PreparedTrial, release_state
 from pipeline.diagnosis.linear import linearise
 from pipeline.errors import UserError
 from pipeline.measurements.timeseries import ReleaseDrive
-from pipeline.model.extensions import GRAVITY_M_S2, WhiskerPhysics
+from pipeline.model.physics import WhiskerPhysics
 
 DRIVE_RESAMPLE_S = 1e-5
 ENGINE_DT_S = 1e-4
-
-
-def check_supported(physics: WhiskerPhysics, engine: str = "bullet") -> None:
-    """UserError naming every effect of ``physics`` the engine cannot simulate."""
-    missing = []
-    if physics.twist_stiffness_nm_per_rad is not None:
-        missing.append("twist (a third revolute joint per node)")
-    if physics.drag_linear_ns_per_m2 or physics.drag_coefficient:
-        missing.append("air drag (per-link external forces each step)")
-    if physics.gravity_m_s2 and abs(physics.gravity_m_s2 - GRAVITY_M_S2) > 0.01 * GRAVITY_M_S2:
-        missing.append(f"gravity of {physics.gravity_m_s2:.3g} m/s² (the engine has 9.81 or none)")
-    if missing:
-        raise UserError(f"the {engine} engine cannot simulate: {'; '.join(missing)}")
 
 
 def _rank_one(prepared: PreparedTrial):
@@ -79,15 +65,14 @@ class EngineSimulator:
         self.name, self.dt_s = name, dt_s
 
     def simulate(self, physics: WhiskerPhysics, prepared: list[PreparedTrial]) -> list[np.ndarray]:
-        check_supported(physics, self.name)
         lin = linearise(physics)
         return [self._trial(physics, lin, p) for p in prepared]
 
     def _trial(self, physics, lin, prepared: PreparedTrial) -> np.ndarray:
         from pipeline.engines import create_engine
-        from pipeline.model import kinematics
-        from pipeline.model.array import ArrayModel, WhiskerModel
+        from pipeline.model.array import ArrayModel, bench_whisker
         from pipeline.model.kinematics import ProtractionDrive, still
+        from pipeline.model.rotations import rotation_zyx
         from pipeline.scenes import empty
 
         trial = prepared.trial
@@ -100,13 +85,10 @@ class EngineSimulator:
         else:
             rates, times, theta = _rank_one(prepared)
             drive = ProtractionDrive(times, theta, interpolation="linear")
-            rotation0 = kinematics.rot_z(rates[0] * theta[0]) @ kinematics.rot_y(rates[1] * theta[0]) \
-                @ kinematics.rot_x(rates[2] * theta[0])
+            rotation0 = rotation_zyx(*(rates * theta[0]))
             initial = (lin.gravity @ (rotation0.T @ gravity_lab)) / np.diag(lin.stiffness)
-        whisker = WhiskerModel(name="W", side=1, row=1, col=0, chain=physics.chain, base_point_m=np.zeros(3),
-                               rest_joint_angles=np.array([0.0, 0.0, np.pi / 2]), joint_rates=rates,
-                               frame_offset=kinematics.rot_x(-np.pi / 2), follicle=physics.follicle)
-        material = MaterialConfig(links=physics.chain.links, gravity=bool(physics.gravity_m_s2))
+        whisker = bench_whisker(physics, joint_rates=rates)
+        material = MaterialConfig(links=physics.chain.links)
         steps = int(np.ceil(1.0 / (rate * self.dt_s) - 1e-9))
         config = ModelConfig(material=material, engine=EngineConfig(
             name=self.name, dt_s=1.0 / (rate * steps), output_rate_hz=rate))

@@ -193,7 +193,7 @@ def bootstrap(make_objective, measurement, spec: ModelSpec, names, samples: int,
 def engine_check(fitted: Fit, fast_objective, engine_objective, engine: str) -> dict:
     """JSON-ready engine check and refinement of ``fitted``; an engine that cannot simulate the
     model, or fails, is reported, not raised (the fast result stands)."""
-    from pipeline.engines.base import SimulationError
+    from pipeline.errors import SimulationError
     from pipeline.errors import UserError
 
     try:

@@ -1,12 +1,9 @@
 """The whisker chain linearised about its rest shape, in 3D, in the frame of the driven base.
 
-Degrees of freedom (generalised coordinates q, rad), in this order:
-follicle z, follicle y (compliant follicle only; axes ẑ and ŷ of the whisker frame through
-the base point); then per bending joint j = 1..N−1 (node j): z (axis ẑ), y (the rest link's
-local y, (−sin α_j, cos α_j, 0)) and, with twist, x (the rest link's axis). A joint rotates
-every link distal to it. These are the joints of the Bullet engine, composed the same way
-(R_j = R_{j−1}·Rz(bend_j + q_z)·Ry(q_y)·Rx(q_x)), so positions agree to first order and the
-forward kinematics of :meth:`LinearWhisker.points` is exact for given q.
+Degrees of freedom (generalised coordinates q, rad): the spring joints of the whisker's
+:class:`~pipeline.model.joints.JointLayout` (follicle z, y if compliant; then z, y and, with
+twist, x per bending node), the joints every engine builds, so positions agree to first order
+and the forward kinematics of :meth:`LinearWhisker.points` is exact for given q.
 
 Equations of motion in the base frame, which rotates with body angular velocity ω(t) and
 acceleration α = ω̇ about the pinned base point, linearised in q (not in the base motion):
@@ -27,87 +24,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pipeline.model.extensions import AIR_DENSITY_KG_M3, WhiskerPhysics
+from pipeline.model.joints import JointLayout
+from pipeline.model.loads import AIR_DENSITY_KG_M3
+from pipeline.model.physics import WhiskerPhysics
+from pipeline.model.rotations import axis_rotation, rotation_zyx, skew
 
-_EX, _EY, _EZ = np.eye(3)
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(3)
 # the six products ω_a·ω_b (a ≤ b) that centrifugal and gyroscopic loads depend on
 PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
-
-
-def skew(v: np.ndarray) -> np.ndarray:
-    """[..., 3, 3] matrix of v × (·)."""
-    v = np.asarray(v, float)
-    out = np.zeros(v.shape[:-1] + (3, 3))
-    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
-    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
-    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
-    return out
-
-
-def rotation(axis: int, angle: np.ndarray) -> np.ndarray:
-    """[..., 3, 3] rotations by ``angle`` (rad) about coordinate axis 0, 1 or 2."""
-    angle = np.asarray(angle, float)
-    c, s = np.cos(angle), np.sin(angle)
-    out = np.zeros(angle.shape + (3, 3))
-    i, j = [(1, 2), (2, 0), (0, 1)][axis]
-    out[..., axis, axis] = 1.0
-    out[..., i, i], out[..., j, j] = c, c
-    out[..., i, j], out[..., j, i] = -s, s
-    return out
-
-
-def rotation_zyx(yaw: np.ndarray, pitch: np.ndarray, roll: np.ndarray) -> np.ndarray:
-    """[..., 3, 3] Rz(yaw)·Ry(pitch)·Rx(roll), built in one go."""
-    ca, sa = np.cos(yaw), np.sin(yaw)
-    cb, sb = np.cos(pitch), np.sin(pitch)
-    cc, sc = np.cos(roll), np.sin(roll)
-    out = np.empty(np.shape(yaw) + (3, 3))
-    out[..., 0, 0], out[..., 0, 1], out[..., 0, 2] = ca * cb, ca * sb * sc - sa * cc, ca * sb * cc + sa * sc
-    out[..., 1, 0], out[..., 1, 1], out[..., 1, 2] = sa * cb, sa * sb * sc + ca * cc, sa * sb * cc - ca * sc
-    out[..., 2, 0], out[..., 2, 1], out[..., 2, 2] = -sb, cb * sc, cb * cc
-    return out
-
-
-@dataclass(frozen=True)
-class Dofs:
-    """The generalised coordinates: axis and pivot at rest (whisker frame), first link moved."""
-
-    axes: np.ndarray          # [n, 3]
-    pivots: np.ndarray        # [n, 3]
-    first_link: np.ndarray    # [n] every link from this index on is moved
-    stiffness: np.ndarray     # [n] N·m/rad
-    damping: np.ndarray       # [n] N·m·s/rad
-    labels: tuple[str, ...]   # 'follicle_z', 'z3', 'y3', 'x3', ...
-
-    @property
-    def n(self) -> int:
-        return len(self.stiffness)
-
-
-def _dofs(physics: WhiskerPhysics) -> Dofs:
-    chain = physics.chain
-    axes, pivots, first, k, c, labels = [], [], [], [], [], []
-
-    def add(axis, pivot, link, stiffness, damping, label):
-        axes.append(axis), pivots.append(pivot), first.append(link)
-        k.append(stiffness), c.append(damping), labels.append(label)
-
-    if physics.follicle is not None:
-        f = physics.follicle
-        add(_EZ, chain.nodes_m[0], 0, f.stiffness_nm_per_rad, f.damping_nms_per_rad, "follicle_z")
-        add(_EY, chain.nodes_m[0], 0, f.stiffness_nm_per_rad, f.damping_nms_per_rad, "follicle_y")
-    for j in range(1, chain.links):
-        a = chain.link_angles_rad[j]
-        kj, cj = chain.stiffness_nm_per_rad[j - 1], chain.damping_nms_per_rad[j - 1]
-        add(_EZ, chain.nodes_m[j], j, kj, cj, f"z{j}")
-        add(np.array([-np.sin(a), np.cos(a), 0.0]), chain.nodes_m[j], j, kj, cj, f"y{j}")
-        if physics.twist_stiffness_nm_per_rad is not None:
-            add(np.array([np.cos(a), np.sin(a), 0.0]), chain.nodes_m[j], j,
-                physics.twist_stiffness_nm_per_rad[j - 1], physics.twist_damping_nms_per_rad[j - 1],
-                f"x{j}")
-    return Dofs(np.array(axes, float), np.array(pivots, float), np.array(first, int),
-                np.array(k, float), np.array(c, float), tuple(labels))
 
 
 @dataclass(frozen=True)
@@ -115,7 +39,7 @@ class LinearWhisker:
     """Matrices of the linearised chain (see the module docstring), SI units."""
 
     physics: WhiskerPhysics
-    dofs: Dofs
+    dofs: JointLayout
     mass: np.ndarray            # [n, n] M
     stiffness: np.ndarray       # [n, n] K
     damping: np.ndarray         # [n, n] C_j + C_d
@@ -161,7 +85,7 @@ class LinearWhisker:
             return q[:, column[label]] if label in column else zero
 
         frame = rotation_zyx(angle("follicle_z"), angle("follicle_y"), zero) \
-            @ rotation(2, chain.link_angles_rad[0])
+            @ axis_rotation(2, chain.link_angles_rad[0])
         node = np.zeros((t, 3))
         result = np.zeros((t, len(links), 3))
         bend = chain.rest_bend_rad
@@ -176,7 +100,7 @@ class LinearWhisker:
         return result
 
 
-def _jacobian(dofs: Dofs, points: np.ndarray, links: np.ndarray) -> np.ndarray:
+def _jacobian(dofs: JointLayout, points: np.ndarray, links: np.ndarray) -> np.ndarray:
     """[P, 3, n] velocity Jacobian at rest of ``points`` (whisker frame) on ``links``."""
     arms = points[:, None, :] - dofs.pivots[None, :, :]
     jac = np.cross(dofs.axes[None, :, :], arms) * (dofs.first_link[None, :] <= links[:, None])[..., None]
@@ -188,7 +112,7 @@ def _link_frames(physics: WhiskerPhysics):
     a = chain.link_angles_rad
     tangent = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=1)
     com = chain.nodes_m[:-1] + tangent * chain.link_com_m[:, None]
-    rot = rotation(2, a)
+    rot = axis_rotation(2, a)
     inertia = rot @ (chain.link_inertia_kg_m2[:, :, None] * np.eye(3)) @ np.transpose(rot, (0, 2, 1))
     return tangent, com, inertia
 
@@ -209,7 +133,7 @@ def _quadrature(physics: WhiskerPhysics, tangent: np.ndarray):
 def linearise(physics: WhiskerPhysics) -> LinearWhisker:
     """Assemble the matrices of the module docstring for ``physics`` at its rest shape."""
     chain = physics.chain
-    dofs = _dofs(physics)
+    dofs = physics.layout
     tangent, com, inertia = _link_frames(physics)
     links = np.arange(chain.links)
     jv = _jacobian(dofs, com, links)                                    # [N, 3, n]

@@ -16,7 +16,8 @@ import numpy as np
 
 from pipeline.config.physics import MaterialConfig
 from pipeline.errors import UserError
-from pipeline.model.extensions import EXTENSIONS, Extension, Parameter, build_physics
+from pipeline.model.extensions import EXTENSIONS, Extension, Parameter
+from pipeline.model.physics import build_physics
 
 BASELINE = (
     Parameter("E", "Pa", 7.45e9, 0.2e9, 20e9, True, "Young's modulus θ_E (eq. 2 on the link length)"),

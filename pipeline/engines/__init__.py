@@ -35,11 +35,11 @@ def create_engine(model_config, array) -> Engine:
         import_quietly("pybullet")
         from pipeline.engines.bullet import BulletEngine
 
-        return BulletEngine(array, model_config.engine, gravity=model_config.material.gravity)
+        return BulletEngine(array, model_config.engine)
     if name == "mujoco":
         from pipeline.engines.mujoco import MujocoEngine
 
-        return MujocoEngine(array, model_config.engine, gravity=model_config.material.gravity)
+        return MujocoEngine(array, model_config.engine)
     raise ValueError(f"unknown engine {name}")
 
 

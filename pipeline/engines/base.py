@@ -1,90 +1,206 @@
-"""The engine interface: build an array once, then run many trials (scene, pose, drive).
+"""The engine template: build an array once, then run many trials (scene, pose, drive).
 
-An engine owns one simulator in the current process. ``run`` resets the whiskers to rest
-(or to given joint angles) at the given head pose, swaps obstacles only when the scene
-changed, integrates, and returns a :class:`~pipeline.model.outputs.TrialOutput` sampled at
-the configured rate.
+An engine owns one simulator per step size in the current process (a *world*: the whiskers
+that share ``engine.dt_s / 2**j``, :mod:`pipeline.engines.stepping`). :meth:`Engine.run` is
+the same for every backend:
 
-Free joints. Besides the three driven base joints, a whisker has J spring joints, in this
-order from the base out: the compliant follicle's z and y hinges (only when the follicle is
-compliant), then at each bending node j = 1..N−1 its z-hinge and its y-hinge. In the whisker
-frame (:meth:`~pipeline.model.array.WhiskerModel.frame`, turned by the driven joints) link 1
-has the orientation Rz(q_fz)·Ry(q_fy)·Rz(α_1), α_1 its rest angle, and link j+1 that of
-link j times Rz(bend_j + q_zj)·Ry(q_yj), bend_j the rest bend at node j: every angle is 0
-at the rest shape, and a positive one turns the distal chain right-handed about its joint's
-axis. These are the coordinates of :mod:`pipeline.diagnosis.linear`, in its order; both
-engines build their joints this way (tests/test_engine_release.py checks the node positions
-against that module's forward kinematics).
+1. check the trial (:func:`~pipeline.engines.common.start_trial`);
+2. reuse the outputs of whiskers whose free motion in an earlier trial provably keeps clear
+   of this trial's obstacles (:class:`~pipeline.engines.common.FreeMotion`);
+3. run each world for its remaining whiskers (:meth:`World.run`);
+4. simulate every whisker whose contact jammed again alone, with half its step, up to
+   ``engine.jam_refinements`` times;
+5. merge the worlds' :class:`WorldResult` into one :class:`~pipeline.model.outputs.TrialOutput`
+   with timing and metadata.
+
+A backend implements :meth:`Engine.make_world` and :class:`World` (build the joints of
+:mod:`pipeline.model.joints`, apply the loads of :mod:`pipeline.model.loads`, step, read).
+
+Free joints. Besides the three driven base joints, a whisker has the spring joints of its
+:class:`~pipeline.model.joints.JointLayout` (follicle z, y if compliant; z, y and, with twist,
+x per bending node); ``initial_joint_angles_rad`` are given in that order.
 """
 
 from __future__ import annotations
 
+import time
 from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from pipeline.errors import SimulationError, UserError  # noqa: F401  (SimulationError: re-exported)
+from pipeline.config.physics import EngineConfig
+from pipeline.engines.common import FreeMotion, empty_signals, start_trial
+from pipeline.engines.stepping import refinement_levels, step_groups, steps_per_sample
+from pipeline.errors import SimulationError
 from pipeline.model.array import ArrayModel, WhiskerModel
 from pipeline.model.kinematics import Pose, ProtractionDrive
+from pipeline.model.loads import TipForce
 from pipeline.model.outputs import TrialOutput
 from pipeline.scenes.obstacles import Scene
 
 
-class Engine(ABC):
-    name: str = ""
+@dataclass
+class WorldResult:
+    """Outputs of one world's whiskers (the world's order), SI."""
 
-    def __init__(self, array: ArrayModel):
-        self.array = array
+    wrench: np.ndarray            # [T, w, 6] N and N·m, whisker frame
+    contact: np.ndarray           # [T, w, N] link in penetrating contact during the sample
+    nodes: np.ndarray             # [T, w, N+1, 3] m, world frame
+    touched: np.ndarray           # [w] any contact at all, even one not flagged
+    jammed: dict[int, str] = field(default_factory=dict)     # whisker index → why
+
+    @classmethod
+    def zeros(cls, samples: int, whiskers: int, links: int) -> "WorldResult":
+        wrench, contact, nodes = empty_signals(samples, whiskers, links)
+        return cls(wrench, contact, nodes, np.zeros(whiskers, bool))
+
+    def put(self, whiskers, other: "WorldResult", columns=slice(None)) -> None:
+        """Copy ``other``'s whiskers ``columns`` into this result's ``whiskers``."""
+        for name in ("wrench", "contact", "nodes", "touched"):
+            target = getattr(self, name)
+            if target.ndim == 1:
+                target[whiskers] = getattr(other, name)[columns]
+            else:
+                target[:, whiskers] = getattr(other, name)[:, columns]
+
+
+@dataclass(frozen=True)
+class TrialSetup:
+    """What a world needs to run one trial: the scene, head pose and drive, the number of
+    output samples, per whisker of the world its free-joint angles at t = 0 (rad) and its
+    loads (:mod:`pipeline.model.loads`), and whether a whisker's base holds still from its
+    first contact on."""
+
+    scene: Scene
+    pose: Pose
+    drive: ProtractionDrive
+    samples: int
+    initial: tuple
+    loads: tuple
+    hold_on_contact: bool = False
+
+    def only(self, whiskers) -> "TrialSetup":
+        """The same trial for the world's whiskers ``whiskers`` (indices)."""
+        from dataclasses import replace
+
+        return replace(self, initial=tuple(self.initial[k] for k in whiskers),
+                       loads=tuple(self.loads[k] for k in whiskers))
+
+
+class World(ABC):
+    """Whiskers stepping together at one step size ``dt_s`` (s) in one simulator."""
+
+    def __init__(self, whiskers: list[WhiskerModel], config: EngineConfig, dt_s: float):
+        self.whiskers, self.config, self.dt_s = whiskers, config, dt_s
+        self.steps_per_sample = int(round(1.0 / (config.output_rate_hz * dt_s)))
 
     @abstractmethod
+    def run(self, setup: TrialSetup, active: np.ndarray) -> WorldResult:
+        """Simulate the whiskers with ``active`` [w] true for ``setup.samples`` output
+        intervals (the others' rows stay zero). A whisker whose contact jammed (non-physical
+        base moment or acceleration) is taken out and reported in ``jammed``."""
+
+    def close(self) -> None:
+        """Release the simulator."""
+
+
+class Engine(ABC):
+    """One backend's worlds for an array, and the trial template of the module docstring."""
+
+    name: str = ""
+
+    def __init__(self, array: ArrayModel, config: EngineConfig):
+        self.array, self.config = array, config
+        steps_per_sample(config)                      # validates dt_s against the output rate
+        self.levels = refinement_levels(array, config)
+        start = time.perf_counter()
+        self.worlds: list[tuple[np.ndarray, World]] = [
+            (members, self.make_world([array.whiskers[k] for k in members], dt_s))
+            for members, dt_s in step_groups(self.levels, config.dt_s)]
+        self.build_seconds = time.perf_counter() - start
+        self.free = FreeMotion(array.whiskers)
+
+    @abstractmethod
+    def make_world(self, whiskers: list[WhiskerModel], dt_s: float) -> World:
+        """A world of ``whiskers`` stepping at ``dt_s``."""
+
     def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float, *,
             stop_drive_on_contact: bool = False, external_tip_force_n=None,
             initial_joint_angles_rad=None) -> TrialOutput:
         """Simulate ``duration_s`` seconds from rest shape, the bases moving as the drive does at t=0.
 
         ``stop_drive_on_contact``: from a whisker's first contact on, its base holds the angles
-        it had then (collision protocol). ``external_tip_force_n``: an
-        optional constant force (N, world frame) on every whisker's tip node (static checks).
-        ``initial_joint_angles_rad``: start bent instead (a release): the free joints' angles
-        at t = 0 (rad, relative to the rest shape, in the order of the module docstring),
-        [J] for every whisker or [W, J] per whisker (W whiskers of the array, J free joints
-        each); velocities start at zero. None: rest shape. Another shape or a non-finite
+        it had then (collision protocol). ``external_tip_force_n``: an optional constant force
+        (N, world frame) on every whisker's tip node (static checks). ``initial_joint_angles_rad``:
+        start bent instead (a release): the free joints' angles at t = 0 (rad, relative to the
+        rest shape, in the order of the module docstring), [J] for every whisker or [W, J] per
+        whisker; velocities start at zero. None: rest shape. Another shape or a non-finite
         angle is a UserError.
         """
+        start_wall, start_cpu = time.perf_counter(), time.process_time()
+        samples, initial = start_trial(self.array, scene, pose, drive, duration_s,
+                                       self.config.output_rate_hz, initial_joint_angles_rad)
+        extra = () if external_tip_force_n is None else (TipForce.checked(external_tip_force_n),)
+        loads = [w.physics.loads() + extra for w in self.array.whiskers]
+        setup = TrialSetup(scene, pose, drive, samples, tuple(initial), tuple(loads), stop_drive_on_contact)
+        times = np.arange(1, samples + 1) / self.config.output_rate_hz
+        at_rest = np.array([not angles.any() for angles in initial])
+        self.free.select(drive, samples, depends_on_pose=any(l.depends_on_pose for ls in loads for l in ls))
+        reused = at_rest & self.free.reusable(pose, scene, times)
+        result = WorldResult.zeros(samples, len(self.array.whiskers), self.array.links)
+        steps, refined = 0, {}
+        for members, world in self.worlds:
+            active = ~reused[members]
+            if not active.any():
+                continue
+            part = world.run(setup.only(members), active)
+            steps += samples * world.steps_per_sample * int(active.sum())
+            for local, message in part.jammed.items():
+                k = members[local]
+                alone, refined[self.array.whiskers[k].name], extra_steps = self._refine(
+                    k, world.dt_s, message, setup.only([k]))
+                part.put([local], alone)
+                steps += extra_steps
+            result.put(members[active], part, active)
+        for k in np.flatnonzero(reused):
+            result.wrench[:, k], result.nodes[:, k] = self.free.recall(k, pose)
+        for k in np.flatnonzero(at_rest & ~reused & ~result.touched):
+            self.free.remember(k, result.wrench[:, k], result.nodes[:, k], pose)
+        metadata = {"engine": self.name, "dt_s": self.config.dt_s,
+                    "dt_per_whisker_s": (self.config.dt_s / 2.0 ** self.levels).tolist(),
+                    "jam_refined": refined, "whisker_steps": steps,
+                    "reused_free_motion": int(reused.sum()),
+                    "wall_seconds": time.perf_counter() - start_wall,
+                    "cpu_seconds": time.process_time() - start_cpu,
+                    "build_seconds": self.build_seconds}
+        return TrialOutput(times, result.wrench, result.contact, result.nodes, self.array.names, metadata)
+
+    def _refine(self, k: int, dt_s: float, message: str, setup: TrialSetup) -> tuple[WorldResult, int, int]:
+        """Whisker k alone with half the step, again while it jams: (its result, halvings, steps)."""
+        steps = 0
+        for halvings in range(1, self.config.jam_refinements + 1):
+            world = self.make_world([self.array.whiskers[k]], dt_s / 2 ** halvings)
+            try:
+                result = world.run(setup, np.ones(1, bool))
+            finally:
+                world.close()
+            steps += setup.samples * world.steps_per_sample
+            if not result.jammed:
+                return result, halvings, steps
+            message = result.jammed[0]
+        raise SimulationError(f"{message} (contact jammed at every step down to "
+                              f"{dt_s / 2 ** self.config.jam_refinements:.3g} s: "
+                              "is a surface pressed against the whisker?)")
 
     def close(self) -> None:
-        """Release the simulator."""
+        """Release the simulators."""
+        for _, world in self.worlds:
+            world.close()
+        self.worlds = []
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
         self.close()
-
-
-def free_joints(whisker: WhiskerModel) -> int:
-    """Number of free (spring) joints of ``whisker``: follicle z, y if compliant, then z, y per node."""
-    return 2 * (whisker.chain.links - 1) + (2 if whisker.follicle is not None else 0)
-
-
-def initial_angles(array: ArrayModel, angles) -> list[np.ndarray]:
-    """``initial_joint_angles_rad`` of :meth:`Engine.run` checked: per whisker its [J] free-joint
-    angles at t = 0 (rad; zeros, the rest shape, for None)."""
-    counts = [free_joints(w) for w in array.whiskers]
-    if angles is None:
-        return [np.zeros(n) for n in counts]
-    if len(set(counts)) > 1:
-        raise UserError("initial_joint_angles_rad needs whiskers with equal numbers of free joints")
-    n_w, n_j = len(counts), counts[0]
-    expected = f"initial_joint_angles_rad must be finite angles (rad) of shape [{n_j}] or [{n_w}, {n_j}]"
-    try:
-        values = np.asarray(angles, float)
-    except (TypeError, ValueError):
-        raise UserError(expected) from None
-    if values.shape == (n_j,):
-        values = np.tile(values, (n_w, 1))
-    if values.shape != (n_w, n_j):
-        raise UserError(f"{expected}, got shape {list(values.shape)}")
-    if not np.isfinite(values).all():
-        raise UserError(f"{expected}, got non-finite values")
-    return list(values)

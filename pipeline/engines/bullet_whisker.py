@@ -1,10 +1,13 @@
 """One whisker as a pybullet multibody, and the per-step operations on it (internal units).
 
 Layout of the multibody (fixed base at the whisker's base point, head orientation): three
-driven revolute joints (Z, Y, X Euler angles of the follicle), an optional compliant follicle
-(two revolute joints about the whisker-frame z and y), a fixed joint to link 1 carrying the
-force/torque sensor, then per bending node a massless link on a z-revolute and the next whisker
-link on a y-revolute. The implicit step is described in :mod:`pipeline.engines.bullet`.
+driven revolute joints (Z, Y, X Euler angles of the follicle), then the spring joints of the
+whisker's :class:`~pipeline.model.joints.JointLayout`: the compliant follicle's hinges (if
+any) on massless links, a fixed joint to link 1 carrying the force/torque sensor, then per
+bending node one revolute joint per hinge of the node, all on massless links but the last,
+which carries the next whisker link. The implicit step is described in
+:mod:`pipeline.engines.bullet`; loads (:mod:`pipeline.model.loads`) enter it as generalised
+forces Jᵀ·F and are applied to Bullet's bodies too, so that the base sensor feels them.
 """
 
 from __future__ import annotations
@@ -13,22 +16,17 @@ import numpy as np
 
 from pipeline.engines import units as U
 from pipeline.model.array import WhiskerModel
-from pipeline.model.kinematics import ProtractionDrive, rot_y, rot_z
+from pipeline.model.kinematics import ProtractionDrive
+from pipeline.model.loads import LinkState, total_link_forces
+from pipeline.model.rotations import axis_rotation, matrix_from_xyzw, quat_xyzw, rot_z
 
 IDENTITY_QUAT = (0.0, 0.0, 0.0, 1.0)
 _CAPSULE_ALONG_X = (0.0, 0.7071067811865476, 0.0, 0.7071067811865476)   # z axis → x axis
+_AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
 
 
 def quat(matrix: np.ndarray) -> list[float]:
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_matrix(matrix).as_quat().tolist()
-
-
-def matrix(quaternion) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_quat(quaternion).as_matrix()
+    return quat_xyzw(matrix).tolist()
 
 
 class LinkList:
@@ -79,14 +77,13 @@ class BulletWhisker:
         yaw = links.add(-1, p.JOINT_REVOLUTE, (0, 0, 1), **drive_body)
         pitch = links.add(yaw, p.JOINT_REVOLUTE, (0, 1, 0), **drive_body)
         roll = links.add(pitch, p.JOINT_REVOLUTE, (1, 0, 0), **drive_body)
-        parent, link1_rotation = roll, model.frame_offset @ rot_z(chain.link_angles_rad[0])
-        stiffness, damping = [], []
-        if model.follicle is not None:
-            fz = links.add(roll, p.JOINT_REVOLUTE, (0, 0, 1), rotation=model.frame_offset)
-            parent = links.add(fz, p.JOINT_REVOLUTE, (0, 1, 0))
-            link1_rotation = rot_z(chain.link_angles_rad[0])
-            stiffness += [model.follicle.stiffness_nm_per_rad] * 2
-            damping += [model.follicle.damping_nms_per_rad] * 2
+        layout = model.layout
+        parent, rotation = roll, model.frame_offset
+        self.follicle_axes = [_AXIS_INDEX[j.local_axis] for j in layout.at_node(0)]
+        for joint in layout.at_node(0):                     # compliant follicle
+            parent = links.add(parent, p.JOINT_REVOLUTE, joint.unit_axis, rotation=rotation)
+            rotation = np.eye(3)
+        link1_rotation = rotation @ rot_z(chain.link_angles_rad[0])
         self.whisker_links = []
         for i in range(chain.links):
             r0, r1 = chain.node_radii_m[i], chain.node_radii_m[i + 1]
@@ -103,12 +100,14 @@ class BulletWhisker:
                                  **body_args)
                 self.sensor_joint = link
             else:
-                hinge = links.add(self.whisker_links[-1], p.JOINT_REVOLUTE, (0, 0, 1),
-                                  position=(chain.link_lengths_m[i - 1] * U.LENGTH, 0, 0),
-                                  rotation=rot_z(chain.rest_bend_rad[i - 1]))
-                link = links.add(hinge, p.JOINT_REVOLUTE, (0, 1, 0), **body_args)
-                stiffness += [chain.stiffness_nm_per_rad[i - 1]] * 2
-                damping += [chain.damping_nms_per_rad[i - 1]] * 2
+                *hinges, last = layout.at_node(i)
+                parent = self.whisker_links[-1]
+                placement = dict(position=(chain.link_lengths_m[i - 1] * U.LENGTH, 0, 0),
+                                 rotation=rot_z(chain.rest_bend_rad[i - 1]))
+                for joint in hinges:
+                    parent = links.add(parent, p.JOINT_REVOLUTE, joint.unit_axis, **placement)
+                    placement = {}
+                link = links.add(parent, p.JOINT_REVOLUTE, last.unit_axis, **placement, **body_args)
             self.whisker_links.append(link)
         self.body = p.createMultiBody(0.0, -1, -1, [0, 0, 0], IDENTITY_QUAT,
                                       physicsClientId=client, **links.columns)
@@ -128,14 +127,14 @@ class BulletWhisker:
         p.enableJointForceTorqueSensor(self.body, self.sensor_joint, True, physicsClientId=client)
         self.n_dof = len(self.dofs)
         self.driven_dofs, self.free_dofs = np.arange(3), np.arange(3, self.n_dof)
-        self.stiffness = np.concatenate([np.zeros(3), np.array(stiffness) * U.TORQUE])
-        self.damping = np.concatenate([np.zeros(3), np.array(damping) * U.TORQUE])
+        self.stiffness = np.concatenate([np.zeros(3), layout.stiffness * U.TORQUE])
+        self.damping = np.concatenate([np.zeros(3), layout.damping * U.TORQUE])
         self.rest_driven = np.asarray(model.rest_joint_angles, float)
         self.rates = np.asarray(model.joint_rates, float)
-        self.link1_com = chain.link_com_m[0] * U.LENGTH
+        self.link_com = chain.link_com_m * U.LENGTH
+        self.link1_com = self.link_com[0]
         self.link1_angle = chain.link_angles_rad[0]
         self.tip_offset = chain.link_lengths_m[-1] * U.LENGTH
-        self.has_follicle = model.follicle is not None
         self.local_link = {link: i for i, link in enumerate(self.whisker_links)}
 
     # -- per trial -----------------------------------------------------------------------
@@ -164,12 +163,11 @@ class BulletWhisker:
         return np.array([s[0] for s in p.getJointStates(self.body, self.dofs[:3],
                                                           physicsClientId=self.client)])
 
-    def apply_implicit_torques(self, q_target: np.ndarray, h: float, tip_force=None) -> None:
+    def apply_implicit_torques(self, q_target: np.ndarray, h: float, loads=()) -> None:
         """Joint torques of one linearly implicit step of size h (s) toward driven angles q_target.
 
-        ``tip_force`` (internal units, world frame) is an external force on the tip node: it enters
-        the implicit solve as the generalised force Jᵀ·F and is applied to Bullet's body too, so
-        the step Bullet takes is the implicit one."""
+        ``loads`` (:mod:`pipeline.model.loads`) enter the implicit solve as the generalised force
+        Jᵀ·F and are applied to Bullet's bodies too, so the step Bullet takes is the implicit one."""
         import pybullet as p
 
         c = self.client
@@ -180,9 +178,8 @@ class BulletWhisker:
         mass = np.array(p.calculateMassMatrix(self.body, q_list, physicsClientId=c))
         bias = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, [0.0] * self.n_dof,
                                                    physicsClientId=c))
-        if tip_force is not None:                       # Bullet adds Jᵀ·F itself: take it out
-            bias = bias - self._tip_jacobian(q_list).T @ np.asarray(tip_force, float)
-            self._apply_tip_force(tip_force)
+        if loads:                                       # Bullet adds Jᵀ·F itself: take it out
+            bias = bias - self._apply_loads(loads, q_list)
         accel = np.zeros(self.n_dof)
         d, f = self.driven_dofs, self.free_dofs
         accel[d] = ((q_target - q[d]) / h - v[d]) / h
@@ -194,27 +191,40 @@ class BulletWhisker:
         p.setJointMotorControlArray(self.body, self.dofs, p.TORQUE_CONTROL, forces=torque.tolist(),
                                     physicsClientId=c)
 
-    def _tip_jacobian(self, q: list[float]) -> np.ndarray:
-        """[3, n_dof] world-frame linear Jacobian of the tip node (internal units). pybullet takes
-        the point in the link frame (not the centre-of-mass frame): checked by the static tip load
-        test, whose deflection is then independent of the step size."""
+    def link_state(self, velocities: bool) -> LinkState:
+        """The whisker links' centres of mass, frames and velocities (world frame, SI)."""
         import pybullet as p
 
+        states = p.getLinkStates(self.body, self.whisker_links, computeLinkVelocity=int(velocities),
+                                 computeForwardKinematics=True, physicsClientId=self.client)
+        frames = np.array([matrix_from_xyzw(s[1]) for s in states])
+        zeros = np.zeros((len(states), 3))
+        return LinkState(np.array([s[0] for s in states]) / U.LENGTH, frames,
+                         np.array([s[6] for s in states]) / U.LENGTH if velocities else zeros,
+                         np.array([s[7] for s in states]) if velocities else zeros)
+
+    def _apply_loads(self, loads, q: list[float]) -> np.ndarray:
+        """Apply the loads' per-link forces to Bullet's bodies for the next step; returns their
+        generalised force Jᵀ·F [n_dof] (internal units). pybullet takes the Jacobian's point in
+        the link frame (not the centre-of-mass frame): checked by the static tip load test,
+        whose deflection is then independent of the step size."""
+        import pybullet as p
+
+        state = self.link_state(any(load.needs_velocity for load in loads))
+        force, torque = total_link_forces(loads, self.model.chain, state)
+        force, torque = force * U.FORCE, torque * U.TORQUE
         zeros = [0.0] * self.n_dof
-        linear, _ = p.calculateJacobian(self.body, self.whisker_links[-1],
-                                        [self.tip_offset, 0.0, 0.0], q, zeros, zeros,
-                                        physicsClientId=self.client)
-        return np.asarray(linear)
-
-    def _apply_tip_force(self, force: list[float]) -> None:
-        """A force (internal units, world frame) on the tip node for the next step."""
-        import pybullet as p
-
-        state = p.getLinkState(self.body, self.whisker_links[-1], computeForwardKinematics=True,
-                               physicsClientId=self.client)
-        tip = np.asarray(state[4]) + matrix(state[5])[:, 0] * self.tip_offset
-        p.applyExternalForce(self.body, self.whisker_links[-1], force, tip.tolist(), p.WORLD_FRAME,
-                             physicsClientId=self.client)
+        generalised = np.zeros(self.n_dof)
+        for i in np.flatnonzero(np.any(force != 0, axis=1) | np.any(torque != 0, axis=1)):
+            link = self.whisker_links[i]
+            linear, angular = p.calculateJacobian(self.body, link, [self.link_com[i], 0.0, 0.0], q,
+                                                  zeros, zeros, physicsClientId=self.client)
+            generalised += np.asarray(linear).T @ force[i] + np.asarray(angular).T @ torque[i]
+            p.applyExternalForce(self.body, link, force[i].tolist(), (state.com_m[i] * U.LENGTH).tolist(),
+                                 p.WORLD_FRAME, physicsClientId=self.client)
+            p.applyExternalTorque(self.body, link, torque[i].tolist(), p.WORLD_FRAME,
+                                  physicsClientId=self.client)
+        return generalised
 
     def base_wrench(self) -> np.ndarray:
         """Follicle → whisker force (N) and moment about the base point (N·m), whisker frame."""
@@ -224,9 +234,11 @@ class BulletWhisker:
         force, moment = reading[:3], reading[3:]
         moment = moment + np.cross([self.link1_com, 0.0, 0.0], force)
         rotation = rot_z(self.link1_angle)
-        if self.has_follicle:
-            states = p.getJointStates(self.body, self.dofs[3:5], physicsClientId=self.client)
-            rotation = rot_z(states[0][0]) @ rot_y(states[1][0]) @ rotation
+        if self.follicle_axes:
+            states = p.getJointStates(self.body, self.dofs[3:3 + len(self.follicle_axes)],
+                                      physicsClientId=self.client)
+            for axis, state in zip(reversed(self.follicle_axes), reversed(states)):
+                rotation = axis_rotation(axis, state[0]) @ rotation
         return np.concatenate([rotation @ force / U.FORCE, rotation @ moment / U.TORQUE])
 
     def node_positions(self) -> np.ndarray:
@@ -236,5 +248,5 @@ class BulletWhisker:
         states = p.getLinkStates(self.body, self.whisker_links, computeForwardKinematics=True,
                                  physicsClientId=self.client)
         frames = np.array([s[4] for s in states])
-        tip = frames[-1] + matrix(states[-1][5])[:, 0] * self.tip_offset
+        tip = frames[-1] + matrix_from_xyzw(states[-1][5])[:, 0] * self.tip_offset
         return np.vstack([frames, tip]) / U.LENGTH

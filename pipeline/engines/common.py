@@ -1,27 +1,24 @@
 """Checks and bookkeeping shared by the engines (SI at the interface).
 
-Every engine validates a trial the same way (:func:`start_trial`),
-flags the same whiskers as non-physical (:func:`implausible`) and ORs per-step contacts
-into per-sample flags the same way (:class:`ContactFlags`). What a whisker can reach
-(:func:`link_reach_m`, :class:`FaceIndex`, :func:`clearance_m`) lets an engine skip the
-collision tests of links that cannot touch anything and reuse the motion of whiskers that
-touch nothing (:class:`FreeMotion`).
+Every engine validates a trial the same way (:func:`start_trial`), flags the same whiskers
+as non-physical (:func:`implausible`, :func:`jam_message`) and ORs per-step contacts into
+per-sample flags the same way (:class:`ContactFlags`). What a whisker can reach
+(:func:`link_reach_m`, :func:`clearance_m`) lets an engine skip the collision tests of links
+that cannot touch anything and reuse the motion of whiskers that touch nothing
+(:class:`FreeMotion`).
 """
 
 from __future__ import annotations
 
-from functools import lru_cache
 
 import numpy as np
 
-from pipeline.engines.base import initial_angles
 from pipeline.errors import UserError
 from pipeline.model.kinematics import Pose
 
 # A base moment above this is no whisker's (they break near 10⁻⁴ N·m): the contact solver has
 # jammed, typically a surface pressed against the whisker by the rigid drive.
 MAX_PLAUSIBLE_MOMENT_NM = 1e-3
-GRAVITY_M_S2 = 9.81
 CLEARANCE_MARGIN_M = 2e-4     # extra distance a reused free motion keeps from every obstacle
 
 
@@ -41,55 +38,39 @@ def check_pose(pose: Pose) -> None:
         raise UserError(f"head pose has non-finite values: {pose}")
 
 
-def solid_contains(obstacle, points_m: np.ndarray) -> np.ndarray:
-    """[P] whether each point (m, world) lies strictly inside a peg or a box at t = 0."""
-    from pipeline.scenes.obstacles import Box
-
-    relative = points_m - np.asarray(obstacle.position_m, float)
-    if isinstance(obstacle, Box):
-        local = relative @ np.asarray(obstacle.rotation, float)
-        return np.all(np.abs(local) < np.asarray(obstacle.half_extents_m), axis=1)
-    axis = np.asarray(obstacle.axis, float) / np.linalg.norm(obstacle.axis)
-    along = relative @ axis
-    radial = np.linalg.norm(relative - along[:, None] * axis, axis=1)
-    return (np.abs(along) < 0.5 * obstacle.length_m) & (radial < obstacle.radius_m)
-
-
-def smallest_size_m(obstacle) -> float:
-    """The thinnest dimension (m) of a peg (its radius) or a box (its smallest half extent)."""
-    from pipeline.scenes.obstacles import Box
-
-    if isinstance(obstacle, Box):
-        return float(min(obstacle.half_extents_m))
-    return float(min(obstacle.radius_m, 0.5 * obstacle.length_m))
-
-
-def along_links(nodes_m: np.ndarray, spacing_m: float) -> np.ndarray:
-    """[W, P, 3] points along the links of chains ``nodes_m`` [W, N+1, 3], at most
-    ``spacing_m`` apart, both ends of every link included."""
-    steps = np.diff(nodes_m, axis=1)                                    # [W, N, 3]
-    per_link = max(1, int(np.ceil(np.linalg.norm(steps, axis=2).max() / spacing_m)))
-    fractions = np.arange(per_link) / per_link
-    inner = nodes_m[:, :-1, None] + fractions[:, None] * steps[:, :, None]  # [W, N, m, 3]
-    return np.concatenate([inner.reshape(len(nodes_m), -1, 3), nodes_m[:, -1:]], axis=1)
+def initial_angles(array, angles) -> list[np.ndarray]:
+    """``initial_joint_angles_rad`` of :meth:`Engine.run` checked: per whisker its [J] free-joint
+    angles at t = 0 (rad; zeros, the rest shape, for None)."""
+    counts = [w.layout.n for w in array.whiskers]
+    if angles is None:
+        return [np.zeros(n) for n in counts]
+    if len(set(counts)) > 1:
+        raise UserError("initial_joint_angles_rad needs whiskers with equal numbers of free joints")
+    n_w, n_j = len(counts), counts[0]
+    expected = f"initial_joint_angles_rad must be finite angles (rad) of shape [{n_j}] or [{n_w}, {n_j}]"
+    try:
+        values = np.asarray(angles, float)
+    except (TypeError, ValueError):
+        raise UserError(expected) from None
+    if values.shape == (n_j,):
+        values = np.tile(values, (n_w, 1))
+    if values.shape != (n_w, n_j):
+        raise UserError(f"{expected}, got shape {list(values.shape)}")
+    if not np.isfinite(values).all():
+        raise UserError(f"{expected}, got non-finite values")
+    return list(values)
 
 
 def check_start_clear(array, scene, pose: Pose, theta0_rad: float) -> None:
     """Raise :class:`UserError` when a whisker's rest shape at the start of the trial (head
-    ``pose``, protraction ``theta0_rad``) has a node inside a peg or a box, or a link crossing a
-    mesh surface: no simulator can start from there (the contact solver jams or, with the whole
-    whisker inside a solid, reports nothing)."""
-    from pipeline.scenes.obstacles import TriangleMesh
-
+    ``pose``, protraction ``theta0_rad``) passes through an obstacle (a node inside a peg or a
+    box, a link crossing a mesh surface): no simulator can start from there (the contact
+    solver jams or, with the whole whisker inside a solid, reports nothing)."""
     if not scene.obstacles:
         return
     nodes = np.array([pose.apply(w.rest_nodes_head(theta0_rad)) for w in array.whiskers])
     for index, obstacle in enumerate(scene.obstacles):
-        if isinstance(obstacle, TriangleMesh):
-            blocked = _surface_queries(obstacle).segments_cross(nodes)
-        else:
-            points = along_links(nodes, 0.5 * smallest_size_m(obstacle))
-            blocked = solid_contains(obstacle, points.reshape(-1, 3)).reshape(points.shape[:2]).any(axis=1)
+        blocked = obstacle.chains_through(nodes)
         if blocked.any():
             names = [array.whiskers[k].name for k in np.flatnonzero(blocked)]
             more = f" and {len(names) - 1} more" if len(names) > 1 else ""
@@ -97,13 +78,6 @@ def check_start_clear(array, scene, pose: Pose, theta0_rad: float) -> None:
                             f"{names[0]}{more} passes through obstacle {index} "
                             f"({type(obstacle).__name__}) of scene '{scene.name}'; move the head "
                             "or the obstacle")
-
-
-@lru_cache(maxsize=8)
-def _surface_queries(mesh):
-    from pipeline.scenes.poses import SurfaceQueries
-
-    return SurfaceQueries(mesh)
 
 
 def output_samples(duration_s: float, output_rate_hz: float) -> int:
@@ -120,11 +94,20 @@ def empty_signals(samples: int, whiskers: int, links: int) -> tuple[np.ndarray, 
     return (np.zeros((samples, whiskers, 6), np.float32), np.zeros((samples, whiskers, links), bool),
             np.zeros((samples, whiskers, links + 1, 3), np.float32))
 
+
 def implausible(wrench: np.ndarray) -> np.ndarray:
     """Indices of the whiskers of ``wrench`` [W, 6] (SI) whose base moment is non-finite or
     above :data:`MAX_PLAUSIBLE_MOMENT_NM`."""
-    moments = np.linalg.norm(wrench[:, 3:], axis=1)
+    with np.errstate(over="ignore", invalid="ignore"):           # a jam shows as inf/nan
+        moments = np.linalg.norm(wrench[:, 3:], axis=1)
     return np.flatnonzero(~np.isfinite(moments) | (moments > MAX_PLAUSIBLE_MOMENT_NM))
+
+
+def jam_message(name: str, wrench: np.ndarray, time_s: float) -> str:
+    """Why whisker ``name`` with base ``wrench`` [6] (SI) at ``time_s`` is taken out."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        moment = np.linalg.norm(wrench[3:])
+    return f"non-physical base moment {moment:.3g} N·m on {name} at t = {time_s:.4f} s"
 
 
 class ContactFlags:
@@ -144,48 +127,11 @@ class ContactFlags:
         return flags
 
 
-class FaceIndex:
-    """Face centroids and bounding radii of a triangle mesh (m) with a k-d tree over the centroids."""
-
-    def __init__(self, vertices_m: np.ndarray, faces: np.ndarray):
-        from scipy.spatial import cKDTree
-
-        corners = np.asarray(vertices_m, float)[np.asarray(faces)]          # [F, 3, 3]
-        self.centroids = corners.mean(axis=1)
-        self.radii = np.linalg.norm(corners - self.centroids[:, None], axis=2).max(axis=1)
-        self.tree = cKDTree(self.centroids)
-
-    def near(self, points_m: np.ndarray, distances_m: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
-        """Per point, the faces that may come within its distance (sorted face indices), and a
-        lower bound of its distance to the nearest of them (inf if none)."""
-        pad = self.radii.max() if len(self.radii) else 0.0
-        candidates = self.tree.query_ball_point(points_m, distances_m + pad)
-        faces_near, gaps = [], np.full(len(points_m), np.inf)
-        for k, (point, distance, faces) in enumerate(zip(points_m, distances_m, candidates)):
-            faces = np.asarray(faces, np.int64)
-            gap = np.linalg.norm(self.centroids[faces] - point, axis=1) - self.radii[faces]
-            faces_near.append(np.sort(faces[gap <= distance]))
-            if faces_near[-1].size:
-                gaps[k] = gap.min()
-        return faces_near, gaps
-
-
 def link_reach_m(whiskers) -> np.ndarray:
     """[W, N] radius (m) of the ball around each base point that contains link n of the whisker
     in any shape: the arc length to the link's distal node plus the base radius."""
     return np.array([w.chain.geometry.arc_length_m * np.arange(1, w.chain.links + 1) / w.chain.links
                      + w.chain.node_radii_m[0] for w in whiskers])
-
-
-def bounding_radius_m(obstacle) -> float:
-    """Radius (m) of a sphere about ``obstacle.position_m`` that contains a peg or a box."""
-    from pipeline.scenes.obstacles import Box, Cylinder
-
-    if isinstance(obstacle, Cylinder):
-        return float(np.hypot(obstacle.radius_m, 0.5 * obstacle.length_m))
-    if isinstance(obstacle, Box):
-        return float(np.linalg.norm(obstacle.half_extents_m))
-    raise TypeError(f"no bounding sphere for {type(obstacle).__name__}")
 
 
 def path_distance_m(points_m: np.ndarray, start_m, velocity_m_s, duration_s: float) -> np.ndarray:
@@ -199,23 +145,13 @@ def path_distance_m(points_m: np.ndarray, start_m, velocity_m_s, duration_s: flo
     return np.linalg.norm(points_m - (start + s[:, None] * travel), axis=1)
 
 
-def clearance_m(points_m: np.ndarray, times_s: np.ndarray, scene, faces) -> np.ndarray:
+def clearance_m(points_m: np.ndarray, times_s: np.ndarray, scene) -> np.ndarray:
     """[P] lower bound of the distance (m) from each point, at its time, to the obstacles of
-    ``scene``; ``faces(i)`` is the :class:`FaceIndex` of the scene's mesh i. A moving obstacle
-    is where its velocity has taken it; a peg or a box counts as its bounding sphere."""
-    from pipeline.scenes.obstacles import TriangleMesh
-
+    ``scene``; a moving obstacle is where its velocity has taken it."""
     result = np.full(len(points_m), np.inf)
-    for index, obstacle in enumerate(scene.obstacles):
+    for obstacle in scene.obstacles:
         travel = np.asarray(obstacle.velocity_m_s, float) * times_s[:, None]
-        if isinstance(obstacle, TriangleMesh):
-            index_of_faces = faces(index)
-            distance, _ = index_of_faces.tree.query(points_m - travel)
-            distance = distance - index_of_faces.radii.max()
-        else:
-            centre = np.asarray(obstacle.position_m, float) + travel
-            distance = np.linalg.norm(points_m - centre, axis=1) - bounding_radius_m(obstacle)
-        result = np.minimum(result, distance)
+        result = np.minimum(result, obstacle.lower_distance_m(points_m - travel))
     return result
 
 
@@ -255,7 +191,7 @@ class FreeMotion:
         step = float(np.linalg.norm(np.diff(head_nodes, axis=0), axis=-1).max(initial=0.0))
         self.motions[k] = (wrench.copy(), head_nodes, self.padding_m[k] + 0.5 * step)
 
-    def reusable(self, pose, scene, faces, times_s: np.ndarray) -> np.ndarray:
+    def reusable(self, pose, scene, times_s: np.ndarray) -> np.ndarray:
         """[W] whether each whisker's remembered motion keeps clear of ``scene`` at ``pose``."""
         result = np.zeros(len(self.padding_m), bool)
         period = float(times_s[1] - times_s[0]) if len(times_s) > 1 else 0.0
@@ -267,10 +203,10 @@ class FreeMotion:
             centre = nodes.mean(axis=0)                                # first the bounding sphere
             radius = np.linalg.norm(nodes - centre, axis=1).max()
             span = np.array([times_s.min(), times_s.max()])
-            if np.all(clearance_m(np.stack([centre, centre]), span, scene, faces) > radius + pad):
+            if np.all(clearance_m(np.stack([centre, centre]), span, scene) > radius + pad):
                 result[k] = True
             else:
-                result[k] = bool(np.all(clearance_m(nodes, times, scene, faces) > pad))
+                result[k] = bool(np.all(clearance_m(nodes, times, scene) > pad))
         return result
 
     def recall(self, k: int, pose) -> tuple[np.ndarray, np.ndarray]:

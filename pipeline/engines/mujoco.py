@@ -5,9 +5,11 @@ Model. One MjModel per step size (the whiskers that share ``engine.dt_s / 2**j``
 (:mod:`pipeline.engines.units`: tip-link inertias are ~10⁻¹⁸ kg·m² in SI, and MuJoCo refuses
 anything below 10⁻¹⁵). A mocap body is the head (the pose of a trial). Under it, per whisker,
 a follicle body at the base point carries the three driven hinges Z, Y, X; link 1 hangs from
-it, rigidly or on the two compliant-follicle hinges about the whisker-frame z and y; every
-further link is a body with a z-hinge and a y-hinge at its proximal node, the rest bend built
-into the body's orientation so that the springs rest at q = 0. k_n and c_n are MuJoCo's
+it, rigidly or on the compliant follicle's hinges; every further link is a body with the
+hinges of its node (:mod:`pipeline.model.joints`: z, y and, with twist, x; MuJoCo composes a
+body's hinges in order, each about an axis of the frame the previous ones left, as the layout
+does) at its proximal node, the rest bend built into the body's orientation so that the
+springs rest at q = 0. k_n and c_n are MuJoCo's
 native joint ``stiffness`` and ``damping``; masses, centres of mass and principal inertias
 are the chain's; each link collides as a capsule between its nodes.
 
@@ -64,39 +66,36 @@ between samples with a 10 µm skin, 20 with 0.1 mm; 33 with prisms, 42 for Bulle
 
 Jams. A whisker whose accelerations MuJoCo flags as non-finite or huge (checked every step:
 one step later the solve has spread them to every whisker of the model) or whose base moment
-leaves the plausible range (a contact pushed it deep between faces) is taken out, the others
-of its world are simulated again without it, and it is then simulated alone with half the
-step, up to ``engine.jam_refinements`` times, as in the Bullet engine; the halvings are
-reported in the trial metadata (``jam_refined``).
+leaves the plausible range (a contact pushed it deep between faces) is taken out and the
+others of its world are simulated again without it; the template then simulates it alone
+with half the step.
 
-Independence and reuse. Each whisker is its own kinematic tree and, touching a static
-obstacle, its own constraint island: its result does not depend on which others are
-simulated with it (bit for bit, for pegs and edges; with a mesh the cropped face set, hence
-the contact order, depends on the world's whiskers). Until its first contact a whisker moves
-as in an empty scene, so one that touched nothing in an earlier trial with the same drive and
-keeps clear of this trial's obstacles is not simulated again: its outputs are reused, moved
-to the new pose (:class:`~pipeline.engines.common.FreeMotion`; off with gravity or a tip
-force). Only rest starts are remembered and reused: a whisker started bent is simulated.
+Loads. The per-link forces of :mod:`pipeline.model.loads` (gravity, air drag, a tip force)
+are computed every step from the links' current state (MuJoCo's kinematics and centre-of-mass
+velocities, recomputed before the step) and applied as ``xfrc_applied`` at the links' centres
+of mass, so the implicit step sees them.
+
+Independence. Each whisker is its own kinematic tree and, touching a static obstacle, its own
+constraint island: its result does not depend on which others are simulated with it (bit for
+bit, for pegs and edges; with a mesh the cropped face set, hence the contact order, depends on
+the world's whiskers), which the template's reuse of free motion relies on.
 """
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
-from pipeline.engines.base import Engine, SimulationError
-from pipeline.engines.common import (GRAVITY_M_S2, ContactFlags, FaceIndex, FreeMotion, empty_signals,
-                                     bounding_radius_m, implausible, link_reach_m, path_distance_m,
-                                     start_trial)
-from pipeline.engines.stepping import refinement_levels, step_groups, steps_per_sample
-from pipeline.errors import UserError
+from pipeline.engines.base import Engine, TrialSetup, World, WorldResult
+from pipeline.engines.common import ContactFlags, implausible, jam_message, link_reach_m, path_distance_m
+from pipeline.errors import SimulationError
 from pipeline.model.array import ArrayModel, WhiskerModel
-from pipeline.model.kinematics import Pose, ProtractionDrive, rot_y, rot_z
-from pipeline.model.outputs import TrialOutput
+from pipeline.model.kinematics import Pose, ProtractionDrive
+from pipeline.model.loads import LinkState, total_link_forces
+from pipeline.model.rotations import axis_rotation, quat_wxyz, rot_z
 from pipeline.model.whisker import WhiskerChain, link_centres_of_mass
 from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
 
@@ -112,25 +111,6 @@ CONTACT_TIME_CONSTANT_STEPS = 2.0
 CONTACT_IMPEDANCE = (0.95, 0.99, 0.001)     # MuJoCo solimp: d0, dwidth, width (mm)
 WHISKER_CONTYPE = OBSTACLE_CONAFFINITY = 1
 _Z, _Y, _X = (0.0, 0.0, 1.0), (0.0, 1.0, 0.0), (1.0, 0.0, 0.0)
-
-
-def _quat(matrix: np.ndarray) -> np.ndarray:
-    """MuJoCo quaternion (w, x, y, z) of a rotation matrix."""
-    import mujoco
-
-    q = np.zeros(4)
-    mujoco.mju_mat2Quat(q, np.ascontiguousarray(matrix, float).ravel())
-    return q
-
-
-def _rotation_z_to(axis) -> np.ndarray:
-    """A rotation taking the z axis onto the unit vector along ``axis``."""
-    a = np.asarray(axis, float) / np.linalg.norm(axis)
-    v, c = np.cross([0.0, 0.0, 1.0], a), a[2]
-    if np.linalg.norm(v) < 1e-12:
-        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
-    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + vx + vx @ vx / (1 + c)
 
 
 def base_inertia_mg_mm2(chain: WhiskerChain) -> float:
@@ -153,7 +133,7 @@ class MeshPrisms:
     def __init__(self, mesh: TriangleMesh):
         vertices = np.asarray(mesh.vertices_m, float)
         faces = np.asarray(mesh.faces, np.int64)
-        self.index = FaceIndex(vertices, faces)
+        self.index = mesh.face_index
         corners = vertices[faces]
         normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
         area2 = np.linalg.norm(normal, axis=1)
@@ -207,28 +187,6 @@ def _depth_behind_m(vertices: np.ndarray, faces: np.ndarray, origins: np.ndarray
     return scene.cast_rays(o3d.core.Tensor(rays), nthreads=1)["t_hit"].numpy().astype(float)
 
 
-@dataclass
-class WorldResult:
-    """Outputs of one world's whiskers (local order), SI."""
-
-    wrench: np.ndarray            # [T, w, 6] whisker frame
-    contact: np.ndarray           # [T, w, N]
-    nodes: np.ndarray             # [T, w, N+1, 3] m, world frame
-    touched: np.ndarray | None = None                         # [w] any contact, even unflagged
-    jammed: dict[int, str] = field(default_factory=dict)     # local index → why (not refined)
-    refined: dict[str, int] = field(default_factory=dict)    # whisker name → halvings of its step
-
-    @classmethod
-    def zeros(cls, samples: int, whiskers: int, links: int) -> "WorldResult":
-        return cls(np.zeros((samples, whiskers, 6), np.float32), np.zeros((samples, whiskers, links), bool),
-                   np.zeros((samples, whiskers, links + 1, 3), np.float32))
-
-    def put(self, whiskers, other: "WorldResult", columns=slice(None)) -> None:
-        """Copy ``other``'s whiskers ``columns`` into this result's ``whiskers``."""
-        for name in ("wrench", "contact", "nodes"):
-            getattr(self, name)[:, whiskers] = getattr(other, name)[:, columns]
-
-
 class _Jam(Exception):
     """Whiskers whose base moment left the plausible range (a contact jammed)."""
 
@@ -256,19 +214,17 @@ class _Part:
         return (self.index, None if self.faces is None else self.faces.tobytes())
 
 
-class MujocoWorld:
+class MujocoWorld(World):
     """One MjModel: whiskers stepping at one step size ``dt_s``, and what they can reach."""
 
     def __init__(self, whiskers: list[WhiskerModel], config: EngineConfig, dt_s: float,
-                 gravity: bool, prisms: dict[tuple, MeshPrisms]):
+                 prisms: dict[tuple, MeshPrisms]):
         """``prisms``: the engine's cache of static meshes as prisms, by (scene key, index)."""
-        self.whiskers, self.config, self.dt_s, self.gravity = whiskers, config, dt_s, gravity
-        self.steps_per_sample = int(round(1.0 / (config.output_rate_hz * dt_s)))
+        super().__init__(whiskers, config, dt_s)
         self.links = whiskers[0].chain.links
         self.link_reach_m = link_reach_m(whiskers)                 # [w, N]
         self._prisms = prisms
         self._built_key: object = None
-        self.free = FreeMotion(whiskers)
         self._build([], np.arange(len(whiskers)))
 
     # -- model ---------------------------------------------------------------------------
@@ -291,7 +247,7 @@ class MujocoWorld:
         option.integrator = mujoco.mjtIntegrator.mjINT_DISCRETE
         option.jacobian = mujoco.mjtJacobian.mjJAC_SPARSE     # same arithmetic for any selection
         option.solver = mujoco.mjtSolver.mjSOL_PGS
-        option.gravity = [0.0, 0.0, -GRAVITY_M_S2 * U.LENGTH if self.gravity else 0.0]
+        option.gravity = [0.0, 0.0, 0.0]                 # gravity is a load (pipeline.model.loads)
         option.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
         option.disableflags |= mujoco.mjtDisableBit.mjDSBL_MULTICCD     # one point per capsule–prism
         if not any(isinstance(p.obstacle, TriangleMesh) for p in parts):
@@ -309,7 +265,7 @@ class MujocoWorld:
     def _add_whisker(self, spec, head, k: int, whisker: WhiskerModel) -> None:
         import mujoco
 
-        chain = whisker.chain
+        chain, layout = whisker.chain, whisker.layout
         hinge = mujoco.mjtJoint.mjJNT_HINGE
         follicle = head.add_body(name=f"w{k}", pos=whisker.base_point_m * U.LENGTH)
         # MuJoCo wants mass on a body whose child moves on joints of its own (compliant
@@ -321,22 +277,17 @@ class MujocoWorld:
         for axis, label in zip((_Z, _Y, _X), "zyx"):
             follicle.add_joint(name=f"w{k}/drive_{label}", type=hinge, axis=axis, armature=armature)
         a0 = chain.link_angles_rad[0]
-        link = follicle.add_body(name=f"w{k}/l0", quat=_quat(whisker.frame_offset @ rot_z(a0)))
-        if whisker.follicle is not None:
-            # about the follicle frame's z and y, expressed in link 1's (turned by a0 about z)
-            for axis, label in ((_Z, "z"), ((np.sin(a0), np.cos(a0), 0.0), "y")):
-                link.add_joint(name=f"w{k}/follicle_{label}", type=hinge, axis=axis,
-                               stiffness=whisker.follicle.stiffness_nm_per_rad * U.TORQUE,
-                               damping=whisker.follicle.damping_nms_per_rad * U.TORQUE)
-        link.add_site(name=f"w{k}/base", quat=_quat(rot_z(-a0)))
-        self._add_link(link, chain, k, 0)
-        for i in range(1, chain.links):
-            link = link.add_body(name=f"w{k}/l{i}", pos=[chain.link_lengths_m[i - 1] * U.LENGTH, 0, 0],
-                                 quat=_quat(rot_z(chain.rest_bend_rad[i - 1])))
-            for axis in (_Z, _Y):
-                link.add_joint(type=hinge, axis=axis,
-                               stiffness=chain.stiffness_nm_per_rad[i - 1] * U.TORQUE,
-                               damping=chain.damping_nms_per_rad[i - 1] * U.TORQUE)
+        link = follicle.add_body(name=f"w{k}/l0", quat=quat_wxyz(whisker.frame_offset @ rot_z(a0)))
+        for i in range(chain.links):
+            if i > 0:
+                link = link.add_body(name=f"w{k}/l{i}", pos=[chain.link_lengths_m[i - 1] * U.LENGTH, 0, 0],
+                                     quat=quat_wxyz(rot_z(chain.rest_bend_rad[i - 1])))
+            for joint in layout.at_node(i):
+                link.add_joint(name=f"w{k}/{joint.label}", type=hinge, axis=layout.axis_in_link(joint),
+                               stiffness=joint.stiffness_nm_per_rad * U.TORQUE,
+                               damping=joint.damping_nms_per_rad * U.TORQUE)
+            if i == 0:
+                link.add_site(name=f"w{k}/base", quat=quat_wxyz(rot_z(-a0)))
             self._add_link(link, chain, k, i)
         link.add_site(name=f"w{k}/tip", pos=[chain.link_lengths_m[-1] * U.LENGTH, 0, 0])
         for sensor in (mujoco.mjtSensor.mjSENS_FORCE, mujoco.mjtSensor.mjSENS_TORQUE):
@@ -360,30 +311,38 @@ class MujocoWorld:
         import mujoco
 
         obstacle = part.obstacle
-        start = (np.zeros(3) if isinstance(obstacle, TriangleMesh)
-                 else np.asarray(obstacle.position_m, float) * U.LENGTH)
-        body = spec.worldbody.add_body(name=f"obstacle{part.index}", pos=start)
+        body = spec.worldbody.add_body(name=f"obstacle{part.index}",
+                                       pos=np.asarray(obstacle.position_m, float) * U.LENGTH,
+                                       quat=quat_wxyz(obstacle.rotation))
         if part.velocity_mm_s.any():
             body.explicitinertial = True
             body.mass, body.inertia = OBSTACLE_MASS_MG, [OBSTACLE_MASS_MG] * 3
             for axis, label in zip((_X, _Y, _Z), "xyz"):
                 body.add_joint(name=f"obstacle{part.index}/{label}", type=mujoco.mjtJoint.mjJNT_SLIDE,
-                               axis=axis, armature=KINEMATIC_ARMATURE * OBSTACLE_MASS_MG)
-        if isinstance(obstacle, TriangleMesh):
-            for f, prism in enumerate(part.prisms):
-                name = f"obstacle{part.index}/f{f}"
-                spec.add_mesh(name=name, uservert=prism.ravel())
-                self._obstacle_geom(body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name))
-        elif isinstance(obstacle, Cylinder):
-            self._obstacle_geom(body.add_geom(
-                type=mujoco.mjtGeom.mjGEOM_CYLINDER, quat=_quat(_rotation_z_to(obstacle.axis)),
-                size=[obstacle.radius_m * U.LENGTH, 0.5 * obstacle.length_m * U.LENGTH, 0]))
-        elif isinstance(obstacle, Box):
-            self._obstacle_geom(body.add_geom(
-                type=mujoco.mjtGeom.mjGEOM_BOX, quat=_quat(np.asarray(obstacle.rotation, float)),
-                size=np.asarray(obstacle.half_extents_m, float) * U.LENGTH))
-        else:
-            raise TypeError(f"unknown obstacle {type(obstacle).__name__}")
+                               axis=obstacle.rotation.T @ np.asarray(axis),
+                               armature=KINEMATIC_ARMATURE * OBSTACLE_MASS_MG)
+        SHAPES[type(obstacle)](self, spec, body, part)
+
+    def _add_mesh(self, spec, body, part: _Part) -> None:
+        import mujoco
+
+        for f, prism in enumerate(part.prisms):
+            name = f"obstacle{part.index}/f{f}"
+            spec.add_mesh(name=name, uservert=prism.ravel())
+            self._obstacle_geom(body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name))
+
+    def _add_cylinder(self, spec, body, part: _Part) -> None:
+        import mujoco
+
+        peg = part.obstacle
+        self._obstacle_geom(body.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+                                          size=[peg.radius_m * U.LENGTH, 0.5 * peg.length_m * U.LENGTH, 0]))
+
+    def _add_box(self, spec, body, part: _Part) -> None:
+        import mujoco
+
+        self._obstacle_geom(body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX,
+                                          size=np.asarray(part.obstacle.half_extents_m, float) * U.LENGTH))
 
     def _obstacle_geom(self, geom) -> None:
         geom.contype, geom.conaffinity = 0, OBSTACLE_CONAFFINITY
@@ -407,16 +366,16 @@ class MujocoWorld:
         self.n_driven = len(driven)
         self.obstacle_velocity = (np.concatenate([p.velocity_mm_s for p in moving]) if moving
                                   else np.zeros(0))
-        self.follicle = [np.array([m.jnt_qposadr[named(joint, f"w{k}/follicle_{a}")] for a in "zy"])
-                         if self.whiskers[k].follicle is not None else None for k in members]
+        # per member, (qpos, axis index) of its follicle hinges: the base sensor turns with them
+        self.follicle = [[(m.jnt_qposadr[named(joint, f"w{k}/{j.label}")], "xyz".index(j.local_axis))
+                          for j in self.whiskers[k].layout.at_node(0)] for k in members]
         self.link_bodies = np.array([[named(body, f"w{k}/l{i}") for i in range(self.links)]
                                      for k in members])
 
         def joints(b):
             return np.arange(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
 
-        # per member, the qpos of its free joints from the base out: the follicle's z, y on link 1
-        # (if compliant), then the z, y hinges of each further link
+        # per member, the qpos of its free joints from the base out, in the layout's order
         self.free_qpos = [m.jnt_qposadr[np.concatenate([joints(b) for b in bodies])]
                           for bodies in self.link_bodies]
         self.tip_sites = np.array([named(mujoco.mjtObj.mjOBJ_SITE, f"w{k}/tip") for k in members])
@@ -457,12 +416,8 @@ class MujocoWorld:
                 if faces.size:
                     parts.append(_Part(index, obstacle, faces, prisms.corners[faces]))
             else:
-                if isinstance(obstacle, TriangleMesh):
-                    lo, hi = obstacle.vertices_m.min(axis=0), obstacle.vertices_m.max(axis=0)
-                    centre, radius = 0.5 * (lo + hi), 0.5 * float(np.linalg.norm(hi - lo))
-                else:
-                    centre, radius = np.asarray(obstacle.position_m, float), bounding_radius_m(obstacle)
-                gap = path_distance_m(bases, centre, velocity, duration_s) - radius
+                gap = (path_distance_m(bases, obstacle.centre_m, velocity, duration_s)
+                       - obstacle.bounding_radius_m)
                 gap[gap > reach] = np.inf
                 if np.isfinite(gap).any():
                     mesh_prisms = (prisms.corners[prisms.valid] if isinstance(obstacle, TriangleMesh)
@@ -493,13 +448,13 @@ class MujocoWorld:
     def _reset(self, pose: Pose, drive: ProtractionDrive,
                initial: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """Head at ``pose``, driven joints as the drive at t = 0, free joints still at ``initial``
-        (per whisker of the world, rad); returns the kinematic targets' offsets and θ-rates."""
+        (per member, rad); returns the kinematic targets' offsets and θ-rates."""
         import mujoco
 
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         d.mocap_pos[0] = np.asarray(pose.position_m, float) * U.LENGTH
-        d.mocap_quat[0] = _quat(pose.rotation)
+        d.mocap_quat[0] = quat_wxyz(pose.rotation)
         whiskers = [self.whiskers[k] for k in self.members]
         rest = np.concatenate([w.rest_joint_angles for w in whiskers]).astype(float)
         rates = np.concatenate([w.joint_rates for w in whiskers]).astype(float)
@@ -509,88 +464,45 @@ class MujocoWorld:
         d.qpos[self.kinematic] = offset + theta_rate * float(drive(0.0))
         d.qvel[self.kinematic] = theta_rate * float(drive(0.0, 1))
         d.qvel[self.kinematic[self.n_driven:]] = self.obstacle_velocity
-        for qpos, k in zip(self.free_qpos, self.members):
-            d.qpos[qpos] = initial[k]
+        for qpos, angles in zip(self.free_qpos, initial):      # per member
+            d.qpos[qpos] = angles
         mujoco.mj_forward(m, d)
         return offset, theta_rate
 
-    def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, samples: int, *,
-            initial: list[np.ndarray], stop_drive_on_contact: bool = False,
-            external_tip_force_n=None, refine: bool = True) -> WorldResult:
-        """``samples`` output intervals from the free-joint angles ``initial`` (per whisker of
-        this world, [J] rad; see :meth:`Engine.run`).
-
-        A whisker starting at rest whose motion in an earlier trial with the same drive, also
-        from rest, touched nothing and keeps clear of this trial's obstacles is not simulated
-        again (:class:`FreeMotion`; a deflected start neither reuses nor is kept). A whisker
-        whose base moment leaves the plausible range (a jammed contact) is taken out and the
-        others simulated again without it; it is then simulated alone with half the step, again
-        while it jams, ``engine.jam_refinements`` times (``refine=False``: only reported in
-        ``jammed``).
-        """
-        rate = self.config.output_rate_hz
-        options = dict(stop_drive_on_contact=stop_drive_on_contact, external_tip_force_n=external_tip_force_n)
-        self.free.select(drive, samples, depends_on_pose=self.gravity or external_tip_force_n is not None)
-        times = np.arange(1, samples + 1) / rate
-        at_rest = np.array([not angles.any() for angles in initial])
-        reused = at_rest & self.free.reusable(pose, scene, lambda i: self._mesh_prisms(scene, i).index, times)
-        result = WorldResult.zeros(samples, len(self.whiskers), self.links)
-        members = np.flatnonzero(~reused)
+    def run(self, setup: TrialSetup, active: np.ndarray) -> WorldResult:
+        """Simulate the ``active`` whiskers; one whose contact jams is taken out (``jammed``) and
+        the others are simulated again without it."""
+        result = WorldResult.zeros(setup.samples, len(self.whiskers), self.links)
+        members = np.flatnonzero(active)
         if members.size:
-            parts, gaps = self._reachable(scene, pose, samples / rate)
+            parts, gaps = self._reachable(setup.scene, setup.pose, setup.samples / self.config.output_rate_hz)
         while members.size:
-            self._prepare(scene, parts, gaps, members)
+            self._prepare(setup.scene, parts, gaps, members)
             try:
-                simulated = self._simulate(pose, drive, samples, initial, **options)
+                simulated = self._simulate(setup.only(members))
             except _Jam as jam:
                 result.jammed.update(jam.messages)
                 members = np.setdiff1d(members, list(jam.messages))
                 continue
             result.put(members, simulated)
-            for j in np.flatnonzero(~simulated.touched & at_rest[members]):
-                self.free.remember(members[j], simulated.wrench[:, j], simulated.nodes[:, j], pose)
             break
-        for k in np.flatnonzero(reused):
-            result.wrench[:, k], result.nodes[:, k] = self.free.recall(k, pose)
-        if refine:
-            for k, message in list(result.jammed.items()):
-                alone, result.refined[self.whiskers[k].name] = self._refine(
-                    k, message, scene, pose, drive, samples, dict(options, initial=[initial[k]]))
-                result.put([k], alone)
-                del result.jammed[k]
         return result
 
-    def _refine(self, k: int, message: str, scene: Scene, pose: Pose, drive: ProtractionDrive,
-                samples: int, options: dict) -> tuple[WorldResult, int]:
-        """Whisker k alone with half the step, again while it jams; (its result, halvings)."""
-        for halvings in range(1, self.config.jam_refinements + 1):
-            alone = MujocoWorld([self.whiskers[k]], self.config, self.dt_s / 2 ** halvings,
-                                self.gravity, self._prisms)
-            result = alone.run(scene, pose, drive, samples, refine=False, **options)
-            if not result.jammed:
-                return result, halvings
-            message = result.jammed[0]
-        raise SimulationError(f"{message} (contact jammed at every step down to "
-                              f"{self.dt_s / 2 ** self.config.jam_refinements:.3g} s: "
-                              "is a surface pressed against the whisker?)")
-
-    def _simulate(self, pose: Pose, drive: ProtractionDrive, samples: int, initial: list[np.ndarray],
-                  stop_drive_on_contact: bool, external_tip_force_n) -> WorldResult:
-        """Integrate the current model (its ``members``) for ``samples`` output intervals."""
+    def _simulate(self, setup: TrialSetup) -> WorldResult:
+        """Integrate the current model (its ``members``; ``setup`` for them) for the trial's
+        output intervals."""
         import mujoco
 
         m, d, h, spp = self.model, self.data, self.dt_s, self.steps_per_sample
-        offset, theta_rate = self._reset(pose, drive, initial)
-        n_w, n_steps = len(self.members), samples * spp
+        offset, theta_rate = self._reset(setup.pose, setup.drive, setup.initial)
+        n_w, n_steps = len(self.members), setup.samples * spp
         times = np.arange(n_steps + 2) * h
-        thetas = np.asarray(drive(times), float)
+        thetas = np.asarray(setup.drive(times), float)
         slide_rate = np.concatenate([np.zeros(self.n_driven), self.obstacle_velocity])
-        result = WorldResult.zeros(samples, n_w, self.links)
+        result = WorldResult.zeros(setup.samples, n_w, self.links)
         flags = ContactFlags(n_w, self.links)
-        result.touched = np.zeros(n_w, bool)
         held = np.zeros(n_w, bool)
-        tip_force = (None if external_tip_force_n is None
-                     else np.asarray(external_tip_force_n, float) * U.FORCE)
+        loaded = [k for k in range(n_w) if setup.loads[k]]
         sensor_bit = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
         sensors_on, sensors_off = m.opt.disableflags & ~sensor_bit, m.opt.disableflags | sensor_bit
         bad_acceleration = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
@@ -599,8 +511,8 @@ class MujocoWorld:
             np.multiply(self.spring_rate, d.qvel, out=d.qfrc_applied)
             q, v = d.qpos[self.kinematic], d.qvel[self.kinematic]
             d.qfrc_applied[self.kinematic] = self.armature * (((target - q) / h - v) / h)
-            if tip_force is not None:
-                self._apply_tip_force(tip_force)
+            if loaded:
+                self._apply_loads(setup.loads, loaded)
             sample, due = divmod(step, spp)
             m.opt.disableflags = sensors_on if due == 0 and sample > 0 else sensors_off
             mujoco.mj_step(m, d)
@@ -612,7 +524,7 @@ class MujocoWorld:
                 flags.add(self._touched())
                 links = self.link_of_geom[d.contact.geom]
                 result.touched[links[links >= 0] // self.links] = True
-            if stop_drive_on_contact:
+            if setup.hold_on_contact:
                 newly = flags.touching.any(axis=1) & ~held
                 for k in np.flatnonzero(newly):
                     rows = slice(3 * k, 3 * k + 3)
@@ -637,22 +549,40 @@ class MujocoWorld:
         links = self.link_of_geom[contact.geom[contact.dist <= 0.0]]
         return links[links >= 0]
 
-    def _apply_tip_force(self, force: np.ndarray) -> None:
-        """``force`` (internal units, world) at every tip node, as a wrench about the tip links'
-        centres of mass (positions of the last computed state)."""
-        d, last = self.data, self.link_bodies[:, -1]
-        arm = d.site_xpos[self.tip_sites] - d.xipos[last]
-        d.xfrc_applied[last, :3] = force
-        d.xfrc_applied[last, 3:] = np.cross(arm, force)
+    def _apply_loads(self, loads, loaded: list[int]) -> None:
+        """The loads' per-link forces on members ``loaded`` at the current state, as wrenches
+        about the links' centres of mass (``xfrc_applied``, internal units)."""
+        import mujoco
+
+        m, d = self.model, self.data
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        velocities = any(load.needs_velocity for k in loaded for load in loads[k])
+        if velocities:
+            mujoco.mj_comVel(m, d)
+        for k in loaded:
+            bodies = self.link_bodies[k]
+            com = d.xipos[bodies] / U.LENGTH
+            if velocities:   # cvel: [ω, v] of the point at the tree's subtree centre of mass
+                omega = d.cvel[bodies, :3]
+                arm = d.xipos[bodies] - d.subtree_com[m.body_rootid[bodies]]
+                velocity = (d.cvel[bodies, 3:] + np.cross(omega, arm)) / U.LENGTH
+            else:
+                omega = velocity = np.zeros_like(com)
+            state = LinkState(com, d.ximat[bodies].reshape(-1, 3, 3), velocity, omega)
+            force, torque = total_link_forces(loads[k], self.whiskers[self.members[k]].chain, state)
+            d.xfrc_applied[bodies, :3] = force * U.FORCE
+            d.xfrc_applied[bodies, 3:] = torque * U.TORQUE
 
     def _record(self, result: WorldResult, sample: int, contact: np.ndarray, time_s: float) -> None:
         """Base wrench (SI, whisker frame), node positions (m) and contact flags of one sample."""
         d = self.data
         wrench = d.sensordata.reshape(-1, 2, 3).copy()          # [w, (force, torque), 3], site frame
-        for k, joints in enumerate(self.follicle):
-            if joints is not None:
-                qz, qy = d.qpos[joints]
-                wrench[k] = wrench[k] @ (rot_z(qz) @ rot_y(qy)).T
+        for k, hinges in enumerate(self.follicle):
+            rotation = np.eye(3)
+            for qpos, axis in hinges:
+                rotation = rotation @ axis_rotation(axis, d.qpos[qpos])
+            wrench[k] = wrench[k] @ rotation.T
         with np.errstate(over="ignore", invalid="ignore"):           # a jam shows as inf/nan
             result.wrench[sample] = np.concatenate([wrench[:, 0] / U.FORCE, wrench[:, 1] / U.TORQUE], axis=1)
         nodes = np.concatenate([d.xpos[self.link_bodies], d.site_xpos[self.tip_sites][:, None]], axis=1)
@@ -660,10 +590,11 @@ class MujocoWorld:
         result.contact[sample] = contact
         bad = implausible(result.wrench[sample])
         if bad.size:
-            moments = np.linalg.norm(result.wrench[sample, bad, 3:], axis=1)
-            raise _Jam({int(self.members[j]): f"non-physical base moment {moment:.3g} N·m on "
-                        f"{self.whiskers[self.members[j]].name} at t = {time_s:.4f} s"
-                        for j, moment in zip(bad, moments)})
+            raise _Jam({int(self.members[j]): jam_message(self.whiskers[self.members[j]].name,
+                                                          result.wrench[sample, j], time_s) for j in bad})
+
+
+SHAPES = {TriangleMesh: MujocoWorld._add_mesh, Cylinder: MujocoWorld._add_cylinder, Box: MujocoWorld._add_box}
 
 
 class MujocoEngine(Engine):
@@ -671,52 +602,21 @@ class MujocoEngine(Engine):
 
     name = "mujoco"
 
-    def __init__(self, array: ArrayModel, config: EngineConfig, gravity: bool = False):
+    def __init__(self, array: ArrayModel, config: EngineConfig):
         import mujoco
 
-        super().__init__(array)
-        self.config = config
-        steps_per_sample(config)                      # validates dt_s against the output rate
         # MuJoCo would print its warnings and append them to ./MUJOCO_LOG.TXT; the engine reads
         # the same conditions from data.warning and handles them (jam refinement)
         mujoco.set_mju_user_warning(lambda message: None)
-        self.levels = refinement_levels(array, config)
-        start = time.perf_counter()
         self._prisms: dict[tuple, MeshPrisms] = {}
         self._scene_key: object = None
-        self.worlds: list[tuple[np.ndarray, MujocoWorld]] = [
-            (members, MujocoWorld([array.whiskers[k] for k in members], config, dt_s, gravity, self._prisms))
-            for members, dt_s in step_groups(self.levels, config.dt_s)]
-        self.build_seconds = time.perf_counter() - start
+        super().__init__(array, config)
 
-    def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float, *,
-            stop_drive_on_contact: bool = False, external_tip_force_n=None,
-            initial_joint_angles_rad=None) -> TrialOutput:
-        start_wall, start_cpu = time.perf_counter(), time.process_time()
-        samples, initial = start_trial(self.array, scene, pose, drive, duration_s, self.config.output_rate_hz,
-                                       initial_joint_angles_rad)
+    def make_world(self, whiskers: list[WhiskerModel], dt_s: float) -> MujocoWorld:
+        return MujocoWorld(whiskers, self.config, dt_s, self._prisms)
+
+    def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float, **options):
         if scene.key != self._scene_key:          # meshes of other scenes are not needed again
             self._prisms.clear()
             self._scene_key = scene.key
-        if external_tip_force_n is not None and np.shape(external_tip_force_n) != (3,):
-            raise UserError("external_tip_force_n must be three numbers (N, world frame)")
-        wrench, contact, nodes = empty_signals(samples, len(self.array.whiskers), self.array.links)
-        refined = {}
-        for members, world in self.worlds:
-            result = world.run(scene, pose, drive, samples, initial=[initial[k] for k in members],
-                               stop_drive_on_contact=stop_drive_on_contact,
-                               external_tip_force_n=external_tip_force_n)
-            wrench[:, members], contact[:, members], nodes[:, members] = (
-                result.wrench, result.contact, result.nodes)
-            refined.update(result.refined)
-        time_s = np.arange(1, samples + 1) / self.config.output_rate_hz
-        metadata = {"engine": self.name, "dt_s": self.config.dt_s,
-                    "dt_per_whisker_s": (self.config.dt_s / 2.0 ** self.levels).tolist(),
-                    "jam_refined": refined,
-                    "wall_seconds": time.perf_counter() - start_wall,
-                    "cpu_seconds": time.process_time() - start_cpu,
-                    "build_seconds": self.build_seconds}
-        return TrialOutput(time_s, wrench, contact, nodes, self.array.names, metadata)
-
-    def close(self) -> None:
-        self.worlds = []
+        return super().run(scene, pose, drive, duration_s, **options)

@@ -2,7 +2,7 @@
 
 Each extension is one frozen dataclass with its parameters (units and bounds in
 ``PARAMETERS``), its equation in the docstring, and up to five hooks, applied in this order
-by :func:`build_physics`:
+by :func:`pipeline.model.physics.build_physics`:
 
 1. ``material(MaterialConfig) -> MaterialConfig``   switches of the base model
 2. ``geometry(WhiskerGeometry) -> WhiskerGeometry``  shape before discretisation
@@ -11,10 +11,9 @@ by :func:`build_physics`:
 5. ``physics(WhiskerPhysics) -> WhiskerPhysics``     effects that are not joint springs:
                                                      follicle, twist, drag, gravity
 
-Hooks 1–4 produce an ordinary :class:`~pipeline.model.whisker.WhiskerChain`, so every engine
-can use them unchanged; hook 5 fills :class:`WhiskerPhysics`, which an engine must support
-field by field (the fast linear simulator of :mod:`pipeline.diagnosis` supports all of them;
-the Bullet engine has no twist or drag).
+Hooks 1–4 produce an ordinary :class:`~pipeline.model.whisker.WhiskerChain`; hook 5 fills
+:class:`~pipeline.model.physics.WhiskerPhysics`, whose joints (:mod:`pipeline.model.joints`)
+and loads (:mod:`pipeline.model.loads`) every engine builds and applies the same way.
 
 Arc-length profiles use the position s of a joint (or link centre) along the arc S and are
 normalised at mid-length, ``exp(γ·(s/S − ½))``, so that γ changes the distribution and not
@@ -24,18 +23,18 @@ the mean level (which stays with E, ζ or the density of the base model).
 from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
 from pipeline.config.physics import MaterialConfig
 from pipeline.errors import UserError
-from pipeline.model.array import Follicle, follicle_of
-from pipeline.model.damping import damping_model
-from pipeline.model.whisker import WhiskerChain, WhiskerGeometry, build_chain
+from pipeline.model.loads import GRAVITY_M_S2
+from pipeline.model.whisker import WhiskerChain, WhiskerGeometry
 
-GRAVITY_M_S2 = 9.81
-AIR_DENSITY_KG_M3 = 1.2
+if TYPE_CHECKING:
+    from pipeline.model.physics import WhiskerPhysics
+
 MIN_TIP_RADIUS_M = 1.5e-6        # MODEL.md §3: tip radius floor
 
 
@@ -50,28 +49,6 @@ class Parameter:
     upper: float
     log: bool
     description: str
-
-
-@dataclass(frozen=True)
-class WhiskerPhysics:
-    """Everything that defines one whisker's mechanics (SI, whisker frame).
-
-    ``chain``: links, masses, joint stiffness k_n and damping c_n (both bending axes).
-    ``follicle``: compliant follicle (k_f, c_f about base y and z) or ``None`` (rigid).
-    ``twist_*``: per bending joint, a third (twist) degree of freedom about the link axis
-    with this stiffness (N·m/rad) and damping (N·m·s/rad); ``None``: no twist (the paper).
-    ``drag_*``: air drag per unit length on the velocity component normal to each link,
-    f = −c_lin·v_n − ½·ρ_air·C_d·d·|v_n|·v_n (N/m).
-    ``gravity_m_s2``: acceleration of gravity along the experiment's gravity direction.
-    """
-
-    chain: WhiskerChain
-    follicle: Follicle | None = None
-    twist_stiffness_nm_per_rad: np.ndarray | None = None
-    twist_damping_nms_per_rad: np.ndarray | None = None
-    drag_linear_ns_per_m2: float = 0.0
-    drag_coefficient: float = 0.0
-    gravity_m_s2: float = 0.0
 
 
 def _joint_arc_fraction(chain: WhiskerChain) -> np.ndarray:
@@ -130,7 +107,7 @@ class CompliantFollicle(Extension):
     c_f: float = 1e-8
 
     def physics(self, physics: WhiskerPhysics) -> WhiskerPhysics:
-        return replace(physics, follicle=Follicle(self.k_f, self.c_f))
+        return replace(physics, follicle=self)
 
 
 @dataclass(frozen=True)
@@ -220,7 +197,7 @@ class AirDrag(Extension):
 
     ``linear`` c_lin in N·s/m² (at whisker Reynolds numbers, Re ≈ 0.1–10, drag is close to
     linear: Oseen's c_lin = 4πμ/(½ − γ_E − ln(Re/8)) ≈ 1e-4 N·s/m² in air); ``quadratic`` C_d
-    dimensionless (only the fast simulator integrates it, as an explicit force per step)."""
+    dimensionless. Engines apply it as :class:`~pipeline.model.loads.DragLoad`."""
 
     name: ClassVar[str] = "drag"
     PARAMETERS: ClassVar[tuple[Parameter, ...]] = (
@@ -290,38 +267,3 @@ def make_extension(name: str, **values: float) -> Extension:
             raise UserError(f"extension '{name}': {p.name} = {values[p.name]} {p.unit} is outside "
                             f"[{p.lower:g}, {p.upper:g}]")
     return cls(**{k: float(v) for k, v in values.items()})
-
-
-class _NoDamping:
-    """Placeholder damping model: the real one is applied after the chain hooks."""
-
-    @staticmethod
-    def coefficients(chain: WhiskerChain) -> np.ndarray:
-        return np.zeros(chain.links - 1)
-
-
-def build_physics(geometry: WhiskerGeometry, material: MaterialConfig,
-                  extensions=()) -> WhiskerPhysics:
-    """The whisker of ``material`` with every extension applied (hooks in the module's order).
-
-    The damping model of ``material`` (eq. 3 or Kelvin–Voigt) sees the final masses and
-    stiffnesses; ``material.follicle`` and ``material.gravity`` give the starting follicle and
-    gravity, which a ``follicle`` or ``gravity`` extension overrides.
-    """
-    for ext in extensions:
-        material = ext.material(material)
-    for ext in extensions:
-        geometry = ext.geometry(geometry)
-    chain = build_chain(geometry, material.links, material.youngs_modulus_gpa * 1e9,
-                        material.density_base_kg_m3, material.density_tip_kg_m3, _NoDamping())
-    for ext in extensions:
-        chain = ext.chain(chain)
-    coefficients = damping_model(material.damping_model, material.damping_ratio).coefficients(chain)
-    chain = replace(chain, damping_nms_per_rad=np.asarray(coefficients, float))
-    for ext in extensions:
-        chain = ext.damping(chain)
-    physics = WhiskerPhysics(chain, follicle=follicle_of(material),
-                             gravity_m_s2=GRAVITY_M_S2 if material.gravity else 0.0)
-    for ext in extensions:
-        physics = ext.physics(physics)
-    return physics

@@ -14,25 +14,11 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from pipeline.errors import UserError
+from pipeline.model.rotations import rot_x, rot_y, rotation_zyx
 
 # Knutsen, Biess & Ahissar 2008 as used by the paper (eq. 8–9), rows A–E.
 ELEVATION_PER_PROTRACTION = (0.398, 0.591, 0.578, 0.393, 0.217)
 TORSION_PER_PROTRACTION = (-0.900, -0.284, 0.243, 0.449, 0.744)
-
-
-def rot_x(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
-
-
-def rot_y(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
-
-
-def rot_z(a: float) -> np.ndarray:
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
 
 
 MIRROR_X = np.diag([-1.0, 1.0, 1.0])
@@ -126,8 +112,7 @@ def euler_joint_rates(row: int, side: int) -> np.ndarray:
 
 def whisker_frame(rest_angles_rad, row: int, side: int, theta: float = 0.0) -> np.ndarray:
     """3×3 rotation: whisker frame axes (columns) in the head frame at protraction ``theta``."""
-    yaw, pitch, roll = euler_joint_angles(rest_angles_rad, row, side, theta)
-    return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll) @ WHISKER_FRAME_OFFSET[side]
+    return rotation_zyx(*euler_joint_angles(rest_angles_rad, row, side, theta)) @ WHISKER_FRAME_OFFSET[side]
 
 
 @dataclass(frozen=True)
@@ -139,8 +124,7 @@ class Pose:
 
     @property
     def rotation(self) -> np.ndarray:
-        yaw, pitch, roll = self.yaw_pitch_roll_rad
-        return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
+        return rotation_zyx(*self.yaw_pitch_roll_rad)
 
     def apply(self, points: np.ndarray) -> np.ndarray:
         return np.asarray(points) @ self.rotation.T + np.asarray(self.position_m)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from pipeline.config import load_config
 from pipeline.config.physics import ModelConfig
-from pipeline.engines.base import SimulationError
+from pipeline.errors import SimulationError
 from pipeline.errors import UserError
 from pipeline.model.kinematics import Pose
 from pipeline.protocols.whisking import run_trial

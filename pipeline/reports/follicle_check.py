@@ -42,7 +42,7 @@ def release(config: ModelConfig, geometry: WhiskerGeometry) -> dict:
     from pipeline.diagnosis.linear import linearise
     from pipeline.engines import create_engine
     from pipeline.measurements.timeseries import ReleaseDrive
-    from pipeline.model.extensions import build_physics
+    from pipeline.model.physics import build_physics
 
     physics = build_physics(geometry, config.material)
     lin = linearise(physics)

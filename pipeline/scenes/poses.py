@@ -57,57 +57,11 @@ class PoseSamplingError(RuntimeError):
         self.attempts, self.rejections = attempts, rejections
 
 
-class SurfaceQueries:
-    """Distances to, rays against and area-uniform points on one triangle mesh (metres)."""
-
-    def __init__(self, mesh: TriangleMesh):
-        import open3d as o3d
-
-        self._o3d = o3d
-        vertices = np.asarray(mesh.vertices_m, np.float64)
-        faces = np.asarray(mesh.faces, np.int64)
-        self.scene = o3d.t.geometry.RaycastingScene()
-        self.scene.add_triangles(o3d.core.Tensor(vertices.astype(np.float32)),
-                                 o3d.core.Tensor(faces.astype(np.uint32)))
-        corners = vertices[faces]                                   # [F, 3, 3]
-        normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-        self._corners = corners
-        self._cumulative_area = np.cumsum(0.5 * np.linalg.norm(normals, axis=1))
-
-    def distance(self, points: np.ndarray) -> np.ndarray:
-        """[n] unsigned distance from each point to the surface."""
-        query = self._o3d.core.Tensor(np.asarray(points, np.float32).reshape(-1, 3))
-        return self.scene.compute_distance(query, nthreads=1).numpy().astype(float)
-
-    def cast(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """First hit of rays o + t·d: t in units of |d| (inf if none) and the face normals."""
-        rays = np.hstack([np.reshape(origins, (-1, 3)), np.reshape(directions, (-1, 3))])
-        hits = self.scene.cast_rays(self._o3d.core.Tensor(rays.astype(np.float32)), nthreads=1)
-        return hits["t_hit"].numpy().astype(float), hits["primitive_normals"].numpy().astype(float)
-
-    def segments_cross(self, nodes: np.ndarray) -> np.ndarray:
-        """[..., W] whether a segment between consecutive nodes of ``nodes`` [..., W, N+1, 3]
-        crosses the surface."""
-        nodes = np.asarray(nodes, float)
-        t_hit, _ = self.cast(nodes[..., :-1, :], np.diff(nodes, axis=-2))
-        return (t_hit.reshape(nodes.shape[:-2] + (-1,)) <= 1.0).any(axis=-1)
-
-    def random_point(self, rng: np.random.Generator) -> np.ndarray:
-        """A point drawn uniformly over the surface area."""
-        face = int(np.searchsorted(self._cumulative_area, rng.uniform(0.0, self._cumulative_area[-1]),
-                                   side="right"))
-        a, b = rng.uniform(size=2)
-        if a + b > 1.0:
-            a, b = 1.0 - a, 1.0 - b
-        p0, p1, p2 = self._corners[min(face, len(self._corners) - 1)]
-        return p0 + a * (p1 - p0) + b * (p2 - p0)
-
-
 class PoseSampler:
     """Draws accepted head poses for one mesh and one array (reusable across trials)."""
 
     def __init__(self, mesh: TriangleMesh, array: ArrayModel, config: PoseSamplingConfig):
-        self.surface = SurfaceQueries(mesh)
+        self.surface = mesh.surface
         self.array = array
         self.config = config
         self.base_points = np.array([w.base_point_m for w in array.whiskers])

@@ -1,0 +1,119 @@
+"""The joint layout of one whisker: every spring joint an engine must build, in one order.
+
+Coordinates (rad, 0 at the rest shape), from the base out: the compliant follicle's ``follicle_z``
+and ``follicle_y`` (only when the follicle is compliant), then at each bending node j = 1..N−1
+``z{j}``, ``y{j}`` and, with twist, ``x{j}``. A joint turns every link from ``first_link`` on.
+
+Frames. Link l's frame has x along the link (proximal → distal node) and, at rest, the
+orientation Rz(α_l) in the whisker frame (α_l the link's direction in the x–y plane). The
+joints of a node compose intrinsically, each about an axis of the frame the previous ones
+left::
+
+    link 0:    R_0 = Rz(q_fz)·Ry(q_fy)·Rz(α_0)          (whisker frame; rigid follicle: Rz(α_0))
+    link j:    R_j = R_{j−1}·Rz(β_j)·Rz(q_zj)·Ry(q_yj)·Rx(q_xj)
+
+β_j = α_j − α_{j−1} the rest bend at node j. So the follicle's local axes are the whisker
+frame's z and y, and a bending joint's local axes are its link's z, y, x. ``axis_m`` is the
+axis at rest in the whisker frame, ``pivot_m`` the node it turns about; both engines and the
+linearised chain of :mod:`pipeline.diagnosis.linear` are built from this table.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.model.rotations import rot_z
+
+_LOCAL = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One spring joint: a hinge with torque τ = −k·q − c·q̇ (N·m) about its axis."""
+
+    label: str                     # 'follicle_z', 'z3', 'y3', 'x3', ...
+    node: int                      # 0: the follicle at the base point; j: bending node j
+    local_axis: str                # 'x', 'y' or 'z' of the frame it turns (module docstring)
+    rest_frame: np.ndarray         # [3, 3] that frame at rest, in the whisker frame
+    pivot_m: np.ndarray            # [3] the node it turns about, whisker frame (m)
+    first_link: int                # every link from this index on moves with it
+    stiffness_nm_per_rad: float
+    damping_nms_per_rad: float
+
+    @property
+    def axis_m(self) -> np.ndarray:
+        """[3] unit axis at rest in the whisker frame."""
+        return self.rest_frame @ _LOCAL[self.local_axis]
+
+    @property
+    def unit_axis(self) -> np.ndarray:
+        """[3] the local axis as a vector of the frame it turns."""
+        return _LOCAL[self.local_axis]
+
+
+@dataclass(frozen=True)
+class JointLayout:
+    """The spring joints of one whisker (module docstring), with the rest frames of its links."""
+
+    joints: tuple[Joint, ...]
+    link_frames: np.ndarray        # [N, 3, 3] rest orientation of every link, whisker frame
+
+    @property
+    def n(self) -> int:
+        return len(self.joints)
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        return tuple(j.label for j in self.joints)
+
+    @property
+    def axes(self) -> np.ndarray:
+        return np.array([j.axis_m for j in self.joints]).reshape(-1, 3)
+
+    @property
+    def pivots(self) -> np.ndarray:
+        return np.array([j.pivot_m for j in self.joints]).reshape(-1, 3)
+
+    @property
+    def first_link(self) -> np.ndarray:
+        return np.array([j.first_link for j in self.joints], int)
+
+    @property
+    def stiffness(self) -> np.ndarray:
+        return np.array([j.stiffness_nm_per_rad for j in self.joints], float)
+
+    @property
+    def damping(self) -> np.ndarray:
+        return np.array([j.damping_nms_per_rad for j in self.joints], float)
+
+    def at_node(self, node: int) -> list[Joint]:
+        """The joints of ``node`` in their order of composition."""
+        return [j for j in self.joints if j.node == node]
+
+    def axis_in_link(self, joint: Joint) -> np.ndarray:
+        """[3] the joint's axis in the rest frame of its first link (for engines that put a
+        node's joints on the body of the link they move)."""
+        return self.link_frames[joint.first_link].T @ joint.axis_m
+
+
+def joint_layout(physics) -> JointLayout:
+    """The layout of a :class:`~pipeline.model.physics.WhiskerPhysics`: its follicle, bending
+    and twist joints with their stiffness (N·m/rad) and damping (N·m·s/rad)."""
+    chain = physics.chain
+    frames = np.array([rot_z(a) for a in chain.link_angles_rad])
+    joints = []
+    if physics.follicle is not None:
+        for axis in "zy":
+            joints.append(Joint(f"follicle_{axis}", 0, axis, np.eye(3), chain.nodes_m[0], 0,
+                                physics.follicle.k_f, physics.follicle.c_f))
+    for j in range(1, chain.links):
+        k, c = chain.stiffness_nm_per_rad[j - 1], chain.damping_nms_per_rad[j - 1]
+        joints.append(Joint(f"z{j}", j, "z", frames[j], chain.nodes_m[j], j, k, c))
+        joints.append(Joint(f"y{j}", j, "y", frames[j], chain.nodes_m[j], j, k, c))
+        if physics.twist_stiffness_nm_per_rad is not None:
+            joints.append(Joint(f"x{j}", j, "x", frames[j], chain.nodes_m[j], j,
+                                physics.twist_stiffness_nm_per_rad[j - 1],
+                                physics.twist_damping_nms_per_rad[j - 1]))
+    return JointLayout(tuple(joints), frames)

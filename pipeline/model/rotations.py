@@ -1,0 +1,77 @@
+"""Rotations, the one place: matrices about coordinate axes, Z–Y–X Euler products, cross-product
+matrices, quaternions in the two conventions the engines use, and "turn z onto this axis".
+
+Matrices act on column vectors (v_world = R·v_local). Angles in rad.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def axis_rotation(axis: int, angle) -> np.ndarray:
+    """[..., 3, 3] rotations by ``angle`` (rad, any shape) about coordinate axis 0 (x), 1 (y) or 2 (z)."""
+    angle = np.asarray(angle, float)
+    c, s = np.cos(angle), np.sin(angle)
+    out = np.zeros(angle.shape + (3, 3))
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    out[..., axis, axis] = 1.0
+    out[..., i, i], out[..., j, j] = c, c
+    out[..., i, j], out[..., j, i] = -s, s
+    return out
+
+
+def rot_x(angle) -> np.ndarray:
+    return axis_rotation(0, angle)
+
+
+def rot_y(angle) -> np.ndarray:
+    return axis_rotation(1, angle)
+
+
+def rot_z(angle) -> np.ndarray:
+    return axis_rotation(2, angle)
+
+
+def rotation_zyx(yaw, pitch, roll) -> np.ndarray:
+    """[..., 3, 3] Rz(yaw)·Ry(pitch)·Rx(roll)."""
+    return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
+
+
+def skew(v) -> np.ndarray:
+    """[..., 3, 3] matrix of v × (·)."""
+    v = np.asarray(v, float)
+    out = np.zeros(v.shape[:-1] + (3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
+    return out
+
+
+def z_onto(axis) -> np.ndarray:
+    """[3, 3] the smallest rotation taking the z axis onto the direction of ``axis``."""
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    v, c = np.cross([0.0, 0.0, 1.0], a), a[2]
+    if np.linalg.norm(v) < 1e-12:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    vx = skew(v)
+    return np.eye(3) + vx + vx @ vx / (1 + c)
+
+
+def quat_xyzw(matrix) -> np.ndarray:
+    """Quaternion (x, y, z, w) of a rotation matrix (pybullet's and rerun's order)."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_matrix(np.asarray(matrix, float)).as_quat()
+
+
+def quat_wxyz(matrix) -> np.ndarray:
+    """Quaternion (w, x, y, z) of a rotation matrix (MuJoCo's order)."""
+    return np.roll(quat_xyzw(matrix), 1)
+
+
+def matrix_from_xyzw(quaternion) -> np.ndarray:
+    """Rotation matrix of a quaternion (x, y, z, w)."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_quat(quaternion).as_matrix()

@@ -1,0 +1,83 @@
+"""Queries on a triangle mesh (metres): distances, rays and area-uniform points (Open3D's
+RaycastingScene, one thread), and which faces lie near given points (a k-d tree of face centroids)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class SurfaceQueries:
+    """Distances to, rays against and area-uniform points on one triangle mesh (metres)."""
+
+    def __init__(self, vertices_m: np.ndarray, faces: np.ndarray):
+        import open3d as o3d
+
+        self._o3d = o3d
+        vertices = np.asarray(vertices_m, np.float64)
+        faces = np.asarray(faces, np.int64)
+        self.scene = o3d.t.geometry.RaycastingScene()
+        self.scene.add_triangles(o3d.core.Tensor(vertices.astype(np.float32)),
+                                 o3d.core.Tensor(faces.astype(np.uint32)))
+        corners = vertices[faces]                                   # [F, 3, 3]
+        normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        self._corners = corners
+        self._cumulative_area = np.cumsum(0.5 * np.linalg.norm(normals, axis=1))
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """[n] unsigned distance from each point to the surface."""
+        query = self._o3d.core.Tensor(np.asarray(points, np.float32).reshape(-1, 3))
+        return self.scene.compute_distance(query, nthreads=1).numpy().astype(float)
+
+    def cast(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """First hit of rays o + t·d: t in units of |d| (inf if none) and the face normals."""
+        rays = np.hstack([np.reshape(origins, (-1, 3)), np.reshape(directions, (-1, 3))])
+        hits = self.scene.cast_rays(self._o3d.core.Tensor(rays.astype(np.float32)), nthreads=1)
+        return hits["t_hit"].numpy().astype(float), hits["primitive_normals"].numpy().astype(float)
+
+    def segments_cross(self, nodes: np.ndarray) -> np.ndarray:
+        """[..., W] whether a segment between consecutive nodes of ``nodes`` [..., W, N+1, 3]
+        crosses the surface."""
+        nodes = np.asarray(nodes, float)
+        t_hit, _ = self.cast(nodes[..., :-1, :], np.diff(nodes, axis=-2))
+        return (t_hit.reshape(nodes.shape[:-2] + (-1,)) <= 1.0).any(axis=-1)
+
+    def random_point(self, rng: np.random.Generator) -> np.ndarray:
+        """A point drawn uniformly over the surface area."""
+        face = int(np.searchsorted(self._cumulative_area, rng.uniform(0.0, self._cumulative_area[-1]),
+                                   side="right"))
+        a, b = rng.uniform(size=2)
+        if a + b > 1.0:
+            a, b = 1.0 - a, 1.0 - b
+        p0, p1, p2 = self._corners[min(face, len(self._corners) - 1)]
+        return p0 + a * (p1 - p0) + b * (p2 - p0)
+
+
+class FaceIndex:
+    """Face centroids and bounding radii of a triangle mesh (m) with a k-d tree over the centroids."""
+
+    def __init__(self, vertices_m: np.ndarray, faces: np.ndarray):
+        from scipy.spatial import cKDTree
+
+        corners = np.asarray(vertices_m, float)[np.asarray(faces)]          # [F, 3, 3]
+        self.centroids = corners.mean(axis=1)
+        self.radii = np.linalg.norm(corners - self.centroids[:, None], axis=2).max(axis=1)
+        self.tree = cKDTree(self.centroids)
+
+    def near(self, points_m: np.ndarray, distances_m: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+        """Per point, the faces that may come within its distance (sorted face indices), and a
+        lower bound of its distance to the nearest of them (inf if none)."""
+        pad = self.radii.max() if len(self.radii) else 0.0
+        candidates = self.tree.query_ball_point(points_m, distances_m + pad)
+        faces_near, gaps = [], np.full(len(points_m), np.inf)
+        for k, (point, distance, faces) in enumerate(zip(points_m, distances_m, candidates)):
+            faces = np.asarray(faces, np.int64)
+            gap = np.linalg.norm(self.centroids[faces] - point, axis=1) - self.radii[faces]
+            faces_near.append(np.sort(faces[gap <= distance]))
+            if faces_near[-1].size:
+                gaps[k] = gap.min()
+        return faces_near, gaps
+
+    def lower_distance_m(self, points_m: np.ndarray) -> np.ndarray:
+        """[P] a lower bound of each point's distance to the mesh."""
+        distance, _ = self.tree.query(points_m)
+        return distance - self.radii.max()
