@@ -58,16 +58,32 @@ def z_onto(axis) -> np.ndarray:
     return np.eye(3) + vx + vx @ vx / (1 + c)
 
 
+def quat_wxyz(matrix) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of a rotation matrix (MuJoCo's order), w ≥ 0.
+
+    Shepperd's method: the largest of the four squared components is taken from the trace
+    or a diagonal element, the others from off-diagonal sums, so no division is ill-conditioned."""
+    m = np.asarray(matrix, float)
+    trace = m[0, 0] + m[1, 1] + m[2, 2]
+    candidates = (trace, m[0, 0], m[1, 1], m[2, 2])
+    largest = int(np.argmax(candidates))
+    if largest == 0:
+        r = np.sqrt(1.0 + trace)
+        q = np.array([r, (m[2, 1] - m[1, 2]) / r, (m[0, 2] - m[2, 0]) / r, (m[1, 0] - m[0, 1]) / r])
+    else:
+        i = largest - 1
+        j, k = (i + 1) % 3, (i + 2) % 3
+        r = np.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k])
+        q = np.empty(4)
+        q[0] = (m[k, j] - m[j, k]) / r
+        q[1 + i], q[1 + j], q[1 + k] = r, (m[j, i] + m[i, j]) / r, (m[k, i] + m[i, k]) / r
+    q *= 0.5
+    return q if q[0] >= 0 else -q
+
+
 def quat_xyzw(matrix) -> np.ndarray:
     """Quaternion (x, y, z, w) of a rotation matrix (pybullet's and rerun's order)."""
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_matrix(np.asarray(matrix, float)).as_quat()
-
-
-def quat_wxyz(matrix) -> np.ndarray:
-    """Quaternion (w, x, y, z) of a rotation matrix (MuJoCo's order)."""
-    return np.roll(quat_xyzw(matrix), 1)
+    return np.roll(quat_wxyz(matrix), -1)
 
 
 def matrix_from_xyzw(quaternion) -> np.ndarray:
