@@ -198,11 +198,13 @@ class BulletWorld(World):
         held: list[np.ndarray | None] = [None] * n_w      # drive stopped at contact
         moving = any(o.velocity_mm_s.any() for o in self.obstacles)
         running = list(np.flatnonzero(active))
-        for step in range(setup.samples * self.steps_per_sample):
+        n_steps = setup.samples * self.steps_per_sample
+        thetas = np.asarray(drive(np.arange(1, n_steps + 1) * h), float)     # θ(t + h) of every step
+        for step in range(n_steps):
             t = step * h
             for k in running:
                 w = self.bodies[k]
-                target = held[k] if held[k] is not None else w.driven_targets(drive, t + h)[0]
+                target = held[k] if held[k] is not None else w.rest_driven + w.rates * thetas[step]
                 w.apply_implicit_torques(target, h, setup.loads[k])
             if moving:
                 self._place_obstacles(t + h)
