@@ -96,7 +96,9 @@ def load_config(model: type[ModelT], path: str | Path | None = None, *, env_pref
 
     ``overrides`` holds CLI flags (``None`` means "flag not given"). Returns the validated
     model and the origin of every value; a bad value raises :class:`UserError` whose single
-    line names the source (file, variable or flag), the field and the allowed range.
+    line names the source (file, variable or flag), the field and the allowed range. Relative
+    paths that models resolve themselves (``ModelConfig.file``) are taken against the folder of
+    ``path`` (validation context ``base_dir``).
     """
     source = ConfigSource(path=Path(path) if path else None)
     merged: dict[str, Any] = {}
@@ -108,7 +110,8 @@ def load_config(model: type[ModelT], path: str | Path | None = None, *, env_pref
     if overrides:
         _merge(merged, overrides, "command-line flag", source.origins)
     try:
-        return model.model_validate(merged), source
+        context = {"base_dir": Path(path).resolve().parent} if path is not None else None
+        return model.model_validate(merged, context=context), source
     except ValidationError as exc:
         errors = exc.errors()
         first = _describe(errors[0], source)

@@ -16,6 +16,7 @@ import numpy as np
 
 from pipeline.config.physics import FollicleConfig, ModelConfig
 from pipeline.model.array import single_whisker
+from pipeline.model.extensions import model_parts
 from pipeline.model.kinematics import Pose, still
 from pipeline.model.morphology import load_morphology
 from pipeline.model.whisker import WhiskerGeometry
@@ -44,11 +45,12 @@ def release(config: ModelConfig, geometry: WhiskerGeometry) -> dict:
     from pipeline.measurements.timeseries import ReleaseDrive
     from pipeline.model.physics import build_physics
 
-    physics = build_physics(geometry, config.material)
+    material, extensions = model_parts(config)
+    physics = build_physics(geometry, material, extensions)
     lin = linearise(physics)
     probe = lin.rest_points(np.array([PROBE_FRACTION]))[0] + [0.0, 0.0, PROBE_DISPLACEMENT_M]
     angles = release_state(lin, ReleaseDrive(PROBE_FRACTION, probe), np.array([0.0, 0.0, -physics.gravity_m_s2]))
-    array = single_whisker(geometry, config.material)
+    array = single_whisker(geometry, material, extensions=extensions)
     with create_engine(config, array) as engine:
         output = engine.run(empty(), Pose(), still(AFTER_RELEASE_S), AFTER_RELEASE_S, initial_joint_angles_rad=angles)
     rest_tip = array.whiskers[0].rest_nodes_head()[-1]
