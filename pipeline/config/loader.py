@@ -79,9 +79,12 @@ def _merge(base: dict[str, Any], top: Mapping[str, Any], origin: str,
 
 
 def _describe(error: dict[str, Any], source: ConfigSource) -> str:
-    loc = tuple(str(part) for part in error["loc"])
-    dotted = ".".join(loc) or "(top level)"
-    where = source.origin_of(loc)
+    return describe_error(error, source.origin_of(tuple(str(part) for part in error["loc"])))
+
+
+def describe_error(error: dict[str, Any], where: str) -> str:
+    """One pydantic validation error as ``<where>: field '<a.b>' = <value>: <reason>``."""
+    dotted = ".".join(str(part) for part in error["loc"]) or "(top level)"
     if error["type"] == "extra_forbidden":
         return f"{where}: unknown field '{dotted}'"
     value = error.get("input")

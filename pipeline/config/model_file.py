@@ -17,6 +17,7 @@ from typing import Any, Literal, Optional
 import yaml
 from pydantic import BaseModel, Field, ValidationError
 
+from pipeline.config.loader import describe_error
 from pipeline.config.physics import MaterialConfig, StrictModel
 from pipeline.errors import UserError
 
@@ -95,15 +96,6 @@ class LoadedModelFile:
         return {"path": str(self.path), "sha256": self.sha256, "content": self.text}
 
 
-def _where(error: dict[str, Any]) -> str:
-    dotted = ".".join(str(part) for part in error["loc"]) or "(top level)"
-    if error["type"] == "extra_forbidden":
-        return f"unknown field '{dotted}'"
-    value = error.get("input")
-    shown = "" if isinstance(value, (dict, list)) or value is None else f" = {value!r}"
-    return f"field '{dotted}'{shown}: {error['msg']}"
-
-
 def read_model_file(path: str | Path) -> LoadedModelFile:
     """Read and validate a model file; any problem is one :class:`UserError` line naming the file."""
     path = Path(path)
@@ -121,7 +113,7 @@ def read_model_file(path: str | Path) -> LoadedModelFile:
     except ValidationError as exc:
         errors = exc.errors()
         more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
-        raise UserError(f"model file {path}: {_where(errors[0])}{more}") from None
+        raise UserError(describe_error(errors[0], f"model file {path}") + more) from None
     return LoadedModelFile(path.resolve(), text, hashlib.sha256(text.encode()).hexdigest(), content)
 
 
