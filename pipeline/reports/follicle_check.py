@@ -16,7 +16,7 @@ import numpy as np
 
 from pipeline.config.physics import FollicleConfig, ModelConfig
 from pipeline.model.array import single_whisker
-from pipeline.model.extensions import model_parts
+from pipeline.model.extensions import CompliantFollicle, model_parts
 from pipeline.model.kinematics import Pose, still
 from pipeline.model.morphology import load_morphology
 from pipeline.model.whisker import WhiskerGeometry
@@ -31,7 +31,11 @@ AFTER_RELEASE_S = 0.05         # the paper analysed 40–50 ms after release
 
 
 def compliant_follicle(config: ModelConfig) -> FollicleConfig:
-    """The configured follicle if compliant, else the default constants."""
+    """The model's compliant follicle (its ``follicle`` extension, else the material's), else the
+    default constants."""
+    fitted = next((e for e in model_parts(config)[1] if isinstance(e, CompliantFollicle)), None)
+    if fitted is not None:
+        return FollicleConfig(kind="compliant", stiffness_nm_per_rad=fitted.k_f, damping_nms_per_rad=fitted.c_f)
     follicle = config.material.follicle
     return follicle if follicle.kind == "compliant" else FollicleConfig(kind="compliant")
 
