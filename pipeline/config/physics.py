@@ -7,9 +7,12 @@ to SI once, where the model is built.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Literal, Optional
+from typing import TYPE_CHECKING, Any, Literal, Optional
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, model_validator
+
+if TYPE_CHECKING:
+    from pipeline.config.model_file import LoadedModelFile
 
 
 class StrictModel(BaseModel):
@@ -96,7 +99,7 @@ class ModelConfig(StrictModel):
                                           "(pipeline.model.extensions)")
     engine: EngineConfig = EngineConfig()
     whisk: WhiskConfig = WhiskConfig()
-    _model_file: Any = PrivateAttr(None)
+    _model_file: Optional[LoadedModelFile] = PrivateAttr(None)
 
     @model_validator(mode="wrap")
     @classmethod
@@ -110,6 +113,6 @@ class ModelConfig(StrictModel):
         return config
 
     @property
-    def model_file(self):
-        """The :class:`~pipeline.config.model_file.LoadedModelFile` of ``file`` (None without one)."""
+    def model_file(self) -> Optional[LoadedModelFile]:
+        """The model file ``file`` as read when the config was validated (None without one)."""
         return self._model_file

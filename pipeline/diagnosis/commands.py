@@ -49,7 +49,8 @@ def run_calibrate(path: Path, names: str, method: str, objective: str, material,
         whisker, modes = next(iter(result["modes"].items()))
         summary = {"method": "calibrate", "metric": result["metric"], "error": result["error"],
                    "whisker": whisker, **modes}
-        lines.append(f"  model: {save(save_model, spec, result['params'], [path], summary)}")
+        result["model_file"] = str(save(save_model, spec, result["params"], [path], summary))
+        lines.append(f"  model: {result['model_file']}")
     return _jsonable(result), lines
 
 
@@ -68,7 +69,8 @@ def run_diagnose(path: Path, material, report: Path | None, engine: str | None,
             data, lines, result = _diagnose_series(measurement, material, report, engine, chosen)
             geometry, whisker = measurement.geometry, measurement.whisker
     if save_model is not None:
-        lines.append(f"  model: {_save_diagnosis(save_model, result, path, geometry, whisker)}")
+        data["model_file"] = str(_save_diagnosis(save_model, result, path, geometry, whisker))
+        lines.append(f"  model: {data['model_file']}")
     return data, lines
 
 
