@@ -234,11 +234,19 @@ def test_simulate_dataset_records_the_model(tmp_path, data_file):
     _simulate_records(tmp_path, save_hand_model(tmp_path / "m.yaml", data_file), trials=4)
 
 
-def test_calibrate_saves_the_model_it_fitted(tmp_path):
-    data = tmp_path / "m.h5"
-    ok("synth", "--config", synth_config(tmp_path), "--out", data)
+@pytest.fixture(scope="module")
+def measurement(tmp_path_factory) -> Path:
+    """The synthetic C2 measurement with a hidden follicle and stiffness gradient."""
+    folder = tmp_path_factory.mktemp("measurement")
+    ok("synth", "--config", synth_config(folder), "--out", folder / "m.h5")
+    return folder / "m.h5"
+
+
+def test_calibrate_saves_the_model_it_fitted(tmp_path, measurement):
+    data = measurement
     out = json.loads(ok("calibrate", data, "--params", "E,zeta,stiffness_gradient.gamma",
                         "--save-model", tmp_path / "cal.yaml", "--json"))
+    assert out["model_file"] == str(tmp_path / "cal.yaml")
     content = read_model_file(tmp_path / "cal.yaml").content
     assert content.provenance.fit.method == "calibrate" and content.provenance.data[0].path == str(data.resolve())
     gamma = content.extensions["stiffness_gradient"]["gamma"]
@@ -246,6 +254,22 @@ def test_calibrate_saves_the_model_it_fitted(tmp_path):
     assert gamma.sd == pytest.approx(out["params"]["stiffness_gradient.gamma"]["sd"])
     assert content.material.youngs_modulus_gpa * 1e9 == pytest.approx(out["params"]["E"]["value"])
     assert linear_f1(ModelConfig(file=tmp_path / "cal.yaml")) == pytest.approx(out["modes"]["C2"]["f1_hz"], rel=1e-9)
+
+
+def test_diagnose_saves_its_final_model_or_the_baseline(tmp_path, measurement):
+    for candidates, cause in (("follicle", "follicle"), ("gravity", "unexplained")):
+        model = tmp_path / f"{candidates}.yaml"
+        out = json.loads(ok("diagnose", measurement, "--candidates", candidates, "--save-model", model, "--json"))
+        assert out["cause"] == cause and out["model_file"] == str(model)
+        content = read_model_file(model).content
+        assert content.provenance.fit.method == "diagnose" and content.provenance.fit.cause == cause
+        assert content.material.youngs_modulus_gpa * 1e9 == pytest.approx(out["params"]["E"]["value"])
+        assert content.material_sd.damping_ratio == pytest.approx(out["params"]["zeta"]["sd"])
+        assert set(content.extensions) == ({"follicle"} if cause == "follicle" else set())
+        for name, entry in content.extensions.get("follicle", {}).items():
+            assert entry.value == pytest.approx(out["params"][f"follicle.{name}"]["value"])
+            assert entry.sd == pytest.approx(out["params"][f"follicle.{name}"]["sd"])
+        assert linear_f1(ModelConfig(file=model)) == pytest.approx(content.provenance.fit.f1_hz, rel=1e-9)
 
 
 @pytest.mark.slow
