@@ -93,6 +93,11 @@ def _model_config(config: Optional[Path], overrides: dict):
     return load_config(ModelConfig, path, env_prefix="PIPELINE_MODEL_", overrides=overrides)[0]
 
 
+def _model_path(path: Optional[Path]) -> Optional[str]:
+    """A ``--model`` path as the absolute path configs take (relative to the working directory)."""
+    return None if path is None else str(path.resolve())
+
+
 def _follicle_override(text: Optional[str]) -> Optional[dict]:
     if text is None:
         return None
@@ -118,6 +123,7 @@ def resonance(
     engine: Optional[str] = typer.Option(None, "--engine", help="Physics engine (bullet or mujoco)."),
     dt_s: Optional[float] = typer.Option(None, "--dt-s", help="Integration step, s."),
     config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML."),
+    model_file: Optional[Path] = typer.Option(None, "--model", help="Fitted model file (docs/model_file.md)."),
     json_output: bool = typer.Option(False, "--json", help="Print JSON."),
 ) -> None:
     """Resonance protocol (Gaussian pulse, abrupt stop): f1, log decrement, damping ratio."""
@@ -126,7 +132,8 @@ def resonance(
 
     material = {"youngs_modulus_gpa": e_gpa, "damping_ratio": zeta, "links": links,
                 "follicle": _follicle_override(follicle)}
-    model = _model_config(config, {"material": material, "engine": {"name": engine, "dt_s": dt_s}})
+    model = _model_config(config, {"file": _model_path(model_file), "material": material,
+                                   "engine": {"name": engine, "dt_s": dt_s}})
     geometry = WhiskerGeometry(length_mm * 1e-3, base_diameter_um * 0.5e-6, tip_diameter_um * 0.5e-6,
                                curvature_per_mm * 1e3)
     result = run_resonance(geometry, model).as_dict()
@@ -146,13 +153,14 @@ def trial(
     out: Optional[Path] = typer.Option(None, "--out", help="Write the trial as a one-trial dataset (HDF5)."),
     engine: Optional[str] = typer.Option(None, "--engine", help="Physics engine (bullet or mujoco)."),
     config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML."),
+    model_file: Optional[Path] = typer.Option(None, "--model", help="Fitted model file (docs/model_file.md)."),
     json_output: bool = typer.Option(False, "--json", help="Print a JSON summary."),
 ) -> None:
     """Run one trial of the array in a scene and summarise (or write) its base signals."""
     from pipeline.model.kinematics import Pose
     from pipeline.protocols.whisking import default_drive, parse_scene, run_trial
 
-    model = _model_config(config, {"engine": {"name": engine}})
+    model = _model_config(config, {"file": _model_path(model_file), "engine": {"name": engine}})
     if out is not None:
         from pipeline.datasets.writer import refuse_existing
 
@@ -234,6 +242,7 @@ def simulate(
                                                               "scheduler; join with `pipeline datasets join`."),
     engine: Optional[str] = typer.Option(None, "--engine", help="Physics engine (bullet or mujoco; config: "
                                                                 "model.engine.name)."),
+    model_file: Optional[Path] = typer.Option(None, "--model", help="Fitted model file (docs/model_file.md)."),
     json_output: bool = typer.Option(False, "--json", help="Print the summary as JSON (no progress bar)."),
 ) -> None:
     """Simulate N trials (scenes × head poses × whisks) on dask into a new versioned HDF5 dataset."""
@@ -243,7 +252,8 @@ def simulate(
     if workers is not None and scheduler is not None:
         raise UserError("give --workers or --scheduler, not both")
     settings = load_simulate_config(config, {
-        "trials": n, "scenes": {"folder": scenes}, "dataset": {"name": name}, "model": {"engine": {"name": engine}},
+        "trials": n, "scenes": {"folder": scenes}, "dataset": {"name": name},
+        "model": {"engine": {"name": engine}, "file": _model_path(model_file)},
         "cluster": {"workers": workers, "scheduler": scheduler, "record_every": record_every}})
     _print_summary(run_simulation(settings, resume=resume, shard=shard, progress=not json_output), json_output)
 
@@ -326,13 +336,15 @@ def validate(
     mesh: Optional[Path] = typer.Option(None, "--mesh", help="Natural scene of Fig. 5 (mesh in metres; default "
                                                              "outputs/meshes/drainpipe.obj)."),
     config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML."),
+    model_file: Optional[Path] = typer.Option(None, "--model", help="Fitted model file (docs/model_file.md)."),
     json_output: bool = typer.Option(False, "--json", help="Print the checks as JSON (no progress)."),
 ) -> None:
     """Reproduce the paper's validation (Table 1, figures 2–5): report.md, PNGs, validation.json."""
     from pipeline.reports.document import number
     from pipeline.reports.validation import validate as run_validation
 
-    model = _model_config(config, {"material": {"follicle": _follicle_override(follicle)},
+    model = _model_config(config, {"file": _model_path(model_file),
+                                   "material": {"follicle": _follicle_override(follicle)},
                                    "engine": {"name": engine}})
     progress = (lambda _: None) if json_output else (lambda text: typer.echo(text, err=True))
     result = run_validation(model, out, quick=quick, refit=refit, mesh=mesh, progress=progress)
@@ -358,13 +370,15 @@ def calibrate(
     bootstrap: int = typer.Option(0, "--bootstrap", help="Bootstrap refits over trials for the sd."),
     engine: Optional[str] = typer.Option(None, "--engine", help="Check and refine the fit on an engine (bullet or mujoco)."),
     config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML (material, links, damping)."),
+    save_model: Optional[Path] = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md)."),
     json_output: bool = typer.Option(False, "--json", help="Print JSON."),
 ) -> None:
     """Fit model parameters to measured data (median symmetric accuracy), with uncertainties."""
     from pipeline.diagnosis.commands import run_calibrate
 
     material = _model_config(config, {}).material
-    data, lines = run_calibrate(file, params, method, objective, material, engine, bootstrap, grid_points)
+    data, lines = run_calibrate(file, params, method, objective, material, engine, bootstrap, grid_points,
+                                save_model)
     if json_output:
         _print_json(data)
     else:
@@ -378,12 +392,13 @@ def diagnose(
     engine: Optional[str] = typer.Option(None, "--engine", help="Check and refine the result on an engine (bullet or mujoco)."),
     candidates: Optional[str] = typer.Option(None, "--candidates", help="Only these extensions (comma-separated)."),
     config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML (material, links, damping)."),
+    save_model: Optional[Path] = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md)."),
     json_output: bool = typer.Option(False, "--json", help="Print JSON."),
 ) -> None:
     """What the model gets wrong on measured data, and which model extension explains it."""
     from pipeline.diagnosis.commands import run_diagnose
 
-    data, lines = run_diagnose(file, _model_config(config, {}).material, report, engine, candidates)
+    data, lines = run_diagnose(file, _model_config(config, {}).material, report, engine, candidates, save_model)
     if json_output:
         _print_json(data)
     else:
@@ -395,12 +410,14 @@ def synth(
     config: Path = typer.Option(..., "--config", help="Synth config YAML (docs/measurements.md)."),
     out: Path = typer.Option(..., "--out", help="Measurement file to write (.h5)."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Override the config's seed."),
+    model_file: Optional[Path] = typer.Option(None, "--model", help="Fitted model file as the truth's base "
+                                                                   "(docs/model_file.md)."),
     json_output: bool = typer.Option(False, "--json", help="Print JSON."),
 ) -> None:
     """Write a synthetic measurement from the model with chosen extensions, noise and drives."""
     from pipeline.diagnosis.commands import run_synth
 
-    data, lines = run_synth(config, out, seed)
+    data, lines = run_synth(config, out, seed, _model_path(model_file))
     if json_output:
         _print_json(data)
     else:

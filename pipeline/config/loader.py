@@ -79,9 +79,12 @@ def _merge(base: dict[str, Any], top: Mapping[str, Any], origin: str,
 
 
 def _describe(error: dict[str, Any], source: ConfigSource) -> str:
-    loc = tuple(str(part) for part in error["loc"])
-    dotted = ".".join(loc) or "(top level)"
-    where = source.origin_of(loc)
+    return describe_error(error, source.origin_of(tuple(str(part) for part in error["loc"])))
+
+
+def describe_error(error: dict[str, Any], where: str) -> str:
+    """One pydantic validation error as ``<where>: field '<a.b>' = <value>: <reason>``."""
+    dotted = ".".join(str(part) for part in error["loc"]) or "(top level)"
     if error["type"] == "extra_forbidden":
         return f"{where}: unknown field '{dotted}'"
     value = error.get("input")
@@ -96,7 +99,9 @@ def load_config(model: type[ModelT], path: str | Path | None = None, *, env_pref
 
     ``overrides`` holds CLI flags (``None`` means "flag not given"). Returns the validated
     model and the origin of every value; a bad value raises :class:`UserError` whose single
-    line names the source (file, variable or flag), the field and the allowed range.
+    line names the source (file, variable or flag), the field and the allowed range. Relative
+    paths that models resolve themselves (``ModelConfig.file``) are taken against the folder of
+    ``path`` (validation context ``base_dir``).
     """
     source = ConfigSource(path=Path(path) if path else None)
     merged: dict[str, Any] = {}
@@ -108,7 +113,8 @@ def load_config(model: type[ModelT], path: str | Path | None = None, *, env_pref
     if overrides:
         _merge(merged, overrides, "command-line flag", source.origins)
     try:
-        return model.model_validate(merged), source
+        context = {"base_dir": Path(path).resolve().parent} if path is not None else None
+        return model.model_validate(merged, context=context), source
     except ValidationError as exc:
         errors = exc.errors()
         first = _describe(errors[0], source)

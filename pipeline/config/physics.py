@@ -6,9 +6,13 @@ to SI once, where the model is built.
 
 from __future__ import annotations
 
-from typing import Literal
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal, Optional
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, model_validator
+
+if TYPE_CHECKING:
+    from pipeline.config.model_file import LoadedModelFile
 
 
 class StrictModel(BaseModel):
@@ -72,11 +76,43 @@ class WhiskConfig(StrictModel):
     duration_s: float = Field(0.25, gt=0, le=10)
 
 
+def base_dir(info: ValidationInfo) -> Path | None:
+    """The folder relative paths in a config are resolved against (``load_config``'s context:
+    the config file's folder), or None (the working directory)."""
+    return (info.context or {}).get("base_dir")
+
+
 class ModelConfig(StrictModel):
-    """Everything that defines the simulated animal and how it is integrated."""
+    """Everything that defines the simulated animal and how it is integrated.
+
+    ``file``: a fitted model (docs/model_file.md) whose material and extensions are the base of
+    ``material`` and ``extensions`` (values given here override the file's, field by field); a
+    relative path is resolved against the config file's folder.
+    """
 
     morphology: str = Field("model_rat", description="a shipped table name or a CSV path")
     whiskers: str = Field("all", description="'all', 'R', 'L' or comma-separated names")
+    file: Optional[Path] = Field(None, description="fitted model file (docs/model_file.md)")
     material: MaterialConfig = MaterialConfig()
+    extensions: dict[str, dict[str, float]] = Field(
+        default_factory=dict, description="model extensions: name → {parameter: value (SI)} "
+                                          "(pipeline.model.extensions)")
     engine: EngineConfig = EngineConfig()
     whisk: WhiskConfig = WhiskConfig()
+    _model_file: Optional[LoadedModelFile] = PrivateAttr(None)
+
+    @model_validator(mode="wrap")
+    @classmethod
+    def _with_model_file(cls, data: Any, handler, info: ValidationInfo) -> "ModelConfig":
+        from pipeline.config.model_file import merge_model_file
+
+        data, loaded = merge_model_file(data, "file", base_dir(info))
+        config = handler(data)
+        if loaded is not None:
+            config._model_file = loaded
+        return config
+
+    @property
+    def model_file(self) -> Optional[LoadedModelFile]:
+        """The model file ``file`` as read when the config was validated (None without one)."""
+        return self._model_file

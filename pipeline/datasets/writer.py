@@ -110,6 +110,11 @@ def trial_arrays(output: TrialOutput, protraction_rad: np.ndarray, layout: Layou
     return arrays
 
 
+def model_file_record(model: ModelConfig) -> dict[str, Any] | None:
+    """What a dataset keeps of the model's fitted-model file (path, sha256, text), or None."""
+    return model.model_file.record() if model.model_file is not None else None
+
+
 def provenance(config: dict[str, Any], **extra: Any) -> dict[str, Any]:
     """What produced a dataset: config, package versions, git commit, host, command, time."""
     from pipeline.provenance import describe_environment
@@ -288,7 +293,8 @@ def write_single_trial(path: str | Path, output: TrialOutput, model: "ModelConfi
         wall_seconds=output.metadata.get("wall_seconds", 0.0), worker=f"{socket.gethostname()}:{os.getpid()}")
     partial = path.with_name(path.name + ".partial")
     attrs = {"name": path.stem, "version": 0, "seed": 0,
-             "provenance": provenance(model.model_dump(mode="json"), engine=output.metadata.get("engine"))}
+             "provenance": provenance(model.model_dump(mode="json"), engine=output.metadata.get("engine"),
+                                      model_file=model_file_record(model))}
     with DatasetWriter.create(partial, layout, attrs) as writer:
         writer.write(0, record, trial_arrays(output, theta, layout))
     os.replace(partial, path)

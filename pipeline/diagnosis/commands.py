@@ -27,9 +27,9 @@ def _format_params(params: dict) -> list[str]:
 
 
 def run_calibrate(path: Path, names: str, method: str, objective: str, material, engine, bootstrap: int,
-                  grid_points) -> tuple[dict, list[str]]:
+                  grid_points, save_model: Path | None = None) -> tuple[dict, list[str]]:
     from pipeline.diagnosis.calibrate import calibrate
-    from pipeline.diagnosis.parameters import parse_names
+    from pipeline.diagnosis.parameters import ModelSpec, parse_names
     from pipeline.measurements import load_measurement
 
     result = calibrate(load_measurement(path), parse_names(names), method, objective, material, engine,
@@ -42,23 +42,50 @@ def run_calibrate(path: Path, names: str, method: str, objective: str, material,
         lines.append(f"  {e['name']}: " + (e["error"] if "error" in e else
                                            f"{result['metric']} {e['error_before']:.4g} → {e['error_after']:.4g}"))
     lines += [f"  note: {n}" for n in result["notes"]]
+    if save_model is not None:
+        from pipeline.diagnosis.saved_model import save_model as save
+
+        spec = ModelSpec(material).with_values({n: p["value"] for n, p in result["params"].items()})
+        whisker, modes = next(iter(result["modes"].items()))
+        summary = {"method": "calibrate", "metric": result["metric"], "error": result["error"],
+                   "whisker": whisker, **modes}
+        result["model_file"] = str(save(save_model, spec, result["params"], [path], summary))
+        lines.append(f"  model: {result['model_file']}")
     return _jsonable(result), lines
 
 
 def run_diagnose(path: Path, material, report: Path | None, engine: str | None,
-                 candidates: str | None = None) -> tuple[dict, list[str]]:
+                 candidates: str | None = None, save_model: Path | None = None) -> tuple[dict, list[str]]:
     from pipeline.diagnosis.threads import single_threaded_blas
     from pipeline.measurements import ResonanceTable, load_measurement
 
     measurement = load_measurement(path)
     with single_threaded_blas():
         if isinstance(measurement, ResonanceTable):
-            return _diagnose_table(measurement, material, report, engine)
-        chosen = [c.strip() for c in candidates.split(",") if c.strip()] if candidates else None
-        return _diagnose_series(measurement, material, report, engine, chosen)
+            data, lines, result = _diagnose_table(measurement, material, report, engine)
+            geometry, whisker = measurement.records[0].geometry, measurement.records[0].whisker
+        else:
+            chosen = [c.strip() for c in candidates.split(",") if c.strip()] if candidates else None
+            data, lines, result = _diagnose_series(measurement, material, report, engine, chosen)
+            geometry, whisker = measurement.geometry, measurement.whisker
+    if save_model is not None:
+        data["model_file"] = str(_save_diagnosis(save_model, result, path, geometry, whisker))
+        lines.append(f"  model: {data['model_file']}")
+    return data, lines
 
 
-def _diagnose_series(measurement, material, report, engine, candidates) -> tuple[dict, list[str]]:
+def _save_diagnosis(out: Path, result, path: Path, geometry, whisker: str) -> Path:
+    """The diagnosis' final model (baseline refit plus the named extension, if any) to ``out``."""
+    from pipeline.diagnosis.calibrate import modal_summary
+    from pipeline.diagnosis.saved_model import save_model
+
+    final = result.final
+    summary = {"method": "diagnose", "cause": result.cause, "metric": final.metric, "error": final.error,
+               "whisker": whisker, **modal_summary(final.spec, geometry)}
+    return save_model(out, final.spec, final.params(), [path], summary)
+
+
+def _diagnose_series(measurement, material, report, engine, candidates) -> tuple[dict, list[str], object]:
     from pipeline.diagnosis.diagnose import diagnose
     from pipeline.diagnosis.objective import TrajectoryObjective
 
@@ -78,10 +105,10 @@ def _diagnose_series(measurement, material, report, engine, candidates) -> tuple
         from pipeline.diagnosis.report import write_report
 
         lines.append(f"  report: {write_report(report, measurement, result)}")
-    return _jsonable(data), lines
+    return _jsonable(data), lines, result
 
 
-def _diagnose_table(table, material, report, engine) -> tuple[dict, list[str]]:
+def _diagnose_table(table, material, report, engine) -> tuple[dict, list[str], object]:
     from pipeline.diagnosis.objective import TableObjective
     from pipeline.diagnosis.table_diagnosis import diagnose_table
 
@@ -97,7 +124,7 @@ def _diagnose_table(table, material, report, engine) -> tuple[dict, list[str]]:
         from pipeline.diagnosis.report import write_table_report
 
         lines.append(f"  report: {write_table_report(report, table, result)}")
-    return _jsonable(data), lines
+    return _jsonable(data), lines, result
 
 
 def _check_on_engine(data: dict, lines: list[str], model, objective, engine: str) -> None:
@@ -108,11 +135,11 @@ def _check_on_engine(data: dict, lines: list[str], model, objective, engine: str
     lines.append(f"  engine check: {data['engine']}")
 
 
-def run_synth(config: Path, out: Path, seed: int | None) -> tuple[dict, list[str]]:
+def run_synth(config: Path, out: Path, seed: int | None, model_file: str | None = None) -> tuple[dict, list[str]]:
     from pipeline.diagnosis.synth import load_synth_config, synth
     from pipeline.diagnosis.threads import single_threaded_blas
 
-    settings = load_synth_config(config, {"seed": seed})
+    settings = load_synth_config(config, {"seed": seed, "model_file": model_file})
     with single_threaded_blas():
         summary = synth(settings, out)
     return summary, [f"{summary['file']}: {summary['trials']} trials, {summary['samples']} samples "

@@ -15,9 +15,9 @@ from pathlib import Path
 from typing import Literal, Optional
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field, ValidationInfo, model_validator
 
-from pipeline.config.physics import MaterialConfig, StrictModel
+from pipeline.config.physics import MaterialConfig, StrictModel, base_dir
 from pipeline.errors import UserError
 from pipeline.measurements.timeseries import (ReleaseDrive, RotationDrive, TimeSeriesMeasurement, Trial,
                                               write_timeseries)
@@ -92,8 +92,12 @@ class TrackingSpec(StrictModel):
 
 
 class SynthConfig(StrictModel):
+    """``model_file``: a fitted model (docs/model_file.md) whose material and extensions are the
+    truth's base; ``material`` and ``extensions`` here override it field by field."""
+
     seed: int = 0
     whisker: WhiskerSpec
+    model_file: Optional[Path] = Field(None, description="fitted model file, relative to this config's folder")
     material: MaterialConfig = MaterialConfig()
     extensions: dict[str, dict[str, float]] = Field(default_factory=dict,
                                                     description="true model extensions: name → parameters (SI)")
@@ -104,6 +108,13 @@ class SynthConfig(StrictModel):
     tracking: TrackingSpec = TrackingSpec()
     engine: Literal["fast", "bullet", "mujoco"] = "fast"
     trials: list[TrialSpec] = Field(..., min_length=1)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _with_model_file(cls, data, info: ValidationInfo):
+        from pipeline.config.model_file import merge_model_file
+
+        return merge_model_file(data, "model_file", base_dir(info))[0]
 
 
 def load_synth_config(path: str | Path | None, overrides: dict | None = None) -> SynthConfig:
@@ -116,10 +127,10 @@ def load_synth_config(path: str | Path | None, overrides: dict | None = None) ->
 
 def true_spec(config: SynthConfig):
     from pipeline.diagnosis.parameters import ModelSpec
-    from pipeline.model.extensions import make_extension
+    from pipeline.model.extensions import extensions_from
 
-    return ModelSpec(config.material, tuple(make_extension(name, **values)
-                                            for name, values in config.extensions.items()))
+    where = f"model file {config.model_file}" if config.model_file else "synth config"
+    return ModelSpec(config.material, extensions_from(config.extensions, where))
 
 
 def _drive(spec: TrialSpec, config: SynthConfig, duration: float, truth_lin, direction):

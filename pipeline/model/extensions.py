@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
-from pipeline.config.physics import MaterialConfig
+from pipeline.config.physics import MaterialConfig, ModelConfig
 from pipeline.errors import UserError
 from pipeline.model.loads import GRAVITY_M_S2
 from pipeline.model.whisker import WhiskerChain, WhiskerGeometry
@@ -267,3 +267,36 @@ def make_extension(name: str, **values: float) -> Extension:
             raise UserError(f"extension '{name}': {p.name} = {values[p.name]} {p.unit} is outside "
                             f"[{p.lower:g}, {p.upper:g}]")
     return cls(**{k: float(v) for k, v in values.items()})
+
+
+def _checked_units(loaded) -> None:
+    """Every parameter of a model file in the unit its extension defines (one line otherwise)."""
+    for name, params in loaded.content.extensions.items():
+        units = {p.name: p.unit for p in EXTENSIONS[name].PARAMETERS} if name in EXTENSIONS else {}
+        for field, entry in params.items():
+            if field in units and entry.unit != units[field]:
+                raise UserError(f"model file {loaded.path}: field 'extensions.{name}.{field}.unit' = "
+                                f"'{entry.unit}': must be '{units[field]}'")
+
+
+
+def extensions_from(values: dict[str, dict[str, float]], where: str) -> tuple[Extension, ...]:
+    """The extensions ``{name: {parameter: value}}`` (in the order given); a bad name or value is
+    one :class:`UserError` line naming ``where`` (the config or model file) and the field."""
+    extensions = []
+    for name, params in values.items():
+        try:
+            extensions.append(make_extension(name, **params))
+        except UserError as exc:
+            raise UserError(f"{where}: field 'extensions.{name}': {exc}") from None
+    return tuple(extensions)
+
+
+def model_parts(config: ModelConfig) -> tuple[MaterialConfig, tuple[Extension, ...]]:
+    """The material and the extensions (in the order given) that ``config`` describes: its own,
+    on top of those of its model file (``config.file``, merged when the config was loaded)."""
+    loaded = config.model_file
+    if loaded is not None:
+        _checked_units(loaded)
+    return config.material, extensions_from(config.extensions,
+                                            f"model file {loaded.path}" if loaded else "model config")

@@ -17,6 +17,7 @@ import numpy as np
 
 from pipeline.config.physics import ModelConfig
 from pipeline.model.array import single_whisker
+from pipeline.model.extensions import model_parts
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.outputs import TrialOutput
 from pipeline.model.whisker import WhiskerGeometry
@@ -73,7 +74,9 @@ def run_collision(geometry: WhiskerGeometry, config: ModelConfig, speed_deg_s: f
     drive = ProtractionDrive(t, omega * t, interpolation="linear")
     scene = edge_scene(geometry)
     own = engine is None
-    engine = engine or create_engine(config, single_whisker(geometry, config.material))
+    if engine is None:
+        material, extensions = model_parts(config)
+        engine = create_engine(config, single_whisker(geometry, material, extensions=extensions))
     try:
         output = engine.run(scene, Pose(), drive, DURATION_S, stop_drive_on_contact=True)
     finally:

@@ -15,6 +15,7 @@ from scipy.signal import find_peaks
 
 from pipeline.config.physics import ModelConfig
 from pipeline.model.array import single_whisker
+from pipeline.model.extensions import model_parts
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.whisker import WhiskerGeometry
 from pipeline.scenes import empty
@@ -92,7 +93,8 @@ def run_resonance(geometry: WhiskerGeometry, config: ModelConfig) -> ResonanceRe
     """Simulate the resonance protocol for one whisker and analyse its tip (SI in and out)."""
     from pipeline.engines import create_engine
 
-    array = single_whisker(geometry, config.material)
+    material, extensions = model_parts(config)
+    array = single_whisker(geometry, material, extensions=extensions)
     with create_engine(config, array) as engine:
         output = engine.run(empty(), Pose(), pulse_drive(), DURATION_S)
     tip_y = output.node_positions_m[:, 0, -1, 1].astype(float)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pipeline.config.physics import ModelConfig
 from pipeline.errors import UserError
 from pipeline.model.array import build_array
+from pipeline.model.extensions import model_parts
 from pipeline.model.kinematics import Pose, ProtractionDrive, sinusoidal_whisk, still
 from pipeline.model.morphology import load_morphology
 from pipeline.model.outputs import TrialOutput
@@ -40,6 +41,7 @@ def run_trial(config: ModelConfig, scene: Scene, pose: Pose = Pose(), duration_s
     morphology = load_morphology(config.morphology).select(whiskers or config.whiskers)
     if len(morphology) == 0:
         raise UserError(f"no whiskers selected by '{whiskers or config.whiskers}'")
-    array = build_array(morphology, config.material)
+    material, extensions = model_parts(config)
+    array = build_array(morphology, material, extensions)
     with create_engine(config, array) as engine:
         return engine.run(scene, pose, drive or default_drive(scene, config, duration_s), duration_s)

@@ -49,6 +49,7 @@ def natural_scene(mesh: Path | None, config: ModelConfig, whiskers, drive) -> tu
     the right side."""
     from pipeline.config.simulate import PoseSamplingConfig
     from pipeline.model.array import build_array
+    from pipeline.model.extensions import model_parts
     from pipeline.scenes.library import load_mesh
     from pipeline.scenes.poses import PoseSampler, PoseSamplingError
 
@@ -63,7 +64,7 @@ def natural_scene(mesh: Path | None, config: ModelConfig, whiskers, drive) -> tu
     else:
         path = Path(mesh) if mesh is not None else DEFAULT_MESH
         surface, name, source = load_mesh(path), path.stem, path.name
-    array = build_array(load_morphology(config.morphology).select(list(whiskers)), config.material)
+    array = build_array(load_morphology(config.morphology).select(list(whiskers)), *model_parts(config))
     sampling = PoseSamplingConfig(right_side_probability=1.0, heading_deg=0.0, pitch_deg=0.0, roll_deg=0.0,
                                   min_whiskers_reaching=max(1, (len(whiskers) + 1) // 2), max_attempts=5000)
     theta = drive(np.linspace(0.0, drive.duration_s, 200))

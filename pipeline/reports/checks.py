@@ -104,8 +104,10 @@ def spearman(x, y) -> float:
 
 
 def with_follicle(config: ModelConfig, follicle: FollicleConfig) -> ModelConfig:
-    """``config`` with another follicle (the bench protocols clamp the base: rigid)."""
-    return config.model_copy(update={"material": config.material.model_copy(update={"follicle": follicle})})
+    """``config`` with another follicle (the bench protocols clamp the base: rigid); a follicle
+    extension of the model is dropped, as it would override the material's follicle."""
+    return config.model_copy(update={"material": config.material.model_copy(update={"follicle": follicle}),
+                                     "extensions": {k: v for k, v in config.extensions.items() if k != "follicle"}})
 
 
 def rigid(config: ModelConfig) -> ModelConfig:

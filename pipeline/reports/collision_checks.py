@@ -25,6 +25,7 @@ import numpy as np
 
 from pipeline.config.physics import ModelConfig
 from pipeline.model.array import single_whisker
+from pipeline.model.extensions import model_parts
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.morphology import load_morphology
 from pipeline.model.outputs import TrialOutput
@@ -65,7 +66,8 @@ def collision_runs(config: ModelConfig, names, speeds=SPEEDS_DEG_S, progress: Pr
     for name in names:
         for shape, geometry in geometries(config, name).items():
             progress(f"fig. 3: {name} {shape}, collisions at {', '.join(f'{s:g}' for s in speeds)} °/s")
-            with create_engine(bench, single_whisker(geometry, bench.material)) as engine:
+            material, extensions = model_parts(bench)
+            with create_engine(bench, single_whisker(geometry, material, extensions=extensions)) as engine:
                 for speed in speeds:
                     records.append({"whisker": name, "shape": shape, "speed_deg_s": float(speed),
                                     "curvature_per_mm": geometry.curvature_per_m * 1e-3,
@@ -176,7 +178,8 @@ def front_runs(geometry: WhiskerGeometry, config: ModelConfig, speed_deg_s: floa
     omega, dt = np.radians(speed_deg_s), bench.engine.dt_s
     duration = START_GAP_RAD / omega + FRONT_AFTER_CONTACT_S
     drive = ProtractionDrive(np.array([0.0, duration]), np.array([0.0, omega * duration]), interpolation="linear")
-    with create_engine(bench, single_whisker(geometry, bench.material)) as engine:
+    material, extensions = model_parts(bench)
+    with create_engine(bench, single_whisker(geometry, material, extensions=extensions)) as engine:
         hit = engine.run(edge_scene(geometry), Pose(), drive, duration, stop_drive_on_contact=True)
         first = hit.node_positions_m[-1, 0, 1].astype(float)       # link 0 turns with the base
         stop = round(np.arctan2(first[1], first[0]) / omega / dt) * dt

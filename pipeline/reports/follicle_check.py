@@ -16,6 +16,7 @@ import numpy as np
 
 from pipeline.config.physics import FollicleConfig, ModelConfig
 from pipeline.model.array import single_whisker
+from pipeline.model.extensions import CompliantFollicle, model_parts
 from pipeline.model.kinematics import Pose, still
 from pipeline.model.morphology import load_morphology
 from pipeline.model.whisker import WhiskerGeometry
@@ -30,7 +31,11 @@ AFTER_RELEASE_S = 0.05         # the paper analysed 40–50 ms after release
 
 
 def compliant_follicle(config: ModelConfig) -> FollicleConfig:
-    """The configured follicle if compliant, else the default constants."""
+    """The model's compliant follicle (its ``follicle`` extension, else the material's), else the
+    default constants."""
+    fitted = next((e for e in model_parts(config)[1] if isinstance(e, CompliantFollicle)), None)
+    if fitted is not None:
+        return FollicleConfig(kind="compliant", stiffness_nm_per_rad=fitted.k_f, damping_nms_per_rad=fitted.c_f)
     follicle = config.material.follicle
     return follicle if follicle.kind == "compliant" else FollicleConfig(kind="compliant")
 
@@ -44,11 +49,12 @@ def release(config: ModelConfig, geometry: WhiskerGeometry) -> dict:
     from pipeline.measurements.timeseries import ReleaseDrive
     from pipeline.model.physics import build_physics
 
-    physics = build_physics(geometry, config.material)
+    material, extensions = model_parts(config)
+    physics = build_physics(geometry, material, extensions)
     lin = linearise(physics)
     probe = lin.rest_points(np.array([PROBE_FRACTION]))[0] + [0.0, 0.0, PROBE_DISPLACEMENT_M]
     angles = release_state(lin, ReleaseDrive(PROBE_FRACTION, probe), np.array([0.0, 0.0, -physics.gravity_m_s2]))
-    array = single_whisker(geometry, config.material)
+    array = single_whisker(geometry, material, extensions=extensions)
     with create_engine(config, array) as engine:
         output = engine.run(empty(), Pose(), still(AFTER_RELEASE_S), AFTER_RELEASE_S, initial_joint_angles_rad=angles)
     rest_tip = array.whiskers[0].rest_nodes_head()[-1]

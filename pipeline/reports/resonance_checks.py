@@ -16,6 +16,7 @@ import numpy as np
 
 from pipeline.analysis.material_fit import PAPER_TABLE_1, with_material, fit_material, simulate_all
 from pipeline.config.physics import ModelConfig
+from pipeline.model.extensions import model_parts
 from pipeline.model.physics import build_physics
 from pipeline.model.morphology import load_morphology
 from pipeline.model.whisker import WhiskerGeometry, planar_modes
@@ -110,7 +111,9 @@ def engine_resonances(config: ModelConfig, names=ENGINE_WHISKERS,
 def array_resonance(config: ModelConfig, engine_runs) -> Section:
     """Section ``fig2`` from the chains of every whisker and the engine runs ``[(name, result)]``."""
     specs = list(load_morphology(config.morphology))
-    f1 = np.array([planar_modes(build_physics(straight_geometry(s), config.material).chain)[0][0] for s in specs])
+    material, extensions = model_parts(config)
+    f1 = np.array([planar_modes(build_physics(straight_geometry(s), material, extensions).chain)[0][0]
+                   for s in specs])
     arc = np.array([s.arc_length_m for s in specs])
     fit = published_f1(arc)
     residual = f1 / fit - 1

@@ -29,7 +29,7 @@ from pipeline.datasets.reader import DatasetFile, decode_attr
 from pipeline.datasets.schema import (CONFIG_FILE, DATA_FILE, FAILED, OK, PENDING, POSE_REJECTION_REASONS,
                                       TrialRecord)
 from pipeline.datasets.versions import VersionLock, new_version, unfinished_version
-from pipeline.datasets.writer import DatasetWriter, Layout, provenance, whisker_table
+from pipeline.datasets.writer import DatasetWriter, Layout, model_file_record, provenance, whisker_table
 from pipeline.errors import UserError
 from pipeline.runner.scenes import SceneEntry, scene_catalogue
 from pipeline.runner.shards import Shard, plan_fields, run_id, shard_folder
@@ -109,7 +109,8 @@ def _open_writer(folder: Path, spec: RunSpec, shard: Shard | None, indices: rang
     attrs = {"name": config.dataset.name, "label": label, "seed": config.seed,
              "scenes": [vars(s) for s in scenes], "trial_range": [indices.start, indices.stop],
              "shard": [shard.number, shard.count] if shard else [1, 1], "run_id": run_id(config),
-             "provenance": provenance(config.model_dump(mode="json"), engine=config.model.engine.name)}
+             "provenance": provenance(config.model_dump(mode="json"), engine=config.model.engine.name,
+                                      model_file=model_file_record(config.model))}
     return DatasetWriter.create(data, spec.layout, attrs)
 
 

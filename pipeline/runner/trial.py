@@ -91,10 +91,12 @@ class Simulator:
     def array(self):
         if self._array is None:
             from pipeline.model.array import build_array
+            from pipeline.model.extensions import model_parts
             from pipeline.model.morphology import load_morphology
 
             model = self.spec.config.model
-            self._array = build_array(load_morphology(model.morphology).select(model.whiskers), model.material)
+            self._array = build_array(load_morphology(model.morphology).select(model.whiskers),
+                                      *model_parts(model))
         return self._array
 
     @property
