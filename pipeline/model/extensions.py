@@ -279,7 +279,6 @@ def _checked_units(loaded) -> None:
                                 f"'{entry.unit}': must be '{units[field]}'")
 
 
-
 def extensions_from(values: dict[str, dict[str, float]], where: str) -> tuple[Extension, ...]:
     """The extensions ``{name: {parameter: value}}`` (in the order given); a bad name or value is
     one :class:`UserError` line naming ``where`` (the config or model file) and the field."""
