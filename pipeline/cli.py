@@ -162,7 +162,7 @@ def trial(
     drive = default_drive(world, model, duration_s)
     output = run_trial(model, world, head, duration_s, whiskers, drive)
     summary = {"scene": world.name, "whiskers": len(output.whisker_names),
-               "samples": len(output.time_s), "whiskers_in_contact": int(output.contact.any(axis=(0, 2)).sum()),
+               "samples": len(output.time_s), "whiskers_in_contact": output.whiskers_in_contact(),
                "max_moment_nm": float(output.moment_magnitude().max()),
                "cpu_seconds": output.metadata["cpu_seconds"]}
     if out is not None:

@@ -141,7 +141,7 @@ class Simulator:
             output = self.engine.run(scene, pose, drive, whisk["duration_s"])
             record.physics_cpu_seconds = output.metadata["cpu_seconds"]
             record.samples = len(output.time_s)
-            record.whiskers_in_contact = int(output.contact.any(axis=(0, 2)).sum())
+            record.whiskers_in_contact = output.whiskers_in_contact()
             arrays = trial_arrays(output, drive(output.time_s), spec.layout)
             every = config.cluster.record_every
             if spec.recordings and every and index % every == 0:
