@@ -38,6 +38,13 @@ def rotation_zyx(yaw, pitch, roll) -> np.ndarray:
     return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
 
 
+def yaw_pitch_roll(matrix) -> tuple[float, float, float]:
+    """(yaw, pitch, roll) in rad of a rotation matrix: the inverse of :func:`rotation_zyx`."""
+    from scipy.spatial.transform import Rotation
+
+    return tuple(float(a) for a in Rotation.from_matrix(np.asarray(matrix, float)).as_euler("ZYX"))
+
+
 def skew(v) -> np.ndarray:
     """[..., 3, 3] matrix of v × (·)."""
     v = np.asarray(v, float)
