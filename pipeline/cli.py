@@ -39,7 +39,8 @@ def _print_json(data: object) -> None:
 def info(json_output: bool = typer.Option(False, "--json", help="Print JSON."),
          configs: Path = typer.Option(Path("configs"), help="Folder of config files to resolve.")) -> None:
     """Print versions of the package and its key dependencies, and the resolved configuration."""
-    from pipeline.provenance import describe_environment, resolved_configs
+    from pipeline.config.registry import resolved_configs
+    from pipeline.provenance import describe_environment
 
     data = {"versions": describe_environment(), "configs": resolved_configs(configs)}
     if json_output:

@@ -1,5 +1,5 @@
-"""What produced an output: package versions, git commit, resolved configuration, and the
-sha256 digests (hex) that identify files, folders, texts and JSON data."""
+"""What produced an output: package versions, git commit, and the sha256 digests (hex) that
+identify files, folders, texts and JSON data. A leaf: imports nothing else of the package."""
 
 from __future__ import annotations
 
@@ -42,19 +42,6 @@ def git_commit(repo: Path | None = None) -> str | None:
     except (OSError, subprocess.SubprocessError):
         return None
     return head + ("+dirty" if dirty else "")
-
-
-def resolved_configs(folder: Path) -> dict[str, Any]:
-    """Every known config resolved from ``folder`` (file > defaults, with the environment on top)."""
-    from pipeline.config.registry import CONFIG_FILES
-    from pipeline.config.loader import load_config
-
-    resolved = {}
-    for filename, (model, prefix) in CONFIG_FILES.items():
-        path = folder / filename
-        config, _ = load_config(model, path if path.is_file() else None, env_prefix=prefix)
-        resolved[filename] = config.model_dump(mode="json")
-    return resolved
 
 
 def _feed_file(digest, path: Path) -> None:
