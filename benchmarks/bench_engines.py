@@ -87,7 +87,7 @@ def cost_worker(engine_name: str, tolerance: float, mesh_path: str, runs: int, d
     return {"engine": engine_name, "f1_tolerance": tolerance, "cpu_seconds": seconds,
             "warm_up_seconds": warm_up,
             "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-            "touching": int(output.contact.any(axis=(0, 2)).sum()),
+            "touching": output.whiskers_in_contact(),
             "crossings": node_crossings(output.node_positions_m.astype(float), mesh),
             "dt_per_whisker_s": sorted(set(output.metadata["dt_per_whisker_s"]))}
 

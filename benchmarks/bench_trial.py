@@ -48,7 +48,7 @@ def cost_table(duration):
         for scene in scenes.values():
             out = run_trial(ModelConfig(), scene, Pose(), duration, selection)
             row.append(out.metadata["cpu_seconds"] / duration)
-            contacts.append(int(out.contact.any(axis=(0, 2)).sum()))
+            contacts.append(out.whiskers_in_contact())
             refined.append(len(out.metadata["jam_refined"]))
         print(f"{count:>8} | " + " | ".join(f"{v:12.1f}" for v in row) + f" | {contacts} | {refined}")
 

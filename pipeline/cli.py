@@ -39,7 +39,8 @@ def _print_json(data: object) -> None:
 def info(json_output: bool = typer.Option(False, "--json", help="Print JSON."),
          configs: Path = typer.Option(Path("configs"), help="Folder of config files to resolve.")) -> None:
     """Print versions of the package and its key dependencies, and the resolved configuration."""
-    from pipeline.provenance import describe_environment, resolved_configs
+    from pipeline.config.registry import resolved_configs
+    from pipeline.provenance import describe_environment
 
     data = {"versions": describe_environment(), "configs": resolved_configs(configs)}
     if json_output:
@@ -170,7 +171,7 @@ def trial(
     drive = default_drive(world, model, duration_s)
     output = run_trial(model, world, head, duration_s, whiskers, drive)
     summary = {"scene": world.name, "whiskers": len(output.whisker_names),
-               "samples": len(output.time_s), "whiskers_in_contact": int(output.contact.any(axis=(0, 2)).sum()),
+               "samples": len(output.time_s), "whiskers_in_contact": output.whiskers_in_contact(),
                "max_moment_nm": float(output.moment_magnitude().max()),
                "cpu_seconds": output.metadata["cpu_seconds"]}
     if out is not None:

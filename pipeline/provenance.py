@@ -1,12 +1,15 @@
-"""What produced an output: package versions, git commit, resolved configuration."""
+"""What produced an output: package versions, git commit, and the sha256 digests (hex) that
+identify files, folders, texts and JSON data. A leaf: imports nothing else of the package."""
 
 from __future__ import annotations
 
+import hashlib
+import json
 import platform
 import subprocess
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterable
 
 import pipeline
 
@@ -41,14 +44,38 @@ def git_commit(repo: Path | None = None) -> str | None:
     return head + ("+dirty" if dirty else "")
 
 
-def resolved_configs(folder: Path) -> dict[str, Any]:
-    """Every known config resolved from ``folder`` (file > defaults, with the environment on top)."""
-    from pipeline.config.registry import CONFIG_FILES
-    from pipeline.config.loader import load_config
+def _feed_file(digest, path: Path) -> None:
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
 
-    resolved = {}
-    for filename, (model, prefix) in CONFIG_FILES.items():
-        path = folder / filename
-        config, _ = load_config(model, path if path.is_file() else None, env_prefix=prefix)
-        resolved[filename] = config.model_dump(mode="json")
-    return resolved
+
+def file_sha256(path: Path) -> str:
+    """sha256 of a file's bytes."""
+    digest = hashlib.sha256()
+    _feed_file(digest, Path(path))
+    return digest.hexdigest()
+
+
+def paths_sha256(paths: Iterable[Path]) -> str:
+    """sha256 over the names and bytes of every file under ``paths`` (files or folders, sorted,
+    deterministic)."""
+    digest = hashlib.sha256()
+    for root in paths:
+        files = sorted(p for p in root.rglob("*") if p.is_file()) if root.is_dir() else [root]
+        if not root.exists():
+            digest.update(f"missing:{root}".encode())
+        for file in files:
+            digest.update(str(file).encode())
+            _feed_file(digest, file)
+    return digest.hexdigest()
+
+
+def text_sha256(text: str) -> str:
+    """sha256 of a text (UTF-8)."""
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def json_sha256(data: Any) -> str:
+    """sha256 of ``data`` as canonical JSON (sorted keys; values JSON cannot hold as ``str``)."""
+    return text_sha256(json.dumps(data, sort_keys=True, default=str))

@@ -9,7 +9,6 @@ same hash skips the stage, unless one of its outputs has gone missing.
 
 from __future__ import annotations
 
-import hashlib
 import json
 from pathlib import Path
 from typing import Any, Callable
@@ -19,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 import pipeline
 from pipeline.errors import UserError
+from pipeline.provenance import json_sha256, paths_sha256
 
 STATE_DIR = Path("outputs/.workflow")
 
@@ -45,21 +45,6 @@ def _stage_functions() -> dict[str, Callable[..., Any]]:
     return STAGES
 
 
-def hash_paths(paths: list[Path]) -> str:
-    """sha256 over the names and bytes of every file under ``paths`` (sorted, deterministic)."""
-    digest = hashlib.sha256()
-    for root in paths:
-        files = sorted(p for p in root.rglob("*") if p.is_file()) if root.is_dir() else [root]
-        if not root.exists():
-            digest.update(f"missing:{root}".encode())
-        for file in files:
-            digest.update(str(file).encode())
-            with open(file, "rb") as handle:
-                for block in iter(lambda: handle.read(1 << 20), b""):
-                    digest.update(block)
-    return digest.hexdigest()
-
-
 def load_workflow(path: Path) -> WorkflowSpec:
     if not path.is_file():
         raise UserError(f"workflow file not found: {path}")
@@ -80,9 +65,8 @@ def run_workflow(path: Path, *, force: bool = False, echo: Callable[[str], None]
                             f"(known: {', '.join(sorted(functions))})")
     for stage in spec.stages:
         hashed = list(stage.inputs) + ([stage.config] if stage.config else [])
-        key = hashlib.sha256(json.dumps(
-            {"inputs": hash_paths(hashed), "args": stage.args, "version": pipeline.__version__},
-            sort_keys=True, default=str).encode()).hexdigest()
+        key = json_sha256({"inputs": paths_sha256(hashed), "args": stage.args,
+                           "version": pipeline.__version__})
         state_file = STATE_DIR / spec.name / f"{stage.stage}.json"
         missing = [str(out) for out in stage.outputs if not out.exists()]
         state = json.loads(state_file.read_text()) if state_file.is_file() else {}

@@ -9,7 +9,6 @@ here; each extension parameter's bounds and unit are checked where the extension
 
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, Optional
@@ -20,6 +19,7 @@ from pydantic import BaseModel, Field, ValidationError
 from pipeline.config.loader import describe_error
 from pipeline.config.physics import MaterialConfig, StrictModel
 from pipeline.errors import UserError
+from pipeline.provenance import text_sha256
 
 FORMAT = "whisker-model/1"
 
@@ -114,7 +114,7 @@ def read_model_file(path: str | Path) -> LoadedModelFile:
         errors = exc.errors()
         more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
         raise UserError(describe_error(errors[0], f"model file {path}") + more) from None
-    return LoadedModelFile(path.resolve(), text, hashlib.sha256(text.encode()).hexdigest(), content)
+    return LoadedModelFile(path.resolve(), text, text_sha256(text), content)
 
 
 def write_model_file(path: str | Path, model: ModelFile) -> Path:

@@ -81,6 +81,13 @@ class ScenesConfig(StrictModel):
         return names
 
 
+# Why a candidate pose is rejected: the acceptance rules of PoseSamplingConfig in the order
+# pipeline.scenes.poses checks them (the first that fails names the rejection). Datasets store
+# the rejection counts per trial in this order.
+POSE_REJECTION_REASONS = ("behind_surface", "head_in_surface", "surface_near_base", "starts_in_surface",
+                          "too_few_whiskers")
+
+
 class PoseSamplingConfig(StrictModel):
     """Head poses relative to a mesh so that the array touches it, but not too hard.
 

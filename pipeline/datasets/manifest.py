@@ -6,7 +6,6 @@ versions are never modified). ``verify`` re-hashes the files against it.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import stat
@@ -14,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from pipeline.datasets.schema import MANIFEST_FILE, SCHEMA, SCHEMA_VERSION
+from pipeline.provenance import file_sha256
 
 
 def _files(folder: Path) -> list[Path]:
@@ -22,15 +22,10 @@ def _files(folder: Path) -> list[Path]:
                   and not any(part.startswith(".") for part in p.relative_to(folder).parts))
 
 
-def sha256(path: Path) -> str:
-    with open(path, "rb") as handle:
-        return hashlib.file_digest(handle, "sha256").hexdigest()
-
-
 def write_manifest(folder: Path, summary: dict[str, Any]) -> Path:
     """Hash every file, write the manifest atomically, then make the version read-only."""
     folder = Path(folder)
-    files = {str(p.relative_to(folder)): {"sha256": sha256(p), "bytes": p.stat().st_size}
+    files = {str(p.relative_to(folder)): {"sha256": file_sha256(p), "bytes": p.stat().st_size}
              for p in _files(folder)}
     data = {"schema": SCHEMA, "schema_version": SCHEMA_VERSION, "status": "complete",
             "summary": summary, "files": files}
@@ -58,5 +53,5 @@ def verify(folder: Path) -> list[str]:
     problems = [f"missing: {name}" for name in sorted(set(listed) - present)]
     problems += [f"not in the manifest: {name}" for name in sorted(present - set(listed))]
     problems += [f"changed: {name}" for name in sorted(set(listed) & present)
-                 if sha256(folder / name) != listed[name]["sha256"]]
+                 if file_sha256(folder / name) != listed[name]["sha256"]]
     return problems

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
 
+from pipeline.config.simulate import POSE_REJECTION_REASONS
 from pipeline.model.outputs import SIGNAL_UNITS
-from pipeline.scenes.poses import REASONS as POSE_REJECTION_REASONS
 
 SCHEMA = "whisker-pipeline/dataset"
 SCHEMA_VERSION = 1

@@ -48,14 +48,13 @@ def _rank_one(prepared: PreparedTrial):
 
 
 def _pose_for(direction: np.ndarray):
-    """Head pose whose rotation takes the measurement's gravity direction to world −z."""
-    from scipy.spatial.transform import Rotation
-
+    """Head pose whose rotation is the smallest one taking the measurement's gravity direction
+    to world −z (the transpose of the one taking z onto −direction), and that rotation."""
     from pipeline.model.kinematics import Pose
+    from pipeline.model.rotations import yaw_pitch_roll, z_onto
 
-    rot, _ = Rotation.align_vectors([[0.0, 0.0, -1.0]], [direction])
-    yaw, pitch, roll = rot.as_euler("ZYX")
-    return Pose((0.0, 0.0, 0.0), (yaw, pitch, roll)), rot.as_matrix()
+    rotation = z_onto(-np.asarray(direction, float)).T
+    return Pose((0.0, 0.0, 0.0), yaw_pitch_roll(rotation)), rotation
 
 
 class EngineSimulator:

@@ -22,7 +22,7 @@ def model_file(spec: ModelSpec, params: dict, data: list[Path], fit: dict) -> Mo
     """The model file of ``spec`` with the uncertainties of the fitted ``params``
     (``{name: {value, sd, unit}}``, names as in :mod:`.parameters`), fitted to the files ``data``;
     ``fit``: the :class:`~pipeline.config.model_file.FitSummary` fields."""
-    from pipeline.datasets.manifest import sha256
+    from pipeline.provenance import file_sha256
     from pipeline.provenance import describe_environment
 
     extensions = {
@@ -35,7 +35,7 @@ def model_file(spec: ModelSpec, params: dict, data: list[Path], fit: dict) -> Mo
         extensions=extensions,
         provenance=ModelProvenance(
             created_utc=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), command=list(sys.argv),
-            data=[DataFile(path=str(Path(p).resolve()), sha256=sha256(Path(p))) for p in data],
+            data=[DataFile(path=str(Path(p).resolve()), sha256=file_sha256(Path(p))) for p in data],
             packages=describe_environment(), fit=FitSummary(**fit)))
 
 

@@ -175,10 +175,8 @@ class FreeMotion:
 
     def select(self, drive, samples: int, depends_on_pose: bool) -> None:
         """Trials from now on use ``drive`` for ``samples`` samples; forget other drives' motions."""
-        import hashlib
-
-        key = None if depends_on_pose else (drive.interpolation, samples, hashlib.sha1(
-            drive.time_s.tobytes() + drive.angle_rad.tobytes()).hexdigest())
+        key = None if depends_on_pose else (drive.interpolation, samples, drive.time_s.tobytes(),
+                                            drive.angle_rad.tobytes())
         if key != self.key or key is None:
             self.key, self.motions = key, {}
 

@@ -28,8 +28,9 @@ import numpy as np
 from pipeline.config.meshes import MeshConfig
 from pipeline.errors import UserError
 from pipeline.meshes.io import SUPPORTED_SUFFIXES, write_obj
-from pipeline.meshes.manifest import (file_sha256, is_current, load_manifest, parameters_key,
-                                      scan_parameters, versions, write_manifest)
+from pipeline.meshes.manifest import (is_current, load_manifest, parameters_key, scan_parameters, versions,
+                                      write_manifest)
+from pipeline.provenance import file_sha256
 
 CONFIG_ENV_PREFIX = "PIPELINE_MESHES_"
 DEFAULT_CONFIG = Path("configs/meshes.yaml")

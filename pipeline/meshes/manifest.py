@@ -7,7 +7,6 @@ output's sha256 and bounding box in metres; failed scans hold their error messag
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 from importlib import metadata
@@ -16,17 +15,10 @@ from typing import Any
 
 import pipeline
 from pipeline.config.meshes import MeshConfig
+from pipeline.provenance import file_sha256, json_sha256
 
 MANIFEST_NAME = "manifest.json"
 FORMAT = "whisker-pipeline meshes/1"
-
-
-def file_sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as handle:
-        for block in iter(lambda: handle.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def versions() -> dict[str, str]:
@@ -52,8 +44,7 @@ def scan_parameters(config: MeshConfig, name: str) -> dict[str, Any]:
 
 
 def parameters_key(params: dict[str, Any], library_versions: dict[str, str]) -> str:
-    text = json.dumps({"parameters": params, "versions": library_versions}, sort_keys=True)
-    return hashlib.sha256(text.encode()).hexdigest()
+    return json_sha256({"parameters": params, "versions": library_versions})
 
 
 def load_manifest(out_dir: Path) -> dict[str, Any]:

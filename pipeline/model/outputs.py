@@ -48,6 +48,10 @@ class TrialOutput:
         first = np.argmax(self.contact, axis=2).astype(np.float32) / self.links
         return np.where(touching, first, np.nan).astype(np.float32)
 
+    def whiskers_in_contact(self) -> int:
+        """How many whiskers touched something at least once during the trial."""
+        return int(self.contact.any(axis=(0, 2)).sum())
+
     def moment_magnitude(self) -> np.ndarray:
         """[T, W] M = √(Mx² + My² + Mz²) (eq. 10), N·m."""
         return np.linalg.norm(self.base_wrench[..., 3:], axis=-1)

@@ -38,6 +38,19 @@ def rotation_zyx(yaw, pitch, roll) -> np.ndarray:
     return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
 
 
+def yaw_pitch_roll(matrix) -> tuple[float, float, float]:
+    """(yaw, pitch, roll) in rad of a rotation matrix: the inverse of :func:`rotation_zyx`. At
+    pitch ±π/2 (gimbal lock) roll is 0 and yaw carries the rest; the matrix is still exact."""
+    import warnings
+
+    from scipy.spatial.transform import Rotation
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "Gimbal lock detected")
+        angles = Rotation.from_matrix(np.asarray(matrix, float)).as_euler("ZYX")
+    return tuple(float(a) for a in angles)
+
+
 def skew(v) -> np.ndarray:
     """[..., 3, 3] matrix of v × (·)."""
     v = np.asarray(v, float)

@@ -20,6 +20,7 @@ from pipeline.model.array import single_whisker
 from pipeline.model.extensions import model_parts
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.outputs import TrialOutput
+from pipeline.model.rotations import rot_z
 from pipeline.model.whisker import WhiskerGeometry
 from pipeline.scenes import collision_edge
 
@@ -54,9 +55,7 @@ def edge_scene(geometry: WhiskerGeometry, angle_rad: float = START_GAP_RAD):
     x = radius
     y = geometry.curvature_per_m * x ** 2
     start = np.array([x, y, 0.0])
-    rotation = np.array([[np.cos(angle_rad), -np.sin(angle_rad), 0],
-                         [np.sin(angle_rad), np.cos(angle_rad), 0], [0, 0, 1]])
-    point = rotation @ start
+    point = rot_z(angle_rad) @ start
     radial = point / np.linalg.norm(point)
     tangent = np.cross([0, 0, 1.0], radial)
     horizontal = np.cos(np.pi / 4) * radial + np.sin(np.pi / 4) * tangent

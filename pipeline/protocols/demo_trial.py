@@ -45,7 +45,7 @@ def whisk_beside_meshes(config_path: str | Path | None, meshes: str = "outputs/m
         recording = write_recording(Path(out) / f"{path.stem}.rrd", output, scene, Pose(),
                                     recording_id=f"demo-{path.stem}", title=f"whisking beside {path.stem}")
         summary[path.stem] = {"recording": str(recording),
-                              "whiskers_in_contact": int(output.contact.any(axis=(0, 2)).sum()),
+                              "whiskers_in_contact": output.whiskers_in_contact(),
                               "cpu_seconds": round(output.metadata["cpu_seconds"], 1)}
     (Path(out) / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary

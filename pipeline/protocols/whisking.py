@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from functools import cached_property
+
 from pipeline.config.physics import ModelConfig
 from pipeline.errors import UserError
-from pipeline.model.array import build_array
+from pipeline.model.array import ArrayModel, build_array
 from pipeline.model.extensions import model_parts
 from pipeline.model.kinematics import Pose, ProtractionDrive, sinusoidal_whisk, still
 from pipeline.model.morphology import load_morphology
@@ -32,16 +34,49 @@ def default_drive(scene: Scene, config: ModelConfig, duration_s: float) -> Protr
     return sinusoidal_whisk(w.frequency_hz, w.protraction_deg, w.retraction_deg, duration_s)
 
 
+class Whisking:
+    """The configured array (or the selection ``whiskers`` of it) on one engine, both built on
+    first use and kept for any number of trials; :meth:`close` (or a ``with`` block) frees the
+    engine."""
+
+    def __init__(self, config: ModelConfig, whiskers: str | None = None):
+        self.config, self.whiskers = config, whiskers or config.whiskers
+        self._engine = None
+
+    @cached_property
+    def array(self) -> ArrayModel:
+        morphology = load_morphology(self.config.morphology).select(self.whiskers)
+        if len(morphology) == 0:
+            raise UserError(f"no whiskers selected by '{self.whiskers}'")
+        return build_array(morphology, *model_parts(self.config))
+
+    @property
+    def engine(self):
+        if self._engine is None:
+            from pipeline.engines import create_engine
+
+            self._engine = create_engine(self.config, self.array)
+        return self._engine
+
+    def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float) -> TrialOutput:
+        """One trial: the array follows ``drive`` for ``duration_s`` (s) in ``scene`` at ``pose``."""
+        return self.engine.run(scene, pose, drive, duration_s)
+
+    def close(self) -> None:
+        if self._engine is not None:
+            self._engine.close()
+            self._engine = None
+
+    def __enter__(self) -> "Whisking":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
 def run_trial(config: ModelConfig, scene: Scene, pose: Pose = Pose(), duration_s: float | None = None,
               whiskers: str | None = None, drive: ProtractionDrive | None = None) -> TrialOutput:
     """Build the configured array (or a selection of it) and run one trial on a new engine."""
-    from pipeline.engines import create_engine
-
     duration_s = config.whisk.duration_s if duration_s is None else duration_s
-    morphology = load_morphology(config.morphology).select(whiskers or config.whiskers)
-    if len(morphology) == 0:
-        raise UserError(f"no whiskers selected by '{whiskers or config.whiskers}'")
-    material, extensions = model_parts(config)
-    array = build_array(morphology, material, extensions)
-    with create_engine(config, array) as engine:
-        return engine.run(scene, pose, drive or default_drive(scene, config, duration_s), duration_s)
+    with Whisking(config, whiskers) as whisking:
+        return whisking.run(scene, pose, drive or default_drive(scene, config, duration_s), duration_s)

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS, TrialOutput
+from pipeline.model.rotations import quat_xyzw
 from pipeline.recordings.blueprint import make_blueprint
 from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
 
@@ -99,50 +100,41 @@ def _log_world(rec, output: TrialOutput, scene: Scene, pose: "Pose") -> None:
     _log_whiskers(rec, output)
 
 
-def _rotation_z_to(axis):
-    """Rotation taking +z (rerun's cylinder axis) onto ``axis``."""
+def _quaternion(obstacle):
     import rerun as rr
 
-    a = np.asarray(axis, float)
-    a = a / np.linalg.norm(a)
-    cross = np.cross([0.0, 0.0, 1.0], a)
-    s, c = np.linalg.norm(cross), a[2]
-    if s < 1e-12:
-        return rr.RotationAxisAngle(axis=[1.0, 0.0, 0.0], radians=0.0 if c > 0 else np.pi)
-    return rr.RotationAxisAngle(axis=cross / s, radians=float(np.arctan2(s, c)))
+    return rr.Quaternion(xyzw=quat_xyzw(obstacle.rotation))
 
 
-def _vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    v = vertices[faces]
-    face_normals = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])   # area-weighted
-    normals = np.zeros_like(vertices)
-    for k in range(3):
-        np.add.at(normals, faces[:, k], face_normals)
-    length = np.linalg.norm(normals, axis=1, keepdims=True)
-    return (normals / np.where(length > 0, length, 1.0)).astype(np.float32)
+def _cylinder(peg: Cylinder):
+    import rerun as rr
+
+    return rr.Cylinders3D(lengths=[peg.length_m], radii=[peg.radius_m], centers=[peg.position_m],
+                          quaternions=[_quaternion(peg)], colors=[OBSTACLE_COLOUR], fill_mode="solid")
+
+
+def _box(box: Box):
+    import rerun as rr
+
+    return rr.Boxes3D(half_sizes=[box.half_extents_m], centers=[box.position_m],
+                      quaternions=[_quaternion(box)], colors=[OBSTACLE_COLOUR], fill_mode="solid")
+
+
+def _mesh(mesh: TriangleMesh):
+    import rerun as rr
+
+    return rr.Mesh3D(vertex_positions=np.asarray(mesh.vertices_m, np.float32),
+                     triangle_indices=np.asarray(mesh.faces, np.uint32),
+                     vertex_normals=np.asarray(mesh.vertex_normals, np.float32), albedo_factor=MESH_COLOUR)
+
+
+SHAPES = {Cylinder: _cylinder, Box: _box, TriangleMesh: _mesh}
 
 
 def _log_obstacle(rec, entity: str, obstacle, time_s: np.ndarray) -> None:
     import rerun as rr
-    from scipy.spatial.transform import Rotation
 
-    if isinstance(obstacle, Cylinder):
-        shape = rr.Cylinders3D(lengths=[obstacle.length_m], radii=[obstacle.radius_m],
-                               centers=[obstacle.position_m],
-                               rotation_axis_angles=[_rotation_z_to(obstacle.axis)],
-                               colors=[OBSTACLE_COLOUR], fill_mode="solid")
-    elif isinstance(obstacle, Box):
-        quaternion = Rotation.from_matrix(np.asarray(obstacle.rotation, float)).as_quat()  # xyzw
-        shape = rr.Boxes3D(half_sizes=[obstacle.half_extents_m], centers=[obstacle.position_m],
-                           quaternions=[rr.Quaternion(xyzw=quaternion)],
-                           colors=[OBSTACLE_COLOUR], fill_mode="solid")
-    elif isinstance(obstacle, TriangleMesh):
-        vertices = np.asarray(obstacle.vertices_m, np.float32)
-        faces = np.asarray(obstacle.faces, np.uint32)
-        shape = rr.Mesh3D(vertex_positions=vertices, triangle_indices=faces,
-                          vertex_normals=_vertex_normals(vertices, faces), albedo_factor=MESH_COLOUR)
-    else:
-        raise TypeError(f"unknown obstacle type {type(obstacle).__name__}")
+    shape = SHAPES[type(obstacle)](obstacle)
     rec.log(entity, shape, static=True, strict=True)
     velocity = np.asarray(obstacle.velocity_m_s, float)
     if np.any(velocity != 0.0):

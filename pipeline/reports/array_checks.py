@@ -19,8 +19,7 @@ import numpy as np
 from pipeline.config.physics import ModelConfig
 from pipeline.errors import UserError
 from pipeline.model.kinematics import Pose
-from pipeline.model.morphology import load_morphology
-from pipeline.protocols.whisking import default_drive, run_trial
+from pipeline.protocols.whisking import Whisking, default_drive, run_trial
 from pipeline.reports import published as P
 from pipeline.reports.checks import Section, check, spearman
 from pipeline.reports.stats import contact_runs
@@ -48,8 +47,6 @@ def natural_scene(mesh: Path | None, config: ModelConfig, whiskers, drive) -> tu
     """(scene, head pose, note): the mesh (or the synthetic drainpipe) with a sampled pose facing
     the right side."""
     from pipeline.config.simulate import PoseSamplingConfig
-    from pipeline.model.array import build_array
-    from pipeline.model.extensions import model_parts
     from pipeline.scenes.library import load_mesh
     from pipeline.scenes.poses import PoseSampler, PoseSamplingError
 
@@ -64,7 +61,7 @@ def natural_scene(mesh: Path | None, config: ModelConfig, whiskers, drive) -> tu
     else:
         path = Path(mesh) if mesh is not None else DEFAULT_MESH
         surface, name, source = load_mesh(path), path.stem, path.name
-    array = build_array(load_morphology(config.morphology).select(list(whiskers)), *model_parts(config))
+    array = Whisking(config, ",".join(whiskers)).array  # the array that run_scenes whisks
     sampling = PoseSamplingConfig(right_side_probability=1.0, heading_deg=0.0, pitch_deg=0.0, roll_deg=0.0,
                                   min_whiskers_reaching=max(1, (len(whiskers) + 1) // 2), max_attempts=5000)
     theta = drive(np.linspace(0.0, drive.duration_s, 200))

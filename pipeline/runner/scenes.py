@@ -10,8 +10,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pipeline.config.simulate import ScenesConfig
-from pipeline.datasets.manifest import sha256
 from pipeline.errors import UserError
+from pipeline.provenance import file_sha256
 from pipeline.scenes.obstacles import Scene
 
 
@@ -48,7 +48,7 @@ def mesh_files(folder: Path) -> list[Path]:
 def _mesh_entry(path: Path) -> SceneEntry:
     if not path.is_file():
         raise UserError(f"mesh not found: {path} (build meshes with `pipeline build-meshes`)")
-    return SceneEntry(f"mesh:{path.stem}", str(path.resolve()), sha256(path))
+    return SceneEntry(f"mesh:{path.stem}", str(path.resolve()), file_sha256(path))
 
 
 def scene_catalogue(config: ScenesConfig) -> tuple[SceneEntry, ...]:

@@ -9,8 +9,6 @@ shards into a new version.
 
 from __future__ import annotations
 
-import hashlib
-import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +16,7 @@ from pathlib import Path
 from pipeline.config.simulate import SimulateConfig
 from pipeline.datasets.versions import SHARDS_DIR
 from pipeline.errors import UserError
+from pipeline.provenance import json_sha256
 
 
 @dataclass(frozen=True)
@@ -46,8 +45,7 @@ def plan_fields(config: SimulateConfig) -> dict:
 
 
 def run_id(config: SimulateConfig) -> str:
-    text = json.dumps(plan_fields(config), sort_keys=True)
-    return hashlib.sha256(text.encode()).hexdigest()[:12]
+    return json_sha256(plan_fields(config))[:12]
 
 
 def shard_folder(config: SimulateConfig, shard: Shard) -> Path:

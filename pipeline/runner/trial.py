@@ -4,8 +4,9 @@ Trial i uses scene i mod (number of scenes) and draws, from ``numpy.random.defau
 i])`` and in this order, its whisk (duration, frequency, protraction, retraction) and, for a
 mesh scene, its head pose (:mod:`pipeline.scenes.poses`); fixed scenes sit at the identity
 pose. The passive-peg scene has no whisking (MODEL.md §5). A :class:`Simulator` keeps one
-engine, the loaded scenes and pose samplers per process, built on first use; a trial that
-raises comes back as a failed record carrying the error, never as an exception.
+:class:`~pipeline.protocols.whisking.Whisking` (array and engine), the loaded scenes and pose
+samplers per process, built on first use; a trial that raises comes back as a failed record
+carrying the error, never as an exception.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from pipeline.datasets.schema import FAILED, OK, TrialRecord
 from pipeline.datasets.writer import Layout, trial_arrays
 from pipeline.errors import UserError
 from pipeline.model.kinematics import Pose, ProtractionDrive, sinusoidal_whisk, still
+from pipeline.protocols.whisking import Whisking
 from pipeline.runner.scenes import SceneEntry
 from pipeline.scenes.poses import PoseSampler, PoseSamplingError
 
@@ -82,30 +84,9 @@ class Simulator:
 
     def __init__(self, spec: RunSpec):
         self.spec = spec
-        self._array = None
-        self._engine = None
+        self.whisking = Whisking(spec.config.model)
         self._scenes: dict[str, object] = {}
         self._samplers: dict[str, object] = {}
-
-    @property
-    def array(self):
-        if self._array is None:
-            from pipeline.model.array import build_array
-            from pipeline.model.extensions import model_parts
-            from pipeline.model.morphology import load_morphology
-
-            model = self.spec.config.model
-            self._array = build_array(load_morphology(model.morphology).select(model.whiskers),
-                                      *model_parts(model))
-        return self._array
-
-    @property
-    def engine(self):
-        if self._engine is None:
-            from pipeline.engines import create_engine
-
-            self._engine = create_engine(self.spec.config.model, self.array)
-        return self._engine
 
     def scene(self, entry: SceneEntry):
         if entry.name not in self._scenes:
@@ -115,7 +96,7 @@ class Simulator:
     def sampler(self, entry: SceneEntry):
         if entry.name not in self._samplers:
             mesh = self.scene(entry).obstacles[0]
-            self._samplers[entry.name] = PoseSampler(mesh, self.array, self.spec.config.poses)
+            self._samplers[entry.name] = PoseSampler(mesh, self.whisking.array, self.spec.config.poses)
         return self._samplers[entry.name]
 
     def run(self, index: int) -> TrialResult:
@@ -140,10 +121,10 @@ class Simulator:
                 record.pose_rejections = tuple(sample.rejections.values())
             record.pose_position_m, record.pose_euler_zyx_rad = pose.position_m, pose.yaw_pitch_roll_rad
             record.sampling_seconds = time.perf_counter() - start_wall
-            output = self.engine.run(scene, pose, drive, whisk["duration_s"])
+            output = self.whisking.run(scene, pose, drive, whisk["duration_s"])
             record.physics_cpu_seconds = output.metadata["cpu_seconds"]
             record.samples = len(output.time_s)
-            record.whiskers_in_contact = int(output.contact.any(axis=(0, 2)).sum())
+            record.whiskers_in_contact = output.whiskers_in_contact()
             arrays = trial_arrays(output, drive(output.time_s), spec.layout)
             every = config.cluster.record_every
             if spec.recordings and every and index % every == 0:
@@ -168,6 +149,4 @@ class Simulator:
         return time.perf_counter() - start
 
     def close(self) -> None:
-        if self._engine is not None:
-            self._engine.close()
-            self._engine = None
+        self.whisking.close()

@@ -148,7 +148,7 @@ class TriangleMesh:
 
     @cached_property
     def vertex_normals(self) -> np.ndarray:
-        """[V, 3] unit outward normals at the vertices (area-weighted face normals)."""
+        """[V, 3] unit outward normals at the vertices (trimesh: face normals weighted by angle)."""
         import trimesh
 
         return trimesh.Trimesh(self.vertices_m, self.faces, process=False).vertex_normals

@@ -28,12 +28,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pipeline.config.simulate import PoseSamplingConfig
+from pipeline.config.simulate import POSE_REJECTION_REASONS as REASONS, PoseSamplingConfig
 from pipeline.model.array import ArrayModel
 from pipeline.model.kinematics import Pose
 from pipeline.scenes.obstacles import TriangleMesh
-
-REASONS = ("behind_surface", "head_in_surface", "surface_near_base", "starts_in_surface", "too_few_whiskers")
 
 
 @dataclass(frozen=True)
