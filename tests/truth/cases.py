@@ -4,8 +4,10 @@ A case: one cause (or none), its magnitude, a whisker (20–50 mm, curved or str
 diameter after Belli et al. 2017 eq. 2 ±10 %, tip/base 0.15–0.35, E 3–8 GPa, first-mode
 damping ratio 0.05–0.2), tracking (noise 20–100 µm, up to 5 % lost frames and 3 % lost
 point-frames, 1 kHz, 0.25 s) and four in-plane trials: two Gaussian pulses of 45–60° whose
-width σ (8–30 ms, abrupt stop at 5.12σ like the paper's 0.128 s for σ = 25 ms) sets how much
-they bend the whisker, and two releases from 4–12 % of S at 70 % and 50 % of the arc.
+width σ sets how much they bend the whisker (σ·f₁ log-uniform in 0.45–1.5, f₁ the true
+whisker's first mode: the tip leaves the rigidly rotated rest shape by ≈ 3–40 % of S; abrupt
+stop at 5.12σ like the paper's 0.128 s for σ = 25 ms), and two releases from 4–12 % of S at
+70 % and 50 % of the arc.
 
 Causes and what a correct diagnosis says: each effect of the product's candidate list by its
 name; ``drag_quadratic`` (C_d only) as ``drag``; ``density_scale`` (a uniform density
@@ -19,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .record import PulseTrial, ReleaseTrial, Tracking
+from .rod import Rod
 from .whisker import DENSITY_BASE_KG_M3, DENSITY_TIP_KG_M3, Effects, TruthWhisker
 
 CAUSES = ("none", "follicle", "stiffness_gradient", "damping_gradient", "density", "length", "drag",
@@ -115,12 +118,13 @@ def draw_case(cause: str, seed: int, elements: int = 100, duration_s: float = 0.
                            elements)
     tracking = Tracking(noise_m=rng.uniform(20e-6, 100e-6), lost_frames=rng.uniform(0, 0.05),
                         lost_points=rng.uniform(0, 0.03), duration_s=duration_s)
-    sigmas = rng.uniform(0.008, 0.030, 2)
+    fields, truth = _effect(cause, rng, whisker)
+    whisker = whisker.with_effects(**fields)
+    f1 = Rod(whisker).natural_frequencies(1)[0]
+    sigmas = 10 ** rng.uniform(np.log10(0.45), np.log10(1.5), 2) / f1
     trials = (PulseTrial("pulse_a", np.radians(rng.uniform(45, 60)), sigmas[0], 5.12 * sigmas[0]),
               ReleaseTrial("release_a", 0.7, rng.uniform(0.04, 0.12)),
               PulseTrial("pulse_b", np.radians(rng.uniform(45, 60)), sigmas[1], 5.12 * sigmas[1]),
               ReleaseTrial("release_b", 0.5, -rng.uniform(0.04, 0.12)))
-    fields, truth = _effect(cause, rng, whisker)
-    whisker = whisker.with_effects(**fields)
     truth = {"E": whisker.youngs_modulus_pa, "zeta1": whisker.zeta1, **truth}
     return Case(cause, seed, whisker, trials, tracking, truth)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.integrate import solve_ivp
+from scipy.linalg import solve_banded
 from scipy.sparse import lil_matrix
 
 from .whisker import AIR_DENSITY_KG_M3, Discretised, TruthWhisker, discretise
@@ -140,7 +141,7 @@ class Rod:
         """Tangent stiffness K = −∂F/∂q [2n, 2n] at ``q`` (rest by default) and lumped mass."""
         q = self.rest_state() if q is None else q
         zero = np.zeros_like(q)
-        k = -_jacobian(lambda x: self.forces(x.reshape(-1, 2), zero, 0.0, 0.0).ravel(), q.ravel())
+        k = -_jacobian(lambda x: self.forces(x.reshape(-1, 2), zero, 0.0, 0.0).ravel(), q.ravel(), band=2)
         return k, np.repeat(self.d.node_mass, 2)
 
     def natural_frequencies(self, count: int = 3) -> np.ndarray:
@@ -190,27 +191,38 @@ class Rod:
         return out
 
 
-def _jacobian(fun, x, step=None):
-    f0 = fun(x)
-    h = step if step is not None else 1e-9 * max(np.abs(x).max(), 1e-3)
-    jac = np.empty((f0.size, x.size))
-    for j in range(x.size):
-        xp, xm = x.copy(), x.copy()
-        xp[j] += h
-        xm[j] -= h
-        jac[:, j] = (fun(xp) - fun(xm)) / (2 * h)
+def _jacobian(fun, x, band=None):
+    """Central-difference Jacobian of ``fun`` at ``x``. With ``band`` (nodes), x holds (x, y)
+    per node and a node's value depends only on nodes within ``band``: columns are perturbed
+    in groups of nodes 2·band + 1 apart."""
+    h = 1e-9 * max(np.abs(x).max(), 1e-3)
+    size = x.size
+    jac = np.zeros((size, size))
+    stride = 2 * (2 * band + 1) if band is not None else size
+    node = np.arange(size) // 2
+    for start in range(min(stride, size)):
+        columns = np.arange(start, size, stride)
+        step = np.zeros(size)
+        step[columns] = h
+        diff = (fun(x + step) - fun(x - step)) / (2 * h)
+        for j in columns:
+            rows = np.abs(node - node[j]) <= band if band is not None else slice(None)
+            jac[rows, j] = diff[rows]
     return jac
 
 
-def _newton(residual, x, tol=1e-10, iterations=50):
-    scale = None
+def _newton(residual, x, tol=1e-9, iterations=30):
+    scale = max(np.abs(x).max(), 1e-6)
     for _ in range(iterations):
         r = residual(x)
-        jac = _jacobian(residual, x)
-        dx = np.linalg.solve(jac, -r)
+        jac = _jacobian(residual, x, band=2)
+        width = 5                                   # (x, y) of nodes within two: 5 diagonals each side
+        banded = np.zeros((2 * width + 1, x.size))
+        for offset in range(-width, width + 1):
+            diagonal = np.diagonal(jac, offset)
+            banded[width - offset, max(offset, 0):max(offset, 0) + diagonal.size] = diagonal
+        dx = solve_banded((width, width), banded, -r)
         x = x + dx
-        if scale is None:
-            scale = max(np.abs(x).max(), 1e-6)
         if np.abs(dx).max() < tol * scale:
             return x
     raise RuntimeError("truth statics: Newton did not converge")
