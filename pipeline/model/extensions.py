@@ -36,7 +36,7 @@ from pipeline.model.whisker import WhiskerChain, WhiskerGeometry, build_chain
 
 GRAVITY_M_S2 = 9.81
 AIR_DENSITY_KG_M3 = 1.2
-MIN_TIP_RADIUS_M = 1.5e-6        # MODEL.md §3: tip radius floor
+MIN_TIP_RADIUS_M = 1.5e-6        # docs/model.md §3: tip radius floor
 
 
 @dataclass(frozen=True)
@@ -169,7 +169,7 @@ class DampingGradient(Extension):
 
 @dataclass(frozen=True)
 class DensityChange(Extension):
-    """Density scale and gradient on top of the nominal ramp ρ_0(s) (MODEL.md §2):
+    """Density scale and gradient on top of the nominal ramp ρ_0(s) (docs/model.md §2):
     ρ(s) = scale·ρ_0(s)·exp(gradient·(s/S − ½)). Link masses and inertias scale with ρ at the
     link centre; centres of mass do not move. Both dimensionless.
 
