@@ -85,13 +85,13 @@ def run_one(k: int, seed0: int, workdir: Path) -> dict:
 
 def _table(rows) -> list[str]:
     lines = ["confusion (rows: true cause, columns: named cause)", "",
-             f"{'':>16} " + " ".join(f"{n[:7]:>7}" for n in NAMED) + "  right"]
+             f"{'':>18} " + " ".join(f"{n[:7]:>7}" for n in NAMED) + "  right"]
     for cause in CAUSES:
         mine = [r for r in rows if r["cause"] == cause]
         if mine:
             counts = [sum(r["named"] == n for r in mine) for n in NAMED]
             right = sum(r["named"] == r["expected"] for r in mine)
-            lines.append(f"{cause:>16} " + " ".join(f"{c:>7d}" for c in counts) + f"  {right}/{len(mine)}")
+            lines.append(f"{cause:>18} " + " ".join(f"{c:>7d}" for c in counts) + f"  {right}/{len(mine)}")
     return lines
 
 

@@ -56,7 +56,7 @@ class Effects:
 class TruthWhisker:
     """Nominal geometry (what a lab measures) and the true material and effects (SI).
 
-    ``uniform``: constant density ρ_base and no taper allowed to differ (for beam-theory checks).
+    ``uniform_density``: ρ_base all along the arc (for beam-theory checks).
     """
 
     arc_length_m: float
@@ -170,8 +170,8 @@ def discretise(w: TruthWhisker) -> Discretised:
         bend_c[0] *= (k_total / bend_k[0]) ** 2
         bend_k = bend_k.copy()
         bend_k[0] = k_total
-    area = lambda x: w.modulus(x) * np.pi * w.radius(x) ** 2
-    axial_k = _integrate(area, s[:-1], s[1:]) / (s[1:] - s[:-1]) ** 2
+    axial_rigidity = lambda x: w.modulus(x) * np.pi * w.radius(x) ** 2      # E·A (N)
+    axial_k = _integrate(axial_rigidity, s[:-1], s[1:]) / (s[1:] - s[:-1]) ** 2
     axial_c = axial_k * w.damping_profile(mid)
     diameter = 2 * w.radius(mid)
     return Discretised(nodes, chords, turn, mass, bend_k, bend_c, axial_k, axial_c, follicle_c,
