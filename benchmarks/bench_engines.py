@@ -16,7 +16,7 @@ f1_tolerance 0.01 is the default (short whiskers step at dt_s/2^j); 0 steps ever
 dt_s = 10⁻⁴ s.
 
 Accuracy. f1 of every right-side whisker (``--accuracy-whiskers``; a left one is its mirror
-image) from the resonance pulse of MODEL.md §5, each whisker alone at its own step
+image) from the resonance pulse of docs/model.md §5, each whisker alone at its own step
 (f1_tolerance 0.01), sampled at 10 kHz so that the short whiskers' ~1 kHz rings are
 resolved; f1 = FFT peak of the tip's y after the stop. Reference: the damped first mode of
 the same chain in continuous time (the quadratic eigenproblem λ²M + λC + K of its in-plane

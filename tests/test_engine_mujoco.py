@@ -1,4 +1,4 @@
-"""The MuJoCo engine against the Bullet engine and the chain's own statics (MODEL.md §1, §2, §5)."""
+"""The MuJoCo engine against the Bullet engine and the chain's own statics (docs/model.md §1, §2, §5)."""
 
 import numpy as np
 import pytest
@@ -38,7 +38,7 @@ def test_resonance_f1_and_decrement_match_bullet(geometry):
 
 @pytest.mark.parametrize("follicle", ["rigid", "compliant"])
 def test_static_tip_load_gives_balancing_base_wrench(follicle):
-    """A tip load P along +y: follicle force −P, moment about the base −P·x_tip (MODEL.md §1)."""
+    """A tip load P along +y: follicle force −P, moment about the base −P·x_tip (docs/model.md §1)."""
     material = MaterialConfig(youngs_modulus_gpa=5.0, damping_ratio=1.0,
                               follicle=FollicleConfig(kind=follicle, stiffness_nm_per_rad=1e-4))
     load = 1e-6

@@ -1,4 +1,4 @@
-"""The Bullet engine against analytic and independent references (MODEL.md §1, §2, §5)."""
+"""The Bullet engine against analytic and independent references (docs/model.md §1, §2, §5)."""
 
 import numpy as np
 import pytest
@@ -19,7 +19,7 @@ ALPHA = WhiskerGeometry(29.6e-3, 60e-6, 17.5e-6)
 
 
 def test_static_tip_load_gives_balancing_base_wrench():
-    """A tip load P along +y: follicle force −P, moment about the base −P·x_tip (MODEL.md §1)."""
+    """A tip load P along +y: follicle force −P, moment about the base −P·x_tip (docs/model.md §1)."""
     material = MaterialConfig(youngs_modulus_gpa=5.0, damping_ratio=1.0)
     config = ModelConfig(material=material)
     load = 1e-6
@@ -49,7 +49,7 @@ def test_resonance_alpha_against_chain_and_continuum():
     assert result.f1_hz == pytest.approx(continuum, rel=0.03)
     # damped ringing of the same chain: ω_d = ω√(1−ζ²) with ζ ≈ 0.09, plus (hω)²/2 of the scheme
     assert result.f1_hz == pytest.approx(chain * np.sqrt(1 - result.damping_ratio ** 2), rel=0.005)
-    # eq. 3 at N = 20 gives a first-mode ζ of ≈ 0.08 (MODEL.md §2)
+    # eq. 3 at N = 20 gives a first-mode ζ of ≈ 0.08 (docs/model.md §2)
     assert 0.06 < result.damping_ratio < 0.11
 
 

@@ -1,4 +1,4 @@
-"""Refitting θ_E and θ_ζ on the paper's measured α and B1 resonances (MODEL.md §6)."""
+"""Refitting θ_E and θ_ζ on the paper's measured α and B1 resonances (docs/model.md §6)."""
 
 import json
 import subprocess

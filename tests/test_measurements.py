@@ -167,3 +167,42 @@ def test_synthetic_file_carries_no_trace_of_the_truth(tmp_path):
     assert loaded.geometry.arc_length_m == pytest.approx(0.030)          # the nominal length
     missing = np.isnan(loaded.trials[0].positions_m).any(axis=2).mean()
     assert 0.05 < missing < 0.15
+
+
+def _paper_pulse(rate_hz, stop_s=0.128, sigma_s=0.025):
+    t = np.arange(0, 0.25 + 0.5 / rate_hz, 1 / rate_hz)
+    angles = np.zeros((len(t), 3))
+    angles[:, 0] = np.radians(60) * np.exp(-0.5 * ((np.minimum(t, stop_s) - 4 * sigma_s) / sigma_s) ** 2)
+    return RotationDrive(t, angles)
+
+
+@pytest.mark.parametrize("rate_hz, stop_s, warned", [(1000, 0.128, True), (10_000, 0.128, False), (1000, 10.0, False)])
+def test_abrupt_stop_of_a_slow_drive_is_warned(tmp_path, rate_hz, stop_s, warned):
+    """The paper's pulse stopped abruptly (at ≈ 25 rad/s) and sampled at 1 kHz: the corner falls
+    between samples; at 10 kHz, or without the stop, there is nothing to warn about."""
+    import warnings
+
+    from pipeline.measurements.timeseries import DriveWarning
+
+    base = _measurement()
+    trial = Trial("pulse", base.trials[0].time_s, base.trials[0].arc_fraction, base.trials[0].positions_m,
+                  _paper_pulse(rate_hz, stop_s), 1000.0)
+    path = write_timeseries(tmp_path / "m.h5", TimeSeriesMeasurement("C2", GEOMETRY, (trial,)))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        loaded = load_timeseries(path)
+    messages = [str(w.message) for w in caught if issubclass(w.category, DriveWarning)]
+    assert len(messages) == len(loaded.warnings) == int(warned)
+    assert all("t = 0.128 s" in m and "1000 Hz" in m for m in messages)
+
+
+def test_negative_curvature_is_the_mirrored_whisker(tmp_path):
+    """docs/measurements.md: A < 0 is the same whisker with y toward its convex side."""
+    from dataclasses import replace
+
+    from pipeline.model.whisker import rest_nodes
+
+    mirrored = replace(_measurement(), geometry=WhiskerGeometry(30e-3, 60e-6, 15e-6, -10.0))
+    loaded = load_timeseries(write_timeseries(tmp_path / "m.h5", mirrored))
+    assert loaded.geometry.curvature_per_m == -10.0
+    np.testing.assert_allclose(rest_nodes(loaded.geometry, 20), rest_nodes(GEOMETRY, 20) * [1, -1, 1], atol=1e-12)

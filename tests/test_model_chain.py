@@ -76,7 +76,7 @@ def test_chain_converges_to_euler_bernoulli(geometry, continuum_hz):
 
 
 def test_paper_damping_ratio_falls_with_refinement():
-    """MODEL.md §2: eq. 3 gives a first-mode damping ratio that falls roughly as 1/√N."""
+    """docs/model.md §2: eq. 3 gives a first-mode damping ratio that falls roughly as 1/√N."""
     def first_mode_zeta(links, damping):
         chain = build_chain(ALPHA, links, 5e9, 1260, 1690, damping)
         freqs, shapes = planar_modes(chain)

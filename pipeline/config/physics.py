@@ -32,7 +32,7 @@ class FollicleConfig(StrictModel):
 
 
 class MaterialConfig(StrictModel):
-    """Material and discretisation of every whisker (MODEL.md §2)."""
+    """Material and discretisation of every whisker (docs/model.md §2)."""
 
     # Defaults refitted on the paper's measured α and B1 resonances (Table 1) with eq. 2 on the
     # link length, N = 20 and eq. 3 damping: E = 7.45 GPa, ζ = 0.118, MSA 0.048
@@ -68,7 +68,7 @@ class EngineConfig(StrictModel):
 
 
 class WhiskConfig(StrictModel):
-    """Default sinusoidal whisk (MODEL.md §4): protraction θ(t) about the head's z axis."""
+    """Default sinusoidal whisk (docs/model.md §4): protraction θ(t) about the head's z axis."""
 
     frequency_hz: float = Field(8.0, gt=0, le=30)
     protraction_deg: float = Field(35.0, ge=0, le=90)

@@ -66,7 +66,7 @@ class ScenesConfig(StrictModel):
 
     ``meshes`` = every mesh built in the scene folder (``--scenes``, a ``pipeline build-meshes``
     output), ``mesh:NAME`` one of them; ``peg-passive``, ``pegs-active``, ``wall`` the fixed
-    protocol scenes (MODEL.md §5), which are placed in the head frame (identity head pose).
+    protocol scenes (docs/model.md §5), which are placed in the head frame (identity head pose).
     """
 
     folder: Path = Field(Path("outputs/meshes"), description="folder of <name>.obj meshes (metres)")
@@ -119,7 +119,7 @@ class PoseSamplingConfig(StrictModel):
 
 
 class WhiskSamplingConfig(StrictModel):
-    """Each trial's protraction θ(t): a sinusoid (MODEL.md §4) with drawn parameters, or a table."""
+    """Each trial's protraction θ(t): a sinusoid (docs/model.md §4) with drawn parameters, or a table."""
 
     kind: Literal["sinusoid", "table"] = "sinusoid"
     frequency_hz: Annotated[Range, within(0.1, 30.0)] = Range(low=6.0, high=12.0)

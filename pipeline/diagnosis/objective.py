@@ -8,7 +8,7 @@ Every objective has ``residuals(spec)`` (the vector a least-squares optimiser se
 - :class:`FeatureObjective`: the paper's features of each trial's tip signal (eq. 4a for
   motor-driven trials, 4b for releases), residuals ln(sim/exp); error = MSA.
 - :class:`TableObjective`: resonance tables; each whisker is run through the resonance
-  protocol (MODEL.md §5) and f1, δ (and f2, f3 from the linear model's in-plane modes) are
+  protocol (docs/model.md §5) and f1, δ (and f2, f3 from the linear model's in-plane modes) are
   compared, residuals ln(sim/exp); error = MSA.
 """
 
@@ -109,7 +109,7 @@ def _median_ratios(pairs) -> tuple[float, float]:
 
 
 def protocol_trial(name: str) -> Trial:
-    """The resonance protocol (MODEL.md §5) as a trial: tip of a base pulse about z, 1 s at 1 kHz."""
+    """The resonance protocol (docs/model.md §5) as a trial: tip of a base pulse about z, 1 s at 1 kHz."""
     from pipeline.protocols.resonance import DURATION_S, pulse_drive
 
     drive = pulse_drive()

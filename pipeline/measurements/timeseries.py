@@ -11,12 +11,14 @@ the first problem; :func:`write_timeseries` is its inverse.
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from pipeline.errors import UserError
+from pipeline.measurements.drive_checks import drive_warnings
 from pipeline.model.whisker import WhiskerGeometry
 
 FORMAT = "whisker-pipeline/timeseries"
@@ -26,6 +28,10 @@ MAX_EXTENT_M = 0.2            # no rat whisker point is farther than this from i
 MAX_ANGLE_RAD = 2 * np.pi     # larger drive angles are almost surely degrees
 WRENCH_UNITS = "N,N,N,N*m,N*m,N*m"
 ANGLE_COLUMNS = "yaw_z,pitch_y,roll_x"
+
+
+class DriveWarning(UserWarning):
+    """A drive the fits can follow only approximately (e.g. an abrupt stop sampled at 1 kHz)."""
 
 
 @dataclass(frozen=True)
@@ -75,6 +81,7 @@ class TimeSeriesMeasurement:
     gravity_direction: np.ndarray = field(default_factory=lambda: np.array(DEFAULT_GRAVITY_DIRECTION))
     path: Path | None = None
     description: str = ""
+    warnings: tuple[str, ...] = ()     # about the data, found while loading (see drive_checks)
 
     def subset(self, names) -> "TimeSeriesMeasurement":
         from dataclasses import replace
@@ -251,8 +258,12 @@ def load_timeseries(path: str | Path) -> TimeSeriesMeasurement:
         trials = tuple(_load_trial(key, handle["trials"][key], _Where(path, key))
                        for key in handle["trials"])
         description = str(_attr(handle, "description", where, "description", default=""))
+    notes = tuple(f"{path}: {message}" for t in trials if isinstance(t.drive, RotationDrive)
+                  for message in drive_warnings(t.name, t.drive.time_s, t.drive.angles_rad, geometry.arc_length_m))
+    for note in notes:
+        warnings.warn(note, DriveWarning, stacklevel=2)
     return TimeSeriesMeasurement(name, geometry, trials, gravity / np.linalg.norm(gravity), path,
-                                 description)
+                                 description, notes)
 
 
 def write_timeseries(path: str | Path, measurement: TimeSeriesMeasurement) -> Path:

@@ -2,7 +2,7 @@
 
 Each whisker's base is turned by three driven joints (Z, then Y, then X) whose angles are
 ``rest_joint_angles + joint_rates·θ(t)`` for the protraction θ(t); the whisker frame is
-that rotation times ``frame_offset`` (MODEL.md §4, :mod:`pipeline.model.kinematics`).
+that rotation times ``frame_offset`` (docs/model.md §4, :mod:`pipeline.model.kinematics`).
 ``base_point_m`` is in the head frame, relative to the array origin (mean base point).
 """
 

@@ -13,7 +13,7 @@ class PaperDamping:
 
     M_n is the mass distal to node n and L_com,n the distance from node n to its centre of
     mass. Reproduces the paper at N = 20, but the first mode's damping ratio falls roughly
-    as 1/√N (MODEL.md §2): the same ζ means less damping on a finer chain.
+    as 1/√N (docs/model.md §2): the same ζ means less damping on a finer chain.
     """
 
     zeta: float

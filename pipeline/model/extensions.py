@@ -35,7 +35,7 @@ from pipeline.model.whisker import WhiskerChain, WhiskerGeometry
 if TYPE_CHECKING:
     from pipeline.model.physics import WhiskerPhysics
 
-MIN_TIP_RADIUS_M = 1.5e-6        # MODEL.md §3: tip radius floor
+MIN_TIP_RADIUS_M = 1.5e-6        # docs/model.md §3: tip radius floor
 
 
 @dataclass(frozen=True)
@@ -146,7 +146,7 @@ class DampingGradient(Extension):
 
 @dataclass(frozen=True)
 class DensityChange(Extension):
-    """Density scale and gradient on top of the nominal ramp ρ_0(s) (MODEL.md §2):
+    """Density scale and gradient on top of the nominal ramp ρ_0(s) (docs/model.md §2):
     ρ(s) = scale·ρ_0(s)·exp(gradient·(s/S − ½)). Link masses and inertias scale with ρ at the
     link centre; centres of mass do not move. Both dimensionless.
 

@@ -1,4 +1,4 @@
-"""Whisking drives and head poses (paper eq. 8–9, MODEL.md §4), SI units (rad, s, m).
+"""Whisking drives and head poses (paper eq. 8–9, docs/model.md §4), SI units (rad, s, m).
 
 Every whisker base is rotated from its rest orientation by protraction θ(t) about the head's
 z axis, elevation φ(t) = Δφ_row·θ(t) and torsion ζ(t) = Δζ_row·θ(t), composed in the

@@ -1,11 +1,11 @@
 """The whisker array as a table: one row per whisker, any morphology (model rat, measured rat, mouse).
 
-Head frame (MODEL.md §1): origin at the mean base point of the array, x lateral to the right,
+Head frame (docs/model.md §1): origin at the mean base point of the array, x lateral to the right,
 y rostral, z dorsal. Rows A–E are 1–5, column 0 is the Greek arc. The left side is the right
 side mirrored through x → −x.
 
 The default "model rat" evaluates the Belli et al. 2017/2018 equations as the reference
-WHISKiT implementation does (MODEL.md §3). A CSV table with the same columns replaces it.
+WHISKiT implementation does (docs/model.md §3). A CSV table with the same columns replaces it.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from pipeline.errors import UserError
 ROW_LETTERS = "ABCDE"
 GREEK = {"alpha": "A0", "α": "A0", "beta": "B0", "β": "B0", "gamma": "C0", "γ": "C0",
          "delta": "D0", "δ": "D0"}
-# Columns per row on each side (MODEL.md §3): A0–A4, B0–B4, C0–C6, D0–D6, E1–E6.
+# Columns per row on each side (docs/model.md §3): A0–A4, B0–B4, C0–C6, D0–D6, E1–E6.
 MODEL_RAT_COLUMNS = {1: range(0, 5), 2: range(0, 5), 3: range(0, 7), 4: range(0, 7), 5: range(1, 7)}
 MIN_TIP_RADIUS_M = 1.5e-6
 
@@ -163,7 +163,7 @@ class Morphology:
 
 
 def model_rat() -> Morphology:
-    """The 60-whisker model rat of MODEL.md §3 (30 per side)."""
+    """The 60-whisker model rat of docs/model.md §3 (30 per side)."""
     right = [_model_rat_right(row, col) for row, cols in MODEL_RAT_COLUMNS.items() for col in cols]
     return Morphology(right + [mirrored(w) for w in right], "model_rat")
 

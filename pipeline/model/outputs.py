@@ -3,7 +3,7 @@
 Axes: ``time`` (output samples, 1 kHz by default), ``whisker`` (array order), ``link``
 (0 = base link, N−1 = tip link), ``node`` (0 = base point … N = tip), ``signal``
 (Fx, Fy, Fz, Mx, My, Mz). Base signals are the force (N) and moment about the base point
-(N·m) that the follicle exerts on the whisker, in the whisker frame (MODEL.md §1).
+(N·m) that the follicle exerts on the whisker, in the whisker frame (docs/model.md §1).
 Positions are in the world frame (m).
 """
 

@@ -1,4 +1,4 @@
-"""One whisker as a chain of N conical-frustum links (paper §4.1, MODEL.md §2), SI units.
+"""One whisker as a chain of N conical-frustum links (paper §4.1, docs/model.md §2), SI units.
 
 Whisker frame: origin at the base point, x along the tangent at the base toward the tip,
 y in the plane of the intrinsic curvature toward the concave side, z = x × y. The rest shape

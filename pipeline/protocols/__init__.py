@@ -1,1 +1,1 @@
-"""Named experiments on an engine (MODEL.md §5). Each returns plain arrays and numbers."""
+"""Named experiments on an engine (docs/model.md §5). Each returns plain arrays and numbers."""

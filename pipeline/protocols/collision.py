@@ -1,4 +1,4 @@
-"""Collision with an edge (paper §4.5.3, MODEL.md §5).
+"""Collision with an edge (paper §4.5.3, docs/model.md §5).
 
 A whisker (straight or curved) turns at constant angular velocity about the vertical axis
 through its base, starting π/32 rad before a rectangular edge that crosses its sweep at 92.5 %

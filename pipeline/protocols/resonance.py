@@ -1,4 +1,4 @@
-"""Resonance protocol (paper §4.5.1, MODEL.md §5): a Gaussian pulse of base rotation, then ringing.
+"""Resonance protocol (paper §4.5.1, docs/model.md §5): a Gaussian pulse of base rotation, then ringing.
 
 A straight whisker lies along x in the horizontal plane, its base clamped to a motor turning
 about the vertical axis by ν(t) = ν0·exp(−½((t−μ)/σ)²), ν0 = π/3, σ = 25 ms, μ = 4σ, stopped

@@ -1,4 +1,4 @@
-"""A whisking trial: the array whisks (MODEL.md §4) in a scene at a head pose."""
+"""A whisking trial: the array whisks (docs/model.md §4) in a scene at a head pose."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Fig. 3: collisions with an edge (MODEL.md §5), straight and curved whiskers, six speeds.
+"""Fig. 3: collisions with an edge (docs/model.md §5), straight and curved whiskers, six speeds.
 
 The shock (Fig. 3A–C) comes from :func:`pipeline.protocols.collision.run_collision` (the motor
 holds the base from the first contact; dMz/dt of the Hann-smoothed Mz, its largest magnitude

@@ -1,4 +1,4 @@
-"""The published numbers the validation compares with (MODEL.md §5–6), each with its source.
+"""The published numbers the validation compares with (docs/model.md §5–6), each with its source.
 
 "the paper" is the WHISKiT Physics paper (Zweifel et al., ../shared/seed/whiskit_physics_paper.txt).
 The measured α and B1 resonances (f1, δ with standard deviations) live in

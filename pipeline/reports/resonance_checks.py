@@ -1,6 +1,6 @@
 """Table 1 (the measured α and B1 resonances) and Fig. 2 (f1 across the array vs arc length).
 
-Table 1 runs the resonance protocol (MODEL.md §5) on the engine for the paper's trimmed α and
+Table 1 runs the resonance protocol (docs/model.md §5) on the engine for the paper's trimmed α and
 B1 whiskers, with the configured material or one refitted on them first (``refit``). Fig. 2
 takes f1 of every whisker of the array from its chain (straight, rigid base, linearised: the
 value the engine converges to, to < 1 % at the configured step plan) and, for a few whiskers,

@@ -3,7 +3,7 @@
 Trial i uses scene i mod (number of scenes) and draws, from ``numpy.random.default_rng([seed,
 i])`` and in this order, its whisk (duration, frequency, protraction, retraction) and, for a
 mesh scene, its head pose (:mod:`pipeline.scenes.poses`); fixed scenes sit at the identity
-pose. The passive-peg scene has no whisking (MODEL.md §5). A :class:`Simulator` keeps one
+pose. The passive-peg scene has no whisking (docs/model.md §5). A :class:`Simulator` keeps one
 :class:`~pipeline.protocols.whisking.Whisking` (array and engine), the loaded scenes and pose
 samplers per process, built on first use; a trial that raises comes back as a failed record
 carrying the error, never as an exception.

@@ -1,4 +1,4 @@
-"""The protocol scenes of MODEL.md §5 and loading a cleaned scan mesh."""
+"""The protocol scenes of docs/model.md §5 and loading a cleaned scan mesh."""
 
 from __future__ import annotations
 
