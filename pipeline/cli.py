@@ -6,9 +6,12 @@ need them so that ``pipeline --help`` stays fast.
 
 from __future__ import annotations
 
+import errno
 import json
+import signal
 import sys
 import traceback
+import warnings
 from pathlib import Path
 from typing import Optional
 
@@ -408,29 +411,74 @@ def synth(
 # --- end measured data ---
 
 
-def main() -> None:
-    """Console entry point: user errors become one ``error:`` line and exit code 2."""
-    debug = "--debug" in sys.argv[1:]
+def _click_errors() -> tuple[tuple[type, ...], tuple[type, ...], tuple[type, ...]]:
+    """(usage errors, aborts, exits) of the installed click and of the copy bundled with typer."""
+    errors = [click.ClickException]
+    aborts, exits = [click.exceptions.Abort, typer.Abort], [click.exceptions.Exit, typer.Exit]
     try:
-        sys.exit(app(standalone_mode=False) or 0)     # typer returns the code of an Exit/Abort
-    except click.exceptions.Exit as exc:
+        from typer._click.exceptions import ClickException as BundledClickException
+        errors.append(BundledClickException)
+    except ImportError:          # typer versions that use the installed click
+        pass
+    return tuple(errors), tuple(aborts), tuple(exits)
+
+
+def _terminate(signum, frame) -> None:
+    raise SystemExit(f"error: terminated by {signal.Signals(signum).name}; a simulation continues "
+                     "with the same command plus --resume")
+
+
+def _one_line(text: object) -> str:
+    return " ".join(str(text).split())
+
+
+def main() -> None:
+    """Console entry point and the CLI's one exception boundary.
+
+    Usage errors (bad option value, unknown command or option, missing argument), a
+    :class:`UserError` and an operating-system error on a named file (no space, permission)
+    become one ``error:`` line and exit code 2; a :class:`SimulationError` exits 1; anything
+    else is a bug and keeps its traceback. ``--debug`` shows the traceback of every error.
+    """
+    debug = "--debug" in sys.argv[1:]
+    signal.signal(signal.SIGTERM, _terminate)
+    usage_errors, aborts, exits = _click_errors()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)   # numpy's on bad input; the error says what
+            code = app(standalone_mode=False)
+        sys.exit(code or 0)     # typer returns the code of an Exit/Abort
+    except exits as exc:
         sys.exit(exc.exit_code)
-    except click.ClickException as exc:
-        exc.show()
-        sys.exit(exc.exit_code)
-    except (click.exceptions.Abort, KeyboardInterrupt):
+    except usage_errors as exc:
+        if type(exc).__name__ == "NoArgsIsHelpError":       # bare `pipeline` or group: help was asked for
+            typer.echo(exc.ctx.get_help() if getattr(exc, "ctx", None) else str(exc))
+            sys.exit(0)
+        if debug:
+            traceback.print_exc()
+        typer.echo(f"error: {_one_line(exc.format_message())} (see --help)", err=True)
+        sys.exit(2)
+    except (*aborts, KeyboardInterrupt):
         typer.echo("interrupted", err=True)
         sys.exit(130)
     except UserError as exc:
         if debug:
             traceback.print_exc()
-        typer.echo(f"error: {exc}", err=True)
+        typer.echo(f"error: {_one_line(exc)}", err=True)
         sys.exit(2)
     except SimulationError as exc:
         if debug:
             traceback.print_exc()
-        typer.echo(f"error: simulation failed: {exc}", err=True)
+        typer.echo(f"error: simulation failed: {_one_line(exc)}", err=True)
         sys.exit(1)
+    except OSError as exc:
+        if exc.errno is None or (exc.filename is None and exc.errno not in (errno.ENOSPC, errno.EDQUOT)):
+            raise
+        if debug:
+            traceback.print_exc()
+        where = f": {exc.filename}" if exc.filename else ""
+        typer.echo(f"error: {exc.strerror or _one_line(exc)}{where}", err=True)
+        sys.exit(2)
 
 
 if __name__ == "__main__":
