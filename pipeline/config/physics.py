@@ -8,13 +8,13 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 
 class StrictModel(BaseModel):
-    """Base for config models: unknown fields are errors, not silently ignored."""
+    """Base for config models: unknown fields and non-finite numbers (nan, inf) are errors."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class FollicleConfig(StrictModel):
@@ -80,3 +80,20 @@ class ModelConfig(StrictModel):
     material: MaterialConfig = MaterialConfig()
     engine: EngineConfig = EngineConfig()
     whisk: WhiskConfig = WhiskConfig()
+
+    @model_validator(mode="after")
+    def _fits_engine(self) -> "ModelConfig":
+        if self.engine.name == "bullet" and self.material.links > bullet_max_links(self.material.follicle.kind):
+            raise ValueError(f"material.links = {self.material.links} is more than engine bullet can hold "
+                             f"({bullet_max_links(self.material.follicle.kind)} with a "
+                             f"{self.material.follicle.kind} follicle); use fewer links or engine mujoco")
+        return self
+
+
+BULLET_MAX_MULTIBODY_LINKS = 127    # pybullet: joint indices of one multibody stop at 126
+
+
+def bullet_max_links(follicle: str) -> int:
+    """Most whisker links N a Bullet multibody holds: 3 drive links, 2 follicle links if
+    compliant, link 1 fixed to them, then a hinge and a link per further whisker link."""
+    return (BULLET_MAX_MULTIBODY_LINKS - 2 - (2 if follicle == "compliant" else 0)) // 2
