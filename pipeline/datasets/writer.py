@@ -21,10 +21,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pipeline.datasets.schema import (ARRAYS, PENDING, POSE_REJECTION_REASONS, SCHEMA, SCHEMA_VERSION,
+from pipeline.datasets.schema import (ARRAYS, OK, PENDING, POSE_REJECTION_REASONS, SCHEMA, SCHEMA_VERSION,
                                       TRIAL_COLUMNS, WHISKER_COLUMNS, TrialRecord)
 from pipeline.errors import UserError
 from pipeline.model.outputs import SIGNALS, TrialOutput
+from pipeline.storage import require_free_space, sync_directory
 
 if TYPE_CHECKING:
     from pipeline.config.physics import ModelConfig
@@ -180,20 +181,39 @@ def recover(path: Path) -> None:
     import h5py
 
     partial = path.with_name(path.name + ".recover.partial")
-    with h5py.File(path, "r", swmr=True) as old, h5py.File(partial, "w", libver="latest") as new:
-        new.attrs.update(old.attrs)
-        for key in old:
-            old.copy(old[key], new, name=key)
-    os.replace(partial, path)
+    try:
+        with h5py.File(path, "r", swmr=True) as old, h5py.File(partial, "w", libver="latest") as new:
+            new.attrs.update(old.attrs)
+            for key in old:
+                old.copy(old[key], new, name=key)
+            new.flush()
+            os.fsync(new.id.get_vfd_handle())
+        os.replace(partial, path)
+    except BaseException:
+        partial.unlink(missing_ok=True)
+        raise
+    sync_directory(path.parent)
+
+
+TRIAL_SPACE_MARGIN_BYTES = 256 * 1024     # room kept for HDF5 metadata and the trial table
 
 
 class DatasetWriter:
-    """Writes trials into rows of one dataset file, each at most once."""
+    """Writes trials into rows of one dataset file, each at most once, each durably.
+
+    A trial's row is marked written (``ok``/``failed``) only after its arrays are flushed and
+    fsync'ed; a trial that does not fit on the disk is not started (``OSError(ENOSPC)``) and
+    stays pending, so ``--resume`` writes it later.
+    """
 
     def __init__(self, file, path: Path):
         self.file, self.path = file, Path(path)
         self.file.swmr_mode = True
-        self._status = self.file["trials/status"][:]
+        # Open handles, never temporary ones: a temporary h5py object flushes its chunk when it
+        # is garbage collected, where a write error (a full disk) is only printed, not raised.
+        self._arrays = {name: self.file[name] for name in ARRAYS if name in self.file}
+        self._columns = {name: self.file["trials"][name] for name in TRIAL_COLUMNS}
+        self._status = self._columns["status"][:]
 
     @classmethod
     def create(cls, path: Path, layout: Layout, attrs: dict[str, Any]) -> "DatasetWriter":
@@ -215,27 +235,57 @@ class DatasetWriter:
                 raise UserError(f"{path} cannot be recovered ({failure}); remove its folder and start "
                                 "again") from None
             f = h5py.File(path, "r+", libver="latest")
-        return cls(f, path)
+        writer = cls(f, path)
+        writer.reopen_lost()
+        return writer
 
     def pending(self) -> np.ndarray:
         """Indices of trials not written yet."""
         return np.flatnonzero(self._status == PENDING.encode())
 
+    def lost(self) -> np.ndarray:
+        """Indices of trials marked ``ok`` whose array chunks are not in the file."""
+        ok = np.flatnonzero(self._status == OK.encode())
+        return np.array([i for i in ok if any(
+            data.id.get_chunk_info_by_coord((int(i),) + (0,) * (data.ndim - 1)).byte_offset is None
+            for data in self._arrays.values())], dtype=int)
+
+    def reopen_lost(self) -> np.ndarray:
+        """Mark trials whose data are missing pending again (they are simulated again)."""
+        lost = self.lost()
+        for index in lost:
+            self._columns["status"][index] = PENDING.encode()
+            self._status[index] = PENDING.encode()
+        if lost.size:
+            self._sync()
+        return lost
+
+    def _sync(self) -> None:
+        """Flush HDF5's caches into the file and the file onto the device."""
+        for data in (*self._arrays.values(), *self._columns.values()):
+            data.flush()                   # raises on a failed write, unlike a deferred flush
+        self.file.flush()
+        os.fsync(self.file.id.get_vfd_handle())
+
     def write(self, index: int, record: TrialRecord, arrays: dict[str, np.ndarray] | None) -> bool:
-        """Write trial ``index``; False (and nothing written) if it was written before."""
+        """Write trial ``index``; False (and nothing written) if it was written before.
+
+        OSError(ENOSPC) before anything is written if the trial may not fit on the disk.
+        """
         if self._status[index] != PENDING.encode():
             return False
+        size = sum(np.asarray(value).nbytes for value in (arrays or {}).values())
+        require_free_space(self.path.parent, 2 * size + TRIAL_SPACE_MARGIN_BYTES, f"trial {index}")
         for name, value in (arrays or {}).items():
-            self.file[name][index] = value
+            self._arrays[name][index] = value
         if arrays:
-            self.file.flush()
-        table = self.file["trials"]
+            self._sync()
         for name, value in asdict(record).items():
             if name != "status":
                 meta = TRIAL_COLUMNS[name]
-                table[name][index] = encode(value, meta["dtype"]) if meta["dtype"][0] == "S" else value
-        table["status"][index] = record.status.encode()
-        self.file.flush()
+                self._columns[name][index] = encode(value, meta["dtype"]) if meta["dtype"][0] == "S" else value
+        self._columns["status"][index] = record.status.encode()
+        self._sync()
         self._status[index] = record.status.encode()
         return True
 
@@ -289,7 +339,12 @@ def write_single_trial(path: str | Path, output: TrialOutput, model: "ModelConfi
     partial = path.with_name(path.name + ".partial")
     attrs = {"name": path.stem, "version": 0, "seed": 0,
              "provenance": provenance(model.model_dump(mode="json"), engine=output.metadata.get("engine"))}
-    with DatasetWriter.create(partial, layout, attrs) as writer:
-        writer.write(0, record, trial_arrays(output, theta, layout))
-    os.replace(partial, path)
+    try:
+        with DatasetWriter.create(partial, layout, attrs) as writer:
+            writer.write(0, record, trial_arrays(output, theta, layout))
+        os.replace(partial, path)
+    except BaseException:
+        partial.unlink(missing_ok=True)
+        raise
+    sync_directory(path.parent)
     return path

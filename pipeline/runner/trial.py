@@ -5,7 +5,8 @@ i])`` and in this order, its whisk (duration, frequency, protraction, retraction
 mesh scene, its head pose (:mod:`pipeline.scenes.poses`); fixed scenes sit at the identity
 pose. The passive-peg scene has no whisking (MODEL.md §5). A :class:`Simulator` keeps one
 engine, the loaded scenes and pose samplers per process, built on first use; a trial that
-raises comes back as a failed record carrying the error, never as an exception.
+raises comes back as a failed record carrying the error, never as an exception, except for a
+full disk or a :class:`RunAborted` (a mesh changed), which stop the run and leave it pending.
 """
 
 from __future__ import annotations
@@ -22,10 +23,11 @@ import numpy as np
 from pipeline.config.simulate import SimulateConfig, WhiskSamplingConfig
 from pipeline.datasets.schema import FAILED, OK, TrialRecord
 from pipeline.datasets.writer import Layout, trial_arrays
-from pipeline.errors import UserError
+from pipeline.errors import RunAborted, UserError
 from pipeline.model.kinematics import Pose, ProtractionDrive, sinusoidal_whisk, still
 from pipeline.runner.scenes import SceneEntry
 from pipeline.scenes.poses import PoseSampler, PoseSamplingError
+from pipeline.storage import is_disk_full
 
 
 @dataclass(frozen=True)
@@ -148,6 +150,8 @@ class Simulator:
                 record.recording_seconds = self._record(index, output, scene, pose)
             record.status = OK
         except Exception as exc:          # a failed trial is data: recorded with its error
+            if isinstance(exc, RunAborted) or is_disk_full(exc):
+                raise                      # not the trial's fault: it stays pending
             record.status, record.error, arrays = FAILED, f"{type(exc).__name__}: {exc}", None
             if isinstance(exc, PoseSamplingError):
                 record.pose_attempts, record.pose_rejections = exc.attempts, tuple(exc.rejections.values())
