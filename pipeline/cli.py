@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import errno
 import json
+import math
 import signal
 import sys
 import traceback
@@ -19,6 +20,8 @@ import click
 import typer
 
 from pipeline.errors import SimulationError, UserError
+
+MAX_TRIAL_DURATION_S = 10.0      # as the model config's whisk.duration_s
 
 app = typer.Typer(
     name="pipeline",
@@ -77,7 +80,8 @@ def view(target: str = typer.Argument(..., help="An .rrd file, or a dataset NAME
          trial: Optional[int] = typer.Option(None, "--trial", help="Trial index (dataset targets)."),
          web: bool = typer.Option(False, "--web", help="Serve a web viewer on 127.0.0.1 and print its URL."),
          port: Optional[int] = typer.Option(None, "--port", help="Web page port (default 9090; data on "
-                                                                  "port+1) or the native viewer's server port.")) -> None:
+                                                                  "port+1) or the native viewer's server port.",
+                                      min=1, max=65534)) -> None:
     """Open a trial's rerun recording in the viewer; stops the viewer on exit."""
     from pipeline.recordings.viewer import resolve_target, view as open_viewer
 
@@ -106,6 +110,31 @@ def _follicle_override(text: Optional[str]) -> Optional[dict]:
     except ValueError:
         raise UserError(f"--follicle '{text}' must be 'rigid' or 'K,C' (N·m/rad, N·m·s/rad)") from None
     return {"kind": "compliant", "stiffness_nm_per_rad": k, "damping_nms_per_rad": c}
+
+
+def _engine_name(engine: Optional[str], option: str = "--engine") -> Optional[str]:
+    """``engine`` if it names an engine the model config accepts; UserError otherwise."""
+    from typing import get_args
+
+    from pipeline.config.physics import EngineConfig
+
+    known = get_args(EngineConfig.model_fields["name"].annotation)
+    if engine is not None and engine not in known:
+        raise UserError(f"{option} '{engine}' is not an engine ({', '.join(known)})")
+    return engine
+
+
+def _writable_out(path: Optional[Path], option: str = "--out", *, new_file: bool = False) -> None:
+    """UserError if writing ``path`` would change a complete dataset version, or (``new_file``)
+    replace an existing file."""
+    from pipeline.datasets.manifest import refuse_complete_version
+    from pipeline.datasets.writer import refuse_existing
+
+    if path is None:
+        return
+    refuse_complete_version(path, option)
+    if new_file:
+        refuse_existing(path)
 
 
 @app.command()
@@ -156,10 +185,9 @@ def trial(
     from pipeline.protocols.whisking import default_drive, parse_scene, run_trial
 
     model = _model_config(config, {"engine": {"name": engine}})
-    if out is not None:
-        from pipeline.datasets.writer import refuse_existing
-
-        refuse_existing(out)
+    if not (math.isfinite(duration_s) and 0 < duration_s <= MAX_TRIAL_DURATION_S):
+        raise UserError(f"--duration-s {duration_s}: must be a number of seconds in (0, {MAX_TRIAL_DURATION_S:g}]")
+    _writable_out(out, new_file=True)
     head = Pose.parse(pose) if pose else Pose()
     world = parse_scene(scene)
     drive = default_drive(world, model, duration_s)
@@ -191,6 +219,7 @@ def build_meshes(
     """Turn every scan into a collision mesh (OBJ, metres) with quality metrics in manifest.json."""
     from pipeline.meshes.build import build_meshes as build, load_mesh_config
 
+    _writable_out(out)
     report = build(scans, out, load_mesh_config(config), force=force, progress=not json_output)
     if json_output:
         _print_json(report.to_dict())
@@ -309,6 +338,7 @@ def stats(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a versi
     """Natural tactile statistics of a dataset's ok trials (read one at a time): report.md, PNGs, stats.json."""
     from pipeline.reports.stats import stats_report
 
+    _writable_out(out)
     summary = stats_report(target, root, out)
     if json_output:
         _print_json(summary)
@@ -335,6 +365,7 @@ def validate(
     from pipeline.reports.document import number
     from pipeline.reports.validation import validate as run_validation
 
+    _writable_out(out)
     model = _model_config(config, {"material": {"follicle": _follicle_override(follicle)},
                                    "engine": {"name": engine}})
     progress = (lambda _: None) if json_output else (lambda text: typer.echo(text, err=True))
@@ -357,8 +388,8 @@ def calibrate(
     params: str = typer.Option("E,zeta", "--params", help="Parameters to fit, e.g. E,zeta,follicle.k_f."),
     method: str = typer.Option("optimizer", "--method", help="optimizer (least squares) or grid (paper)."),
     objective: str = typer.Option("msa", "--objective", help="msa (paper eq. 4a/4b) or trajectory."),
-    grid_points: Optional[int] = typer.Option(None, "--grid-points", help="Grid values per parameter."),
-    bootstrap: int = typer.Option(0, "--bootstrap", help="Bootstrap refits over trials for the sd."),
+    grid_points: Optional[int] = typer.Option(None, "--grid-points", min=2, help="Grid values per parameter."),
+    bootstrap: int = typer.Option(0, "--bootstrap", min=0, help="Bootstrap refits over trials for the sd."),
     engine: Optional[str] = typer.Option(None, "--engine", help="Check and refine the fit on an engine (bullet or mujoco)."),
     config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML (material, links, damping)."),
     json_output: bool = typer.Option(False, "--json", help="Print JSON."),
@@ -366,6 +397,7 @@ def calibrate(
     """Fit model parameters to measured data (median symmetric accuracy), with uncertainties."""
     from pipeline.diagnosis.commands import run_calibrate
 
+    _engine_name(engine)
     material = _model_config(config, {}).material
     data, lines = run_calibrate(file, params, method, objective, material, engine, bootstrap, grid_points)
     if json_output:
@@ -386,6 +418,10 @@ def diagnose(
     """What the model gets wrong on measured data, and which model extension explains it."""
     from pipeline.diagnosis.commands import run_diagnose
 
+    _engine_name(engine)
+    _writable_out(report, "--report")
+    if report is not None and report.exists() and not report.is_dir():
+        raise UserError(f"--report {report} is a file; give a folder for report.md and the figures")
     data, lines = run_diagnose(file, _model_config(config, {}).material, report, engine, candidates)
     if json_output:
         _print_json(data)
@@ -397,12 +433,13 @@ def diagnose(
 def synth(
     config: Path = typer.Option(..., "--config", help="Synth config YAML (docs/measurements.md)."),
     out: Path = typer.Option(..., "--out", help="Measurement file to write (.h5)."),
-    seed: Optional[int] = typer.Option(None, "--seed", help="Override the config's seed."),
+    seed: Optional[int] = typer.Option(None, "--seed", min=0, help="Override the config's seed."),
     json_output: bool = typer.Option(False, "--json", help="Print JSON."),
 ) -> None:
     """Write a synthetic measurement from the model with chosen extensions, noise and drives."""
     from pipeline.diagnosis.commands import run_synth
 
+    _writable_out(out, new_file=True)
     data, lines = run_synth(config, out, seed)
     if json_output:
         _print_json(data)
