@@ -235,7 +235,7 @@ def build_meshes(
                           str(m.get("surface_to_data_p95_mm", "")), f"{scan.seconds:.1f}" if scan.seconds else "")
         Console().print(table)
     for scan in report.failed:
-        typer.echo(f"error: {scan.message}", err=True)
+        typer.echo(f"error: {_one_line(scan.message)}", err=True)
     if report.failed:
         sys.exit(2)  # main() runs click with standalone_mode=False, which swallows typer.Exit codes
 # --- end meshes ---

@@ -72,9 +72,17 @@ def complete_version_of(path: Path) -> Path | None:
     """The complete version folder (one holding a manifest) that ``path`` is in or is, if any."""
     path = Path(path).absolute()
     for folder in (path, *path.parents):
-        if (folder / MANIFEST_FILE).is_file():
+        if (folder / MANIFEST_FILE).is_file() and _is_dataset_manifest(folder / MANIFEST_FILE):
             return folder
     return None
+
+
+def _is_dataset_manifest(path: Path) -> bool:
+    """True if ``path`` is a dataset version's manifest (not, e.g., build-meshes' manifest)."""
+    try:
+        return json.loads(path.read_text()).get("schema") == SCHEMA
+    except (OSError, ValueError, AttributeError):
+        return False
 
 
 def refuse_complete_version(path: Path, what: str = "--out") -> None:
