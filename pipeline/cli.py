@@ -12,7 +12,6 @@ import math
 import signal
 import sys
 import traceback
-import warnings
 from pathlib import Path
 from typing import Optional
 
@@ -481,9 +480,7 @@ def main() -> None:
     signal.signal(signal.SIGTERM, _terminate)
     usage_errors, aborts, exits = _click_errors()
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)   # numpy's on bad input; the error says what
-            code = app(standalone_mode=False)
+        code = app(standalone_mode=False)
         sys.exit(code or 0)     # typer returns the code of an Exit/Abort
     except exits as exc:
         sys.exit(exc.exit_code)
