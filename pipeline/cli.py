@@ -459,9 +459,20 @@ def _click_errors() -> tuple[tuple[type, ...], tuple[type, ...], tuple[type, ...
     return tuple(errors), tuple(aborts), tuple(exits)
 
 
+_TERMINATED_BY: list[str] = []      # the signal that stopped this process, if any
+
+
 def _terminate(signum, frame) -> None:
-    raise SystemExit(f"error: terminated by {signal.Signals(signum).name}; a simulation continues "
-                     "with the same command plus --resume")
+    """SIGTERM: stop like Ctrl-C (a run stops cleanly and says how to resume), then report it."""
+    _TERMINATED_BY.append(signal.Signals(signum).name)
+    raise KeyboardInterrupt
+
+
+def _exit(code: int) -> None:
+    if _TERMINATED_BY:
+        typer.echo(f"error: terminated by {_TERMINATED_BY[0]}", err=True)
+        sys.exit(128 + signal.SIGTERM)
+    sys.exit(code)
 
 
 def _one_line(text: object) -> str:
@@ -481,9 +492,9 @@ def main() -> None:
     usage_errors, aborts, exits = _click_errors()
     try:
         code = app(standalone_mode=False)
-        sys.exit(code or 0)     # typer returns the code of an Exit/Abort
+        _exit(code or 0)     # typer returns the code of an Exit/Abort (130 after Ctrl-C)
     except exits as exc:
-        sys.exit(exc.exit_code)
+        _exit(exc.exit_code)
     except usage_errors as exc:
         if type(exc).__name__ == "NoArgsIsHelpError":       # bare `pipeline` or group: help was asked for
             typer.echo(exc.ctx.get_help() if getattr(exc, "ctx", None) else str(exc))
@@ -493,8 +504,9 @@ def main() -> None:
         typer.echo(f"error: {_one_line(exc.format_message())} (see --help)", err=True)
         sys.exit(2)
     except (*aborts, KeyboardInterrupt):
-        typer.echo("interrupted", err=True)
-        sys.exit(130)
+        if not _TERMINATED_BY:
+            typer.echo("interrupted", err=True)
+        _exit(130)
     except UserError as exc:
         if debug:
             traceback.print_exc()
