@@ -262,6 +262,10 @@ def _remove_unstarted(folder: Path) -> None:
     import shutil
 
     shutil.rmtree(folder, ignore_errors=True)
+    try:
+        folder.parent.rmdir()          # the dataset's folder too, if this was its first version
+    except OSError:
+        pass
 
 
 def run_spec(config: SimulateConfig) -> RunSpec:
