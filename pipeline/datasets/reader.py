@@ -54,14 +54,14 @@ class DatasetFile:
         self.path = Path(path)
         try:
             self.file = h5py.File(self.path, "r", swmr=True)
-        except OSError as exc:
+        except (OSError, RuntimeError) as exc:             # h5py: RuntimeError for some bad superblocks
             raise UserError(f"{self.path}: not a readable dataset file ({_first_line(exc)})") from None
         try:
             self.attrs = {key: decode_attr(value) for key, value in self.file.attrs.items()}
             self.whiskers = {k: _decoded(v[()]) for k, v in self.file["whiskers"].items()}
             self.refresh()
             self._check_shards()
-        except (OSError, KeyError, ValueError) as exc:
+        except (OSError, RuntimeError, KeyError, ValueError) as exc:
             self.file.close()
             raise UserError(f"{self.path}: not a readable dataset file ({_first_line(exc)})") from None
         except UserError:

@@ -241,8 +241,8 @@ def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _T
         client.register_plugin(SimulatorPlugin(spec, name), name=name)
         with _progress(len(todo), spec.title, progress) as advance:
             for index, result in _stream(client, name, todo, config.cluster.worker_wait_s):
-                if isinstance(result, RunAborted) or is_disk_full(result):
-                    raise result
+                if isinstance(result, TrialResult) and result.abort is not None:
+                    raise result.abort
                 if not isinstance(result, TrialResult):          # e.g. KilledWorker
                     result = TrialResult(index, TrialRecord(
                         status=FAILED, error=f"{type(result).__name__}: {result}",

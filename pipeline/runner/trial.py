@@ -5,8 +5,8 @@ i])`` and in this order, its whisk (duration, frequency, protraction, retraction
 mesh scene, its head pose (:mod:`pipeline.scenes.poses`); fixed scenes sit at the identity
 pose. The passive-peg scene has no whisking (MODEL.md §5). A :class:`Simulator` keeps one
 engine, the loaded scenes and pose samplers per process, built on first use; a trial that
-raises comes back as a failed record carrying the error, never as an exception, except for a
-full disk or a :class:`RunAborted` (a mesh changed), which stop the run and leave it pending.
+raises comes back as a failed record carrying the error, never as an exception; a full disk or
+a :class:`RunAborted` (a mesh changed) comes back as ``abort``: the run stops, the trial pending.
 """
 
 from __future__ import annotations
@@ -47,6 +47,7 @@ class TrialResult:
     index: int
     record: TrialRecord
     arrays: dict[str, np.ndarray] | None = None
+    abort: Exception | None = None    # a full disk or RunAborted: the run stops, the trial stays pending
 
 
 def load_whisk_table(path: Path) -> tuple[tuple[float, ...], tuple[float, ...]]:
@@ -151,7 +152,7 @@ class Simulator:
             record.status = OK
         except Exception as exc:          # a failed trial is data: recorded with its error
             if isinstance(exc, RunAborted) or is_disk_full(exc):
-                raise                      # not the trial's fault: it stays pending
+                return TrialResult(index, record, None, abort=exc)    # not the trial's fault
             record.status, record.error, arrays = FAILED, f"{type(exc).__name__}: {exc}", None
             if isinstance(exc, PoseSamplingError):
                 record.pose_attempts, record.pose_rejections = exc.attempts, tuple(exc.rejections.values())
