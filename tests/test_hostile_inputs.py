@@ -645,3 +645,42 @@ def test_sigterm_stops_a_run_with_one_line_and_resume_completes(tmp_path):
     assert "--resume" in err
     ok, pending = assert_ok_trials_readable(data)
     assert pending > 0
+
+
+def test_a_write_that_fails_inside_hdf5_leaves_the_trial_pending(small_disk, monkeypatch):
+    """Past the free-space check (another process filled the disk meanwhile), HDF5's own write
+    fails: the writer raises OSError(ENOSPC), marks nothing ok, and the file resumes."""
+    import pipeline.datasets.writer as writer_module
+    from pipeline.datasets.schema import TrialRecord
+    from pipeline.model.morphology import load_morphology
+
+    monkeypatch.setattr(writer_module, "require_free_space", lambda *args: None)
+    layout = writer_module.Layout(trials=6, samples=100, sampling_rate_hz=1000.0, links=20, node_every=1,
+                                  compression_level=0,
+                                  whiskers=writer_module.whisker_table(load_morphology("model_rat").select("RC1")))
+    arrays = {name: np.zeros(layout.shape(name)[1:]) for name in layout.arrays}
+    path = small_disk / "data.h5"
+    writer = writer_module.DatasetWriter.create(path, layout, {"name": "unit"})
+    filler = fill(small_disk, 120_000)
+    written = []
+    with pytest.raises(OSError) as failure:
+        for index in range(6):
+            writer.write(index, TrialRecord(status="ok"), arrays)
+            written.append(index)
+    assert failure.value.errno == errno.ENOSPC and 0 < len(written) < 6
+    writer.close()
+    filler.unlink()
+    resume = f"""
+import numpy as np
+from pipeline.datasets.schema import TrialRecord
+from pipeline.datasets.writer import DatasetWriter
+with DatasetWriter.resume({str(path)!r}) as writer:
+    print(writer.pending().tolist())
+    for index in writer.pending():
+        writer.write(int(index), TrialRecord(status="ok"),
+                     {{name: np.zeros(data.shape[1:]) for name, data in writer._arrays.items()}})
+"""        # a fresh process: this one's HDF5 library still holds the file it could not close
+    result = subprocess.run([sys.executable, "-c", resume], cwd=REPO, text=True, capture_output=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout) == list(range(len(written), 6))
+    assert assert_ok_trials_readable(path) == (6, 0)

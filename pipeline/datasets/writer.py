@@ -10,6 +10,7 @@ place. h5py is imported inside functions.
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import socket
@@ -214,6 +215,7 @@ class DatasetWriter:
         self._arrays = {name: self.file[name] for name in ARRAYS if name in self.file}
         self._columns = {name: self.file["trials"][name] for name in TRIAL_COLUMNS}
         self._status = self._columns["status"][:]
+        self._failed = False             # a write failed: closing may fail too (resume recovers the file)
 
     @classmethod
     def create(cls, path: Path, layout: Layout, attrs: dict[str, Any]) -> "DatasetWriter":
@@ -261,11 +263,32 @@ class DatasetWriter:
         return lost
 
     def _sync(self) -> None:
-        """Flush HDF5's caches into the file and the file onto the device."""
-        for data in (*self._arrays.values(), *self._columns.values()):
-            data.flush()                   # raises on a failed write, unlike a deferred flush
-        self.file.flush()
+        """Flush HDF5's caches into the file and the file onto the device; OSError if a write
+        failed (h5py raises RuntimeError carrying the errno in its text)."""
+        try:
+            for data in (*self._arrays.values(), *self._columns.values()):
+                data.flush()                   # raises on a failed write, unlike a deferred flush
+            self.file.flush()
+        except RuntimeError as exc:
+            self._failed = True
+            full = any(f"errno = {code}," in str(exc) for code in (errno.ENOSPC, errno.EDQUOT))
+            raise OSError(errno.ENOSPC if full else errno.EIO, (str(exc).splitlines() or ["write failed"])[0],
+                          str(self.path)) from None
         os.fsync(self.file.id.get_vfd_handle())
+
+    def _check_on_disk(self, index: int, arrays: dict[str, np.ndarray]) -> None:
+        """OSError(ENOSPC) unless every chunk of trial ``index`` lies within the file's bytes.
+
+        HDF5 reports a chunk write that failed while its cache was being emptied (a full disk)
+        only as a warning, when a temporary object is freed; the file then ends before the chunk.
+        """
+        size = os.fstat(self.file.id.get_vfd_handle()).st_size
+        for name in arrays:
+            data = self._arrays[name]
+            chunk = data.id.get_chunk_info_by_coord((index,) + (0,) * (data.ndim - 1))
+            if chunk.byte_offset is None or chunk.byte_offset + chunk.size > size:
+                raise OSError(errno.ENOSPC, f"No space left on device: trial {index}'s {name} did not "
+                                            "reach the file", str(self.path))
 
     def write(self, index: int, record: TrialRecord, arrays: dict[str, np.ndarray] | None) -> bool:
         """Write trial ``index``; False (and nothing written) if it was written before.
@@ -280,6 +303,7 @@ class DatasetWriter:
             self._arrays[name][index] = value
         if arrays:
             self._sync()
+            self._check_on_disk(index, arrays)
         for name, value in asdict(record).items():
             if name != "status":
                 meta = TRIAL_COLUMNS[name]
@@ -290,8 +314,13 @@ class DatasetWriter:
         return True
 
     def close(self) -> None:
-        if self.file.id.valid:
+        if not self.file.id.valid:
+            return
+        try:
             self.file.close()
+        except (RuntimeError, OSError):
+            if not self._failed:         # after a failed write the first error is the one to report
+                raise
 
     def __enter__(self) -> "DatasetWriter":
         return self

@@ -36,7 +36,8 @@ if TYPE_CHECKING:
 
 APPLICATION_ID = "whisker-pipeline"
 CLOSE_TIMEOUT_S = 60.0                 # longest wait for rerun to flush or close a recording
-DISK_FULL_BELOW_BYTES = 1 << 20        # free space kept beyond a recording's estimated size
+DISK_FULL_BELOW_BYTES = 256 * 1024     # free space kept beyond a recording's estimated size
+RECORDING_BYTES_PER_NODE_BYTE = 4      # a recording's size over its node positions' (float64): ~3 measured
 TIMELINE = "sim_time"
 
 WHISKER_COLOUR = (170, 190, 215, 255)
@@ -67,8 +68,8 @@ def write_recording(path: Path, output: TrialOutput, scene: Scene, pose: "Pose",
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.partial")
-    require_free_space(path.parent, 2 * output.node_positions_m.nbytes + DISK_FULL_BELOW_BYTES,
-                       f"recording {path.name}")
+    require_free_space(path.parent, RECORDING_BYTES_PER_NODE_BYTE * output.node_positions_m.nbytes
+                       + DISK_FULL_BELOW_BYTES, f"recording {path.name}")
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=str(recording_id), send_properties=True)
     try:
         rec.save(tmp, default_blueprint=make_blueprint(output))
