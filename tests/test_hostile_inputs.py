@@ -631,12 +631,28 @@ def test_a_cluster_without_workers_stops_the_run_after_worker_wait_s(tmp_path):
             process.wait()
 
 
-def test_sigterm_stops_a_run_with_one_line_and_resume_completes(tmp_path):
+def assert_listening_on_loopback_only(pid: int) -> None:
+    """Every listening socket of the process ``pid`` and its children is on 127.0.0.1 / ::1."""
+    import psutil
+
+    parent = psutil.Process(pid)
+    listening = []
+    for process in [parent, *parent.children(recursive=True)]:
+        try:
+            listening += [c.laddr for c in process.net_connections(kind="inet") if c.status == psutil.CONN_LISTEN]
+        except psutil.NoSuchProcess:
+            continue
+    assert listening, "a local cluster listens somewhere"
+    assert all(address.ip in ("127.0.0.1", "::1") for address in listening), listening
+
+
+def test_sigterm_stops_a_run_with_one_line_and_keeps_written_trials(tmp_path):
     config = write_yaml(tmp_path / "run.yaml", run_config(tmp_path, trials=400, cluster={"record_every": 0}))
     run = subprocess.Popen([sys.executable, "-m", "pipeline.cli", "simulate", "--config", str(config), "--json"],
                            cwd=REPO, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     data = tmp_path / "datasets" / "tiny" / "v1" / "data.h5"
     wait_for_written(data, 2)
+    assert_listening_on_loopback_only(run.pid)
     run.send_signal(signal.SIGTERM)
     out, err = run.communicate(timeout=120)
     assert run.returncode == 128 + signal.SIGTERM, err
