@@ -10,7 +10,9 @@ from __future__ import annotations
 import errno
 import os
 import shutil
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Iterator
 
 DISK_FULL_ERRNOS = (errno.ENOSPC, errno.EDQUOT)
 
@@ -37,21 +39,26 @@ def sync_directory(folder: Path) -> None:
         os.close(fd)
 
 
-def write_text_durably(path: Path, text: str) -> Path:
-    """Write ``path`` atomically (a ``.partial`` sibling, fsync, rename, fsync of the folder).
-
-    On any failure (a full disk) the partial file is removed and ``path`` is left as it was.
-    """
+@contextmanager
+def replacing(path: Path, suffix: str = ".partial") -> Iterator[Path]:
+    """Yield a sibling of ``path`` to write (and fsync) completely; then rename it over ``path``
+    and fsync the folder. On any failure (a full disk) the sibling is removed and ``path`` is
+    left as it was."""
     path = Path(path)
-    partial = path.with_name(path.name + ".partial")
+    partial = path.with_name(path.name + suffix)
     try:
-        with open(partial, "w", encoding="utf-8") as handle:
-            handle.write(text)
-            handle.flush()
-            os.fsync(handle.fileno())
+        yield partial
         os.replace(partial, path)
     except BaseException:
         partial.unlink(missing_ok=True)
         raise
     sync_directory(path.parent)
-    return path
+
+
+def write_text_durably(path: Path, text: str) -> Path:
+    """Write ``path`` atomically and durably (see :func:`replacing`)."""
+    with replacing(path) as partial, open(partial, "w", encoding="utf-8") as handle:
+        handle.write(text)
+        handle.flush()
+        os.fsync(handle.fileno())
+    return Path(path)

@@ -26,7 +26,7 @@ from pipeline.datasets.schema import (ARRAYS, OK, PENDING, POSE_REJECTION_REASON
                                       TRIAL_COLUMNS, WHISKER_COLUMNS, TrialRecord)
 from pipeline.errors import UserError
 from pipeline.model.outputs import SIGNALS, TrialOutput
-from pipeline.storage import require_free_space, sync_directory
+from pipeline.storage import replacing, require_free_space
 
 if TYPE_CHECKING:
     from pipeline.config.physics import ModelConfig
@@ -181,19 +181,13 @@ def recover(path: Path) -> None:
     """Replace a file whose writer was killed by a clean copy of what a SWMR reader sees."""
     import h5py
 
-    partial = path.with_name(path.name + ".recover.partial")
-    try:
-        with h5py.File(path, "r", swmr=True) as old, h5py.File(partial, "w", libver="latest") as new:
-            new.attrs.update(old.attrs)
-            for key in old:
-                old.copy(old[key], new, name=key)
-            new.flush()
-            os.fsync(new.id.get_vfd_handle())
-        os.replace(partial, path)
-    except BaseException:
-        partial.unlink(missing_ok=True)
-        raise
-    sync_directory(path.parent)
+    with replacing(path, ".recover.partial") as partial, h5py.File(path, "r", swmr=True) as old, \
+            h5py.File(partial, "w", libver="latest") as new:
+        new.attrs.update(old.attrs)
+        for key in old:
+            old.copy(old[key], new, name=key)
+        new.flush()
+        os.fsync(new.id.get_vfd_handle())
 
 
 TRIAL_SPACE_MARGIN_BYTES = 256 * 1024     # room kept for HDF5 metadata and the trial table
@@ -365,15 +359,8 @@ def write_single_trial(path: str | Path, output: TrialOutput, model: "ModelConfi
         cpu_seconds=output.metadata.get("cpu_seconds", 0.0),
         physics_cpu_seconds=output.metadata.get("cpu_seconds", 0.0),
         wall_seconds=output.metadata.get("wall_seconds", 0.0), worker=f"{socket.gethostname()}:{os.getpid()}")
-    partial = path.with_name(path.name + ".partial")
     attrs = {"name": path.stem, "version": 0, "seed": 0,
              "provenance": provenance(model.model_dump(mode="json"), engine=output.metadata.get("engine"))}
-    try:
-        with DatasetWriter.create(partial, layout, attrs) as writer:
-            writer.write(0, record, trial_arrays(output, theta, layout))
-        os.replace(partial, path)
-    except BaseException:
-        partial.unlink(missing_ok=True)
-        raise
-    sync_directory(path.parent)
+    with replacing(path) as partial, DatasetWriter.create(partial, layout, attrs) as writer:
+        writer.write(0, record, trial_arrays(output, theta, layout))
     return path
