@@ -74,9 +74,9 @@ def env_overrides(prefix: str, environ: Mapping[str, str] | None = None) -> dict
 
 
 def _has_value(value: Any) -> bool:
-    """True unless ``value`` is None or a mapping holding only None (flags not given)."""
+    """True unless ``value`` is None or a non-empty mapping holding only None (flags not given)."""
     if isinstance(value, Mapping):
-        return any(_has_value(v) for v in value.values())
+        return not value or any(_has_value(v) for v in value.values())
     return value is not None
 
 
