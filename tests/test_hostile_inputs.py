@@ -611,7 +611,7 @@ def test_a_cluster_without_workers_stops_the_run_after_worker_wait_s(tmp_path):
                                "--no-nanny", "--no-dashboard", "--host", "127.0.0.1"], **common)
     try:
         config = write_yaml(tmp_path / "run.yaml", run_config(
-            tmp_path, trials=40, whisk={"duration_s": 0.3},
+            tmp_path, trials=3000, whisk={"duration_s": 1.0},
             cluster={"scheduler": f"tcp://127.0.0.1:{port}", "workers": 0, "worker_wait_s": 3,
                      "record_every": 0}))
         run = subprocess.Popen([sys.executable, "-m", "pipeline.cli", "simulate", "--config", str(config)],

@@ -11,6 +11,7 @@ Workers of an existing scheduler must see the same paths (meshes, the version's 
 
 from __future__ import annotations
 
+import logging
 import sys
 import time
 import uuid
@@ -116,20 +117,42 @@ def _open_writer(folder: Path, spec: RunSpec, shard: Shard | None, indices: rang
 
 
 def _outcome(future) -> Any:
-    """A finished future's TrialResult, or the exception dask gave (e.g. KilledWorker)."""
+    """A finished future's TrialResult, or the exception dask gave (e.g. KilledWorker).
+
+    TimeoutError if the result cannot be fetched within WAIT_POLL_S (the worker holding it died:
+    dask computes it again once it has a worker).
+    """
     if future.status == "finished":
-        return future.result()
+        return future.result(timeout=WAIT_POLL_S)
     try:
-        return future.exception()
+        return future.exception(timeout=WAIT_POLL_S)
+    except TimeoutError:
+        raise
     except Exception as exc:        # cancelled: the scheduler forgot the task
         return exc
+
+
+class _WorkerWatch:
+    """Raises RunAborted once the cluster has had no worker for ``limit_s`` seconds."""
+
+    def __init__(self, client, limit_s: float):
+        self.client, self.limit_s, self.since = client, limit_s, None
+
+    def check(self, in_flight: int) -> None:
+        if self.client.nthreads():
+            self.since = None
+        elif self.since is None:
+            self.since = time.monotonic()
+        elif time.monotonic() - self.since > self.limit_s:
+            raise RunAborted(f"the dask cluster has had no worker for {self.limit_s:g} s "
+                             f"(cluster.worker_wait_s); {in_flight} trials in flight stay pending")
 
 
 def _stream(client, plugin_name: str, todo: list[int], worker_wait_s: float) -> Iterator[tuple[int, Any]]:
     """(index, TrialResult or the exception dask gave) as trials finish; a window in flight.
 
     Waits are bounded: if the cluster has had no worker for ``worker_wait_s`` (a local cluster
-    whose nanny gave up, external workers gone) the run stops with a UserError, its unfinished
+    whose nanny gave up, external workers gone) the run stops with a RunAborted, its unfinished
     trials pending.
     """
     from distributed import wait
@@ -138,6 +161,7 @@ def _stream(client, plugin_name: str, todo: list[int], worker_wait_s: float) -> 
 
     token = uuid.uuid4().hex[:8]
     pending = iter(todo)
+    watch = _WorkerWatch(client, worker_wait_s)
 
     def window() -> int:
         return 2 * max(1, sum(client.nthreads().values())) + 2
@@ -146,25 +170,21 @@ def _stream(client, plugin_name: str, todo: list[int], worker_wait_s: float) -> 
         return client.submit(run_trial, plugin_name, index, key=f"trial-{token}-{index}", pure=False)
 
     in_flight = {submit(i) for i in islice(pending, window())}
-    without_workers_since = None
     while in_flight:
         try:
             done, not_done = wait(in_flight, timeout=WAIT_POLL_S, return_when="FIRST_COMPLETED")
         except TimeoutError:
-            if client.nthreads():
-                without_workers_since = None
-            elif without_workers_since is None:
-                without_workers_since = time.monotonic()
-            elif time.monotonic() - without_workers_since > worker_wait_s:
-                raise RunAborted(f"the dask cluster has had no worker for {worker_wait_s:g} s "
-                                 f"(cluster.worker_wait_s); {len(in_flight)} trials in flight stay "
-                                 "pending") from None
+            watch.check(len(in_flight))
             continue
-        without_workers_since = None
         in_flight = set(not_done)
         for future in done:
-            index = int(future.key.rsplit("-", 1)[1])
-            yield index, _outcome(future)
+            try:
+                result = _outcome(future)
+            except TimeoutError:          # its result died with its worker: wait for the recomputation
+                in_flight.add(future)
+                watch.check(len(in_flight))
+                continue
+            yield int(future.key.rsplit("-", 1)[1]), result
             future.release()      # written: dask must not keep (or recompute after a worker loss) it
         in_flight |= {submit(i) for i in islice(pending, max(0, window() - len(in_flight)))}
 
@@ -236,6 +256,9 @@ def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _T
     from pipeline.runner.plugin import SimulatorPlugin
 
     config, scenes = spec.config, spec.scenes
+    # A fetch that timed out (_outcome) leaves a dask task whose AllExit nobody reads; asyncio
+    # would print it with a traceback when it is collected.
+    logging.getLogger("asyncio").setLevel(logging.CRITICAL)
     with dask_client(config.cluster.workers, config.cluster.scheduler, config.cluster.worker_wait_s) as client:
         name = f"whisker-simulator-{uuid.uuid4().hex[:8]}"
         client.register_plugin(SimulatorPlugin(spec, name), name=name)
