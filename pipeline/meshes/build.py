@@ -250,8 +250,11 @@ def build_meshes(scans_dir: str | Path, out_dir: str | Path, config: MeshConfig 
     unless ``force``. Bad scans are reported (``status == "failed"``, one-line message)
     and do not stop the others. ``workers`` overrides ``config.workers``.
     """
+    from pipeline.datasets.manifest import refuse_complete_version
+
     config = config or MeshConfig()
     scans_dir, out_dir = Path(scans_dir), Path(out_dir)
+    refuse_complete_version(out_dir, "build-meshes output folder")
     paths = find_scans(scans_dir)
     if not paths:
         raise UserError(f"{scans_dir}: no scans ({' '.join(SUPPORTED_SUFFIXES)}) in the folder")
