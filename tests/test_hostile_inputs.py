@@ -604,7 +604,9 @@ def test_a_cluster_without_workers_stops_the_run_after_worker_wait_s(tmp_path):
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    common = dict(cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    # `dask` is a console script: without PYTHONPATH its workers would import the installed package
+    common = dict(cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+                  env={**os.environ, "PYTHONPATH": str(REPO)})
     scheduler = subprocess.Popen([BIN / "dask", "scheduler", "--host", "127.0.0.1", "--port", str(port),
                                   "--no-dashboard"], **common)
     worker = subprocess.Popen([BIN / "dask", "worker", f"tcp://127.0.0.1:{port}", "--nthreads", "1",

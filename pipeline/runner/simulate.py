@@ -122,13 +122,11 @@ def _outcome(future) -> Any:
     TimeoutError if the result cannot be fetched within WAIT_POLL_S (the worker holding it died:
     dask computes it again once it has a worker).
     """
-    if future.status == "finished":
-        return future.result(timeout=WAIT_POLL_S)
     try:
-        return future.exception(timeout=WAIT_POLL_S)
+        return future.result(timeout=WAIT_POLL_S)
     except TimeoutError:
         raise
-    except Exception as exc:        # cancelled: the scheduler forgot the task
+    except Exception as exc:        # the task's error, KilledWorker, or cancelled
         return exc
 
 
