@@ -254,9 +254,11 @@ def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _T
     from pipeline.runner.plugin import SimulatorPlugin
 
     config, scenes = spec.config, spec.scenes
-    # A fetch that timed out (_outcome) leaves a dask task whose AllExit nobody reads; asyncio
-    # would print it with a traceback when it is collected.
-    logging.getLogger("asyncio").setLevel(logging.CRITICAL)
+    # The event loops' own loggers print tracebacks for what the run already handles: a fetch that
+    # timed out (_outcome) leaves a task whose AllExit nobody reads; a callback interrupted by
+    # Ctrl-C/SIGTERM while the cluster shuts down. Task errors reach the run through the futures.
+    for logger in ("asyncio", "tornado.application"):
+        logging.getLogger(logger).setLevel(logging.CRITICAL)
     with dask_client(config.cluster.workers, config.cluster.scheduler, config.cluster.worker_wait_s) as client:
         name = f"whisker-simulator-{uuid.uuid4().hex[:8]}"
         client.register_plugin(SimulatorPlugin(spec, name), name=name)
