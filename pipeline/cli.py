@@ -6,7 +6,10 @@ need them so that ``pipeline --help`` stays fast.
 
 from __future__ import annotations
 
+import errno
 import json
+import math
+import signal
 import sys
 import traceback
 from pathlib import Path
@@ -16,6 +19,8 @@ import click
 import typer
 
 from pipeline.errors import SimulationError, UserError
+
+MAX_TRIAL_DURATION_S = 10.0      # as the model config's whisk.duration_s
 
 app = typer.Typer(
     name="pipeline",
@@ -75,7 +80,8 @@ def view(target: str = typer.Argument(..., help="An .rrd file, or a dataset NAME
          trial: Optional[int] = typer.Option(None, "--trial", help="Trial index (dataset targets)."),
          web: bool = typer.Option(False, "--web", help="Serve a web viewer on 127.0.0.1 and print its URL."),
          port: Optional[int] = typer.Option(None, "--port", help="Web page port (default 9090; data on "
-                                                                  "port+1) or the native viewer's server port.")) -> None:
+                                                                  "port+1) or the native viewer's server port.",
+                                      min=1, max=65534)) -> None:
     """Open a trial's rerun recording in the viewer; stops the viewer on exit."""
     from pipeline.recordings.viewer import resolve_target, view as open_viewer
 
@@ -109,6 +115,31 @@ def _follicle_override(text: Optional[str]) -> Optional[dict]:
     except ValueError:
         raise UserError(f"--follicle '{text}' must be 'rigid' or 'K,C' (N·m/rad, N·m·s/rad)") from None
     return {"kind": "compliant", "stiffness_nm_per_rad": k, "damping_nms_per_rad": c}
+
+
+def _engine_name(engine: Optional[str], option: str = "--engine") -> Optional[str]:
+    """``engine`` if it names an engine the model config accepts; UserError otherwise."""
+    from typing import get_args
+
+    from pipeline.config.physics import EngineConfig
+
+    known = get_args(EngineConfig.model_fields["name"].annotation)
+    if engine is not None and engine not in known:
+        raise UserError(f"{option} '{engine}' is not an engine ({', '.join(known)})")
+    return engine
+
+
+def _writable_out(path: Optional[Path], option: str = "--out", *, new_file: bool = False) -> None:
+    """UserError if writing ``path`` would change a complete dataset version, or (``new_file``)
+    replace an existing file."""
+    from pipeline.datasets.manifest import refuse_complete_version
+    from pipeline.datasets.writer import refuse_existing
+
+    if path is None:
+        return
+    refuse_complete_version(path, option)
+    if new_file:
+        refuse_existing(path)
 
 
 @app.command()
@@ -162,10 +193,9 @@ def trial(
     from pipeline.protocols.whisking import default_drive, parse_scene, run_trial
 
     model = _model_config(config, {"file": _model_path(model_file), "engine": {"name": engine}})
-    if out is not None:
-        from pipeline.datasets.writer import refuse_existing
-
-        refuse_existing(out)
+    if not (math.isfinite(duration_s) and 0 < duration_s <= MAX_TRIAL_DURATION_S):
+        raise UserError(f"--duration-s {duration_s}: must be a number of seconds in (0, {MAX_TRIAL_DURATION_S:g}]")
+    _writable_out(out, new_file=True)
     head = Pose.parse(pose) if pose else Pose()
     world = parse_scene(scene)
     drive = default_drive(world, model, duration_s)
@@ -197,6 +227,7 @@ def build_meshes(
     """Turn every scan into a collision mesh (OBJ, metres) with quality metrics in manifest.json."""
     from pipeline.meshes.build import build_meshes as build, load_mesh_config
 
+    _writable_out(out)
     report = build(scans, out, load_mesh_config(config), force=force, progress=not json_output)
     if json_output:
         _print_json(report.to_dict())
@@ -212,7 +243,7 @@ def build_meshes(
                           str(m.get("surface_to_data_p95_mm", "")), f"{scan.seconds:.1f}" if scan.seconds else "")
         Console().print(table)
     for scan in report.failed:
-        typer.echo(f"error: {scan.message}", err=True)
+        typer.echo(f"error: {_one_line(scan.message)}", err=True)
     if report.failed:
         sys.exit(2)  # main() runs click with standalone_mode=False, which swallows typer.Exit codes
 # --- end meshes ---
@@ -317,6 +348,7 @@ def stats(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a versi
     """Natural tactile statistics of a dataset's ok trials (read one at a time): report.md, PNGs, stats.json."""
     from pipeline.reports.stats import stats_report
 
+    _writable_out(out)
     summary = stats_report(target, root, out)
     if json_output:
         _print_json(summary)
@@ -344,6 +376,7 @@ def validate(
     from pipeline.reports.document import number
     from pipeline.reports.validation import validate as run_validation
 
+    _writable_out(out)
     model = _model_config(config, {"file": _model_path(model_file),
                                    "material": {"follicle": _follicle_override(follicle)},
                                    "engine": {"name": engine}})
@@ -367,8 +400,8 @@ def calibrate(
     params: str = typer.Option("E,zeta", "--params", help="Parameters to fit, e.g. E,zeta,follicle.k_f."),
     method: str = typer.Option("optimizer", "--method", help="optimizer (least squares) or grid (paper)."),
     objective: str = typer.Option("msa", "--objective", help="msa (paper eq. 4a/4b) or trajectory."),
-    grid_points: Optional[int] = typer.Option(None, "--grid-points", help="Grid values per parameter."),
-    bootstrap: int = typer.Option(0, "--bootstrap", help="Bootstrap refits over trials for the sd."),
+    grid_points: Optional[int] = typer.Option(None, "--grid-points", min=2, help="Grid values per parameter."),
+    bootstrap: int = typer.Option(0, "--bootstrap", min=0, help="Bootstrap refits over trials for the sd."),
     engine: Optional[str] = typer.Option(None, "--engine", help="Check and refine the fit on an engine (bullet or mujoco)."),
     config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML (material, links, damping)."),
     save_model: Optional[Path] = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md)."),
@@ -377,6 +410,8 @@ def calibrate(
     """Fit model parameters to measured data (median symmetric accuracy), with uncertainties."""
     from pipeline.diagnosis.commands import run_calibrate
 
+    _engine_name(engine)
+    _writable_out(save_model, "--save-model")
     material = _model_config(config, {}).material
     data, lines = run_calibrate(file, params, method, objective, material, engine, bootstrap, grid_points,
                                 save_model)
@@ -399,6 +434,11 @@ def diagnose(
     """What the model gets wrong on measured data, and which model extension explains it."""
     from pipeline.diagnosis.commands import run_diagnose
 
+    _engine_name(engine)
+    _writable_out(report, "--report")
+    _writable_out(save_model, "--save-model")
+    if report is not None and report.exists() and not report.is_dir():
+        raise UserError(f"--report {report} is a file; give a folder for report.md and the figures")
     data, lines = run_diagnose(file, _model_config(config, {}).material, report, engine, candidates, save_model)
     if json_output:
         _print_json(data)
@@ -410,7 +450,7 @@ def diagnose(
 def synth(
     config: Path = typer.Option(..., "--config", help="Synth config YAML (docs/measurements.md)."),
     out: Path = typer.Option(..., "--out", help="Measurement file to write (.h5)."),
-    seed: Optional[int] = typer.Option(None, "--seed", help="Override the config's seed."),
+    seed: Optional[int] = typer.Option(None, "--seed", min=0, help="Override the config's seed."),
     model_file: Optional[Path] = typer.Option(None, "--model", help="Fitted model file as the truth's base "
                                                                    "(docs/model_file.md)."),
     json_output: bool = typer.Option(False, "--json", help="Print JSON."),
@@ -418,6 +458,7 @@ def synth(
     """Write a synthetic measurement from the model with chosen extensions, noise and drives."""
     from pipeline.diagnosis.commands import run_synth
 
+    _writable_out(out, new_file=True)
     data, lines = run_synth(config, out, seed, _model_path(model_file))
     if json_output:
         _print_json(data)
@@ -426,29 +467,84 @@ def synth(
 # --- end measured data ---
 
 
-def main() -> None:
-    """Console entry point: user errors become one ``error:`` line and exit code 2."""
-    debug = "--debug" in sys.argv[1:]
+def _click_errors() -> tuple[tuple[type, ...], tuple[type, ...], tuple[type, ...]]:
+    """(usage errors, aborts, exits) of the installed click and of the copy bundled with typer."""
+    errors = [click.ClickException]
+    aborts, exits = [click.exceptions.Abort, typer.Abort], [click.exceptions.Exit, typer.Exit]
     try:
-        sys.exit(app(standalone_mode=False) or 0)     # typer returns the code of an Exit/Abort
-    except click.exceptions.Exit as exc:
-        sys.exit(exc.exit_code)
-    except click.ClickException as exc:
-        exc.show()
-        sys.exit(exc.exit_code)
-    except (click.exceptions.Abort, KeyboardInterrupt):
-        typer.echo("interrupted", err=True)
-        sys.exit(130)
+        from typer._click.exceptions import ClickException as BundledClickException
+        errors.append(BundledClickException)
+    except ImportError:          # typer versions that use the installed click
+        pass
+    return tuple(errors), tuple(aborts), tuple(exits)
+
+
+_TERMINATED_BY: list[str] = []      # the signal that stopped this process, if any
+
+
+def _terminate(signum, frame) -> None:
+    """SIGTERM: stop like Ctrl-C (a run stops cleanly and says how to resume), then report it."""
+    _TERMINATED_BY.append(signal.Signals(signum).name)
+    raise KeyboardInterrupt
+
+
+def _exit(code: int) -> None:
+    if _TERMINATED_BY:
+        typer.echo(f"error: terminated by {_TERMINATED_BY[0]}", err=True)
+        sys.exit(128 + signal.SIGTERM)
+    sys.exit(code)
+
+
+def _one_line(text: object) -> str:
+    return " ".join(str(text).split())
+
+
+def main() -> None:
+    """Console entry point and the CLI's one exception boundary.
+
+    Usage errors (bad option value, unknown command or option, missing argument), a
+    :class:`UserError` and an operating-system error on a named file (no space, permission)
+    become one ``error:`` line and exit code 2; a :class:`SimulationError` exits 1; anything
+    else is a bug and keeps its traceback. ``--debug`` shows the traceback of every error.
+    """
+    debug = "--debug" in sys.argv[1:]
+    signal.signal(signal.SIGTERM, _terminate)
+    usage_errors, aborts, exits = _click_errors()
+    try:
+        code = app(standalone_mode=False)
+        _exit(code or 0)     # typer returns the code of an Exit/Abort (130 after Ctrl-C)
+    except exits as exc:
+        _exit(exc.exit_code)
+    except usage_errors as exc:
+        if type(exc).__name__ == "NoArgsIsHelpError":       # bare `pipeline` or group: help was asked for
+            typer.echo(exc.ctx.get_help() if getattr(exc, "ctx", None) else str(exc))
+            sys.exit(0)
+        if debug:
+            traceback.print_exc()
+        typer.echo(f"error: {_one_line(exc.format_message())} (see --help)", err=True)
+        sys.exit(2)
+    except (*aborts, KeyboardInterrupt):
+        if not _TERMINATED_BY:
+            typer.echo("interrupted", err=True)
+        _exit(130)
     except UserError as exc:
         if debug:
             traceback.print_exc()
-        typer.echo(f"error: {exc}", err=True)
+        typer.echo(f"error: {_one_line(exc)}", err=True)
         sys.exit(2)
     except SimulationError as exc:
         if debug:
             traceback.print_exc()
-        typer.echo(f"error: simulation failed: {exc}", err=True)
+        typer.echo(f"error: simulation failed: {_one_line(exc)}", err=True)
         sys.exit(1)
+    except OSError as exc:
+        if exc.errno is None or (exc.filename is None and exc.errno not in (errno.ENOSPC, errno.EDQUOT)):
+            raise
+        if debug:
+            traceback.print_exc()
+        where = f": {exc.filename}" if exc.filename else ""
+        typer.echo(f"error: {exc.strerror or _one_line(exc)}{where}", err=True)
+        sys.exit(2)
 
 
 if __name__ == "__main__":

@@ -12,3 +12,7 @@ class UserError(Exception):
 
 class SimulationError(RuntimeError):
     """The simulation left the physically plausible range; the trial is not usable."""
+
+
+class RunAborted(UserError):
+    """A condition that stops a whole run (not one trial): its unwritten trials stay pending."""

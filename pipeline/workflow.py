@@ -9,6 +9,7 @@ same hash skips the stage, unless one of its outputs has gone missing.
 
 from __future__ import annotations
 
+import inspect
 import json
 from pathlib import Path
 from typing import Any, Callable
@@ -19,6 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 import pipeline
 from pipeline.errors import UserError
 from pipeline.provenance import json_sha256, paths_sha256
+from pipeline.storage import write_text_durably
 
 STATE_DIR = Path("outputs/.workflow")
 
@@ -55,6 +57,16 @@ def load_workflow(path: Path) -> WorkflowSpec:
         raise UserError(f"{path}: invalid workflow: {' '.join(first[:3])}") from None
 
 
+def _check_args(path: Path, stage: StageSpec, function: Callable[..., Any]) -> None:
+    """UserError naming the stage and argument if ``stage.args`` does not fit ``function``."""
+    parameters = inspect.signature(function).parameters
+    accepted = list(parameters)[1:]          # the first is the config path
+    unknown = [name for name in stage.args if name not in accepted]
+    if unknown:
+        raise UserError(f"{path}: stage '{stage.stage}' has no argument '{unknown[0]}' "
+                        f"(arguments: {', '.join(accepted) or 'none'})")
+
+
 def run_workflow(path: Path, *, force: bool = False, echo: Callable[[str], None] = print) -> None:
     """Run every stage of the workflow at ``path`` in order."""
     spec = load_workflow(path)
@@ -63,6 +75,7 @@ def run_workflow(path: Path, *, force: bool = False, echo: Callable[[str], None]
         if stage.stage not in functions:
             raise UserError(f"{path}: unknown stage '{stage.stage}' "
                             f"(known: {', '.join(sorted(functions))})")
+        _check_args(path, stage, functions[stage.stage])
     for stage in spec.stages:
         hashed = list(stage.inputs) + ([stage.config] if stage.config else [])
         key = json_sha256({"inputs": paths_sha256(hashed), "args": stage.args,
@@ -80,5 +93,5 @@ def run_workflow(path: Path, *, force: bool = False, echo: Callable[[str], None]
         echo(f"[{stage.stage}] running ({reason})")
         summary = functions[stage.stage](stage.config, **stage.args)
         state_file.parent.mkdir(parents=True, exist_ok=True)
-        state_file.write_text(json.dumps({"key": key, "summary": summary}, indent=2, default=str))
+        write_text_durably(state_file, json.dumps({"key": key, "summary": summary}, indent=2, default=str))
         echo(f"[{stage.stage}] done: {json.dumps(summary, default=str)}")

@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, TypeVar
+from typing import Any, Callable, Mapping, TypeVar
 
 import yaml
 from pydantic import BaseModel, ValidationError
@@ -28,17 +28,23 @@ class ConfigSource:
     origins: dict[tuple[str, ...], str] = field(default_factory=dict)
 
     def origin_of(self, loc: tuple[str, ...]) -> str:
+        """The source of the value at ``loc``, of a section holding it, or of values inside it."""
         for cut in range(len(loc), 0, -1):
             if loc[:cut] in self.origins:
                 return self.origins[loc[:cut]]
-        return "default"
+        inside = sorted({o for key, o in self.origins.items() if key[:len(loc)] == loc})
+        return " and ".join(inside) or "default"
 
 
 def _read_yaml(path: Path) -> dict[str, Any]:
     if not path.is_file():
         raise UserError(f"config file not found: {path}")
     try:
-        data = yaml.safe_load(path.read_text()) or {}
+        data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+    except OSError as exc:
+        raise UserError(f"{path}: cannot be read ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:
+        raise UserError(f"{path}: not UTF-8 text (byte {exc.start})") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1})" if mark is not None else ""
@@ -59,23 +65,36 @@ def env_overrides(prefix: str, environ: Mapping[str, str] | None = None) -> dict
         node = result
         for key in keys[:-1]:
             node = node.setdefault(key, {})
-        node[keys[-1]] = yaml.safe_load(raw) if raw.strip() else raw
+        try:
+            node[keys[-1]] = yaml.safe_load(raw) if raw.strip() else raw
+        except yaml.YAMLError as exc:
+            raise UserError(f"environment variable {name}={raw!r}: not a valid YAML value "
+                            f"({getattr(exc, 'problem', exc)})") from None
     return result
 
 
-def _merge(base: dict[str, Any], top: Mapping[str, Any], origin: str,
+def _has_value(value: Any) -> bool:
+    """True unless ``value`` is None or a non-empty mapping holding only None (flags not given)."""
+    if isinstance(value, Mapping):
+        return not value or any(_has_value(v) for v in value.values())
+    return value is not None
+
+
+def _merge(base: dict[str, Any], top: Mapping[str, Any], origin: str | Callable[[tuple[str, ...]], str],
            origins: dict[tuple[str, ...], str], prefix: tuple[str, ...] = ()) -> None:
     for key, value in top.items():
-        if value is None:
+        if not _has_value(value):
             continue
         loc = prefix + (key,)
         if isinstance(value, Mapping):
-            if not isinstance(base.get(key), dict):
-                base[key] = {}
+            if key in base and not isinstance(base[key], dict):
+                raise UserError(f"{origins.get(loc, 'a config value')}: field '{'.'.join(loc)}' = "
+                                f"{base[key]!r}: must be a section (a mapping of field: value)")
+            base.setdefault(key, {})
             _merge(base[key], value, origin, origins, loc)
         else:
             base[key] = value
-            origins[loc] = origin
+            origins[loc] = origin(loc) if callable(origin) else origin
 
 
 def _describe(error: dict[str, Any], source: ConfigSource) -> str:
@@ -87,9 +106,12 @@ def describe_error(error: dict[str, Any], where: str) -> str:
     dotted = ".".join(str(part) for part in error["loc"]) or "(top level)"
     if error["type"] == "extra_forbidden":
         return f"{where}: unknown field '{dotted}'"
+    message = error["msg"].removeprefix("Value error, ")
+    if not loc:
+        return f"{where}: {message}"
     value = error.get("input")
     shown = "" if isinstance(value, (dict, list)) or value is None else f" = {value!r}"
-    return f"{where}: field '{dotted}'{shown}: {error['msg']}"
+    return f"{where}: field '{dotted}'{shown}: {message}"
 
 
 def load_config(model: type[ModelT], path: str | Path | None = None, *, env_prefix: str = "",
@@ -108,8 +130,8 @@ def load_config(model: type[ModelT], path: str | Path | None = None, *, env_pref
     if path is not None:
         _merge(merged, _read_yaml(Path(path)), str(path), source.origins)
     if env_prefix:
-        _merge(merged, env_overrides(env_prefix, environ), f"environment ({env_prefix}*)",
-               source.origins)
+        _merge(merged, env_overrides(env_prefix, environ),
+               lambda loc: f"environment variable {env_prefix}{'__'.join(loc).upper()}", source.origins)
     if overrides:
         _merge(merged, overrides, "command-line flag", source.origins)
     try:

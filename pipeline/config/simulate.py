@@ -160,6 +160,15 @@ class ClusterConfig(StrictModel):
     scheduler: str | None = Field(None, description="address of a running dask scheduler, tcp://HOST:PORT")
     record_every: int = Field(10, ge=0, le=10_000_000,
                               description="write a rerun recording of every k-th trial (0 = none)")
+    worker_wait_s: float = Field(120.0, ge=1.0, le=86_400.0,
+                                 description="a run stops (trials pending) after this long without any worker, s")
+
+    @field_validator("scheduler")
+    @classmethod
+    def _address(cls, address: str | None) -> str | None:
+        if address is not None and not re.fullmatch(r"(tcp|tls)://[^\s/:]+:\d{1,5}", address):
+            raise ValueError("must be a dask scheduler address tcp://HOST:PORT (or tls://HOST:PORT)")
+        return address
 
 
 class SimulateConfig(StrictModel):

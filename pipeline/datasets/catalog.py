@@ -10,6 +10,7 @@ from pipeline.datasets.manifest import read_manifest, verify
 from pipeline.datasets.reader import DatasetFile
 from pipeline.datasets.schema import ARRAYS, DATA_FILE
 from pipeline.datasets.versions import dataset_names, is_complete, is_locked, resolve, versions
+from pipeline.errors import UserError
 
 
 # Figures of the finished run, kept in its manifest (see pipeline.runner.simulate.summarize).
@@ -65,8 +66,11 @@ def list_datasets(root: Path) -> list[dict[str, Any]]:
         for k, folder in versions(root, name).items():
             row = {"dataset": f"{name}/v{k}", "state": state(folder), "size_mb": _size_mb(folder)}
             if (folder / DATA_FILE).is_file():
-                with DatasetFile(folder / DATA_FILE) as ds:
-                    row.update(trials=len(ds.status), ok=len(ds.ok), failed=len(ds.failed),
-                               created_utc=ds.provenance.get("created_utc"))
+                try:
+                    with DatasetFile(folder / DATA_FILE) as ds:
+                        row.update(trials=len(ds.status), ok=len(ds.ok), failed=len(ds.failed),
+                                   created_utc=ds.provenance.get("created_utc"))
+                except UserError as exc:           # one unreadable version does not hide the others
+                    row.update(state="unreadable", error=str(exc))
             rows.append(row)
     return rows

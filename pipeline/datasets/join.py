@@ -43,10 +43,13 @@ def _run_folder(root: Path, name: str, run: str | None) -> Path:
 
 
 def _shards(run_folder: Path) -> list[tuple[Path, range]]:
-    """(data file, trial block) per shard, checked complete and not being written."""
+    """(data file, trial block) per shard, checked complete, not being written, and all of one
+    partition (same shard count and trials, each holding its own block)."""
     import h5py
 
-    found, count = {}, None
+    from pipeline.runner.shards import Shard
+
+    found, partitions = {}, set()
     for folder in sorted(run_folder.glob("shard_*_of_*")):
         data = folder / DATA_FILE
         if is_locked(folder):
@@ -60,12 +63,22 @@ def _shards(run_folder: Path) -> list[tuple[Path, range]]:
         with h5py.File(data, "r") as f:
             number, count = decode_attr(f.attrs["shard"])
             block = range(*decode_attr(f.attrs["trial_range"]))
+            total = int(f.attrs["trials"])
             pending = int((f["trials/status"][block.start:block.stop] == PENDING.encode()).sum())
+        partitions.add((count, total))
+        if len(partitions) > 1:
+            shown = " and ".join(f"{c} shards of {t} trials" for c, t in sorted(partitions))
+            raise UserError(f"{run_folder}: shards of different partitions ({shown}); join the shards of "
+                            "one partition only")
+        if block != Shard(number, count).indices(total):
+            raise UserError(f"{data}: shard {number}/{count} holds trials {block.start}-{block.stop - 1}, "
+                            "not its block of the partition")
         if pending:
             raise UserError(f"shard {number}/{count} has {pending} trials pending; finish it with "
                             f"`pipeline simulate --shard {number}/{count}` and the same config")
         found[number] = (data, block)
-    missing = [f"{i}/{count}" for i in range(1, (count or 0) + 1) if i not in found]
+    count = next(iter(partitions))[0] if partitions else 0
+    missing = [f"{i}/{count}" for i in range(1, count + 1) if i not in found]
     if not found or missing:
         raise UserError(f"{run_folder}: shards missing: {', '.join(missing) or 'all'}")
     return [found[i] for i in sorted(found)]

@@ -1,7 +1,7 @@
 """``manifest.json`` of a finished version: sha256 and size of every file, written last.
 
-Its presence marks the version complete; the files are then made read-only (existing
-versions are never modified). ``verify`` re-hashes the files against it.
+Its presence marks the version complete; its files and folders are then made read-only, and
+every writer refuses a path inside a complete version (:func:`refuse_complete_version`). ``verify`` re-hashes the files against it.
 """
 
 from __future__ import annotations
@@ -14,25 +14,31 @@ from typing import Any
 
 from pipeline.datasets.schema import MANIFEST_FILE, SCHEMA, SCHEMA_VERSION
 from pipeline.provenance import file_sha256
+from pipeline.errors import UserError
+from pipeline.storage import write_text_durably
 
 
 def _files(folder: Path) -> list[Path]:
-    """Every file under ``folder`` except the manifest and hidden files (the writer's lock)."""
+    """Every file under ``folder`` except the manifest, hidden files (the writer's lock) and
+    ``*.partial`` files (a write that never finished)."""
     return sorted(p for p in folder.rglob("*") if p.is_file() and p.name != MANIFEST_FILE
+                  and not p.name.endswith(".partial")
                   and not any(part.startswith(".") for part in p.relative_to(folder).parts))
 
 
 def write_manifest(folder: Path, summary: dict[str, Any]) -> Path:
-    """Hash every file, write the manifest atomically, then make the version read-only."""
+    """Hash every file, write the manifest durably (its presence seals the version), then make
+    the version read-only: files and folders lose their write permission."""
     folder = Path(folder)
+    for stale in folder.rglob("*.partial"):
+        stale.unlink()
     files = {str(p.relative_to(folder)): {"sha256": file_sha256(p), "bytes": p.stat().st_size}
              for p in _files(folder)}
     data = {"schema": SCHEMA, "schema_version": SCHEMA_VERSION, "status": "complete",
             "summary": summary, "files": files}
-    partial = folder / (MANIFEST_FILE + ".partial")
-    partial.write_text(json.dumps(data, indent=2, default=str) + "\n")
-    os.replace(partial, folder / MANIFEST_FILE)
-    for path in _files(folder) + [folder / MANIFEST_FILE]:
+    write_text_durably(folder / MANIFEST_FILE, json.dumps(data, indent=2, default=str) + "\n")
+    for path in _files(folder) + [folder / MANIFEST_FILE] + sorted(p for p in folder.rglob("*") if p.is_dir()) \
+            + [folder]:
         path.chmod(path.stat().st_mode & ~(stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH))
     return folder / MANIFEST_FILE
 
@@ -55,3 +61,28 @@ def verify(folder: Path) -> list[str]:
     problems += [f"changed: {name}" for name in sorted(set(listed) & present)
                  if file_sha256(folder / name) != listed[name]["sha256"]]
     return problems
+
+
+def complete_version_of(path: Path) -> Path | None:
+    """The complete version folder (one holding a manifest) that ``path`` is in or is, if any."""
+    path = Path(path).absolute()
+    for folder in (path, *path.parents):
+        if (folder / MANIFEST_FILE).is_file() and _is_dataset_manifest(folder / MANIFEST_FILE):
+            return folder
+    return None
+
+
+def _is_dataset_manifest(path: Path) -> bool:
+    """True if ``path`` is a dataset version's manifest (not, e.g., build-meshes' manifest)."""
+    try:
+        return json.loads(path.read_text()).get("schema") == SCHEMA
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def refuse_complete_version(path: Path, what: str = "--out") -> None:
+    """UserError if writing ``path`` would change a complete (sealed) version."""
+    folder = complete_version_of(path)
+    if folder is not None:
+        raise UserError(f"{what} {path} is inside the complete version {folder}, which is read-only "
+                        "(choose a path outside it)")

@@ -21,7 +21,12 @@ import numpy as np
 from pipeline.datasets.named import NamedArray
 from pipeline.datasets.schema import ARRAYS, FAILED, OK, PENDING
 from pipeline.datasets.versions import DEFAULT_ROOT, resolve
+from pipeline.errors import UserError
 from pipeline.model.outputs import SIGNALS
+
+
+def _first_line(exc: BaseException) -> str:
+    return (str(exc).strip().splitlines() or [type(exc).__name__])[0]
 
 
 def _decoded(values: np.ndarray) -> np.ndarray:
@@ -47,10 +52,30 @@ class DatasetFile:
         import h5py
 
         self.path = Path(path)
-        self.file = h5py.File(self.path, "r", swmr=True)
-        self.attrs = {key: decode_attr(value) for key, value in self.file.attrs.items()}
-        self.whiskers = {k: _decoded(v[()]) for k, v in self.file["whiskers"].items()}
-        self.refresh()
+        try:
+            self.file = h5py.File(self.path, "r", swmr=True)
+        except (OSError, RuntimeError) as exc:             # h5py: RuntimeError for some bad superblocks
+            raise UserError(f"{self.path}: not a readable dataset file ({_first_line(exc)})") from None
+        try:
+            self.attrs = {key: decode_attr(value) for key, value in self.file.attrs.items()}
+            self.whiskers = {k: _decoded(v[()]) for k, v in self.file["whiskers"].items()}
+            self.refresh()
+            self._check_shards()
+        except (OSError, RuntimeError, KeyError, ValueError) as exc:
+            self.file.close()
+            raise UserError(f"{self.path}: not a readable dataset file ({_first_line(exc)})") from None
+        except UserError:
+            self.file.close()
+            raise
+
+    def _check_shards(self) -> None:
+        """A joined dataset maps its arrays into shard files: each must be there (else its trials
+        would read as fill values, NaN, while marked ok)."""
+        joined = self.attrs.get("joined_from") or []
+        missing = [name for name in joined if not (self.path.parent / name).is_file()]
+        if missing:
+            raise UserError(f"{self.path} is a joined dataset whose shard files are missing: "
+                            f"{', '.join(missing)} (keep its version folder together)")
 
     def refresh(self) -> None:
         """Re-read the trial table (a dataset being written grows its finished trials)."""

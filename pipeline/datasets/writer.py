@@ -10,6 +10,7 @@ place. h5py is imported inside functions.
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import socket
@@ -21,10 +22,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pipeline.datasets.schema import (ARRAYS, PENDING, POSE_REJECTION_REASONS, SCHEMA, SCHEMA_VERSION,
+from pipeline.datasets.schema import (ARRAYS, OK, PENDING, POSE_REJECTION_REASONS, SCHEMA, SCHEMA_VERSION,
                                       TRIAL_COLUMNS, WHISKER_COLUMNS, TrialRecord)
 from pipeline.errors import UserError
 from pipeline.model.outputs import SIGNALS, TrialOutput
+from pipeline.storage import replacing, require_free_space
 
 if TYPE_CHECKING:
     from pipeline.config.physics import ModelConfig
@@ -184,21 +186,35 @@ def recover(path: Path) -> None:
     """Replace a file whose writer was killed by a clean copy of what a SWMR reader sees."""
     import h5py
 
-    partial = path.with_name(path.name + ".recover.partial")
-    with h5py.File(path, "r", swmr=True) as old, h5py.File(partial, "w", libver="latest") as new:
+    with replacing(path, ".recover.partial") as partial, h5py.File(path, "r", swmr=True) as old, \
+            h5py.File(partial, "w", libver="latest") as new:
         new.attrs.update(old.attrs)
         for key in old:
             old.copy(old[key], new, name=key)
-    os.replace(partial, path)
+        new.flush()
+        os.fsync(new.id.get_vfd_handle())
+
+
+TRIAL_SPACE_MARGIN_BYTES = 256 * 1024     # room kept for HDF5 metadata and the trial table
 
 
 class DatasetWriter:
-    """Writes trials into rows of one dataset file, each at most once."""
+    """Writes trials into rows of one dataset file, each at most once, each durably.
+
+    A trial's row is marked written (``ok``/``failed``) only after its arrays are flushed and
+    fsync'ed; a trial that does not fit on the disk is not started (``OSError(ENOSPC)``) and
+    stays pending, so ``--resume`` writes it later.
+    """
 
     def __init__(self, file, path: Path):
         self.file, self.path = file, Path(path)
         self.file.swmr_mode = True
-        self._status = self.file["trials/status"][:]
+        # Open handles, never temporary ones: a temporary h5py object flushes its chunk when it
+        # is garbage collected, where a write error (a full disk) is only printed, not raised.
+        self._arrays = {name: self.file[name] for name in ARRAYS if name in self.file}
+        self._columns = {name: self.file["trials"][name] for name in TRIAL_COLUMNS}
+        self._status = self._columns["status"][:]
+        self._failed = False             # a write failed: closing may fail too (resume recovers the file)
 
     @classmethod
     def create(cls, path: Path, layout: Layout, attrs: dict[str, Any]) -> "DatasetWriter":
@@ -220,33 +236,90 @@ class DatasetWriter:
                 raise UserError(f"{path} cannot be recovered ({failure}); remove its folder and start "
                                 "again") from None
             f = h5py.File(path, "r+", libver="latest")
-        return cls(f, path)
+        writer = cls(f, path)
+        writer.reopen_lost()
+        return writer
 
     def pending(self) -> np.ndarray:
         """Indices of trials not written yet."""
         return np.flatnonzero(self._status == PENDING.encode())
 
+    def lost(self) -> np.ndarray:
+        """Indices of trials marked ``ok`` whose array chunks are not in the file."""
+        ok = np.flatnonzero(self._status == OK.encode())
+        return np.array([i for i in ok if any(
+            data.id.get_chunk_info_by_coord((int(i),) + (0,) * (data.ndim - 1)).byte_offset is None
+            for data in self._arrays.values())], dtype=int)
+
+    def reopen_lost(self) -> np.ndarray:
+        """Mark trials whose data are missing pending again (they are simulated again)."""
+        lost = self.lost()
+        for index in lost:
+            self._columns["status"][index] = PENDING.encode()
+            self._status[index] = PENDING.encode()
+        if lost.size:
+            self._sync()
+        return lost
+
+    def _sync(self) -> None:
+        """Flush HDF5's caches into the file and the file onto the device; OSError if a write
+        failed (h5py raises RuntimeError carrying the errno in its text)."""
+        try:
+            for data in (*self._arrays.values(), *self._columns.values()):
+                data.flush()                   # raises on a failed write, unlike a deferred flush
+            self.file.flush()
+        except RuntimeError as exc:
+            self._failed = True
+            full = any(f"errno = {code}," in str(exc) for code in (errno.ENOSPC, errno.EDQUOT))
+            raise OSError(errno.ENOSPC if full else errno.EIO, (str(exc).splitlines() or ["write failed"])[0],
+                          str(self.path)) from None
+        os.fsync(self.file.id.get_vfd_handle())
+
+    def _check_on_disk(self, index: int, arrays: dict[str, np.ndarray]) -> None:
+        """OSError(ENOSPC) unless every chunk of trial ``index`` lies within the file's bytes.
+
+        HDF5 reports a chunk write that failed while its cache was being emptied (a full disk)
+        only as a warning, when a temporary object is freed; the file then ends before the chunk.
+        """
+        size = os.fstat(self.file.id.get_vfd_handle()).st_size
+        for name in arrays:
+            data = self._arrays[name]
+            chunk = data.id.get_chunk_info_by_coord((index,) + (0,) * (data.ndim - 1))
+            if chunk.byte_offset is None or chunk.byte_offset + chunk.size > size:
+                raise OSError(errno.ENOSPC, f"No space left on device: trial {index}'s {name} did not "
+                                            "reach the file", str(self.path))
+
     def write(self, index: int, record: TrialRecord, arrays: dict[str, np.ndarray] | None) -> bool:
-        """Write trial ``index``; False (and nothing written) if it was written before."""
+        """Write trial ``index``; False (and nothing written) if it was written before.
+
+        OSError(ENOSPC) before anything is written if the trial may not fit on the disk.
+        """
         if self._status[index] != PENDING.encode():
             return False
+        size = sum(np.asarray(value).nbytes for value in (arrays or {}).values())
+        require_free_space(self.path.parent, 2 * size + TRIAL_SPACE_MARGIN_BYTES, f"trial {index}")
         for name, value in (arrays or {}).items():
-            self.file[name][index] = value
+            self._arrays[name][index] = value
         if arrays:
-            self.file.flush()
-        table = self.file["trials"]
+            self._sync()
+            self._check_on_disk(index, arrays)
         for name, value in asdict(record).items():
             if name != "status":
                 meta = TRIAL_COLUMNS[name]
-                table[name][index] = encode(value, meta["dtype"]) if meta["dtype"][0] == "S" else value
-        table["status"][index] = record.status.encode()
-        self.file.flush()
+                self._columns[name][index] = encode(value, meta["dtype"]) if meta["dtype"][0] == "S" else value
+        self._columns["status"][index] = record.status.encode()
+        self._sync()
         self._status[index] = record.status.encode()
         return True
 
     def close(self) -> None:
-        if self.file.id.valid:
+        if not self.file.id.valid:
+            return
+        try:
             self.file.close()
+        except (RuntimeError, OSError):
+            if not self._failed:         # after a failed write the first error is the one to report
+                raise
 
     def __enter__(self) -> "DatasetWriter":
         return self
@@ -291,11 +364,9 @@ def write_single_trial(path: str | Path, output: TrialOutput, model: "ModelConfi
         cpu_seconds=output.metadata.get("cpu_seconds", 0.0),
         physics_cpu_seconds=output.metadata.get("cpu_seconds", 0.0),
         wall_seconds=output.metadata.get("wall_seconds", 0.0), worker=f"{socket.gethostname()}:{os.getpid()}")
-    partial = path.with_name(path.name + ".partial")
     attrs = {"name": path.stem, "version": 0, "seed": 0,
              "provenance": provenance(model.model_dump(mode="json"), engine=output.metadata.get("engine"),
                                       model_file=model_file_record(model))}
-    with DatasetWriter.create(partial, layout, attrs) as writer:
+    with replacing(path) as partial, DatasetWriter.create(partial, layout, attrs) as writer:
         writer.write(0, record, trial_arrays(output, theta, layout))
-    os.replace(partial, path)
     return path

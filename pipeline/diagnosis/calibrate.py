@@ -16,7 +16,7 @@ from pipeline.config.physics import MaterialConfig
 from pipeline.diagnosis.fitting import bootstrap as bootstrap_sd
 from pipeline.diagnosis.fitting import best_start, engine_check, fit, matched_start
 from pipeline.diagnosis.objective import FeatureObjective, TableObjective, TrajectoryObjective
-from pipeline.diagnosis.parameters import ModelSpec
+from pipeline.diagnosis.parameters import ModelSpec, parameter
 from pipeline.errors import UserError
 from pipeline.measurements.table import ResonanceTable
 
@@ -48,6 +48,21 @@ def modal_summary(spec: ModelSpec, geometry) -> dict:
     return {"f1_hz": float(freqs[in_plane][0]), "zeta1": float(zetas[in_plane][0])}
 
 
+BOUND_TOLERANCE = 1e-6      # relative distance from a bound at which a fitted value is pinned to it
+
+
+def pinned_notes(values: dict[str, float]) -> list[str]:
+    """Warnings for fitted values at a bound of their range: their sd is not an uncertainty."""
+    notes = []
+    for name, value in values.items():
+        spec = parameter(name)
+        for side, bound in (("lower", spec.lower), ("upper", spec.upper)):
+            if abs(value - bound) <= BOUND_TOLERANCE * max(abs(bound), abs(value), 1e-300):
+                notes.append(f"warning: {name} = {value:.5g} is pinned at its {side} bound: the data do not "
+                             "constrain it within its range, and its sd is not an uncertainty")
+    return notes
+
+
 def calibrate(measurement, names=("E", "zeta"), method: str = "optimizer", objective: str = "msa",
               material: MaterialConfig | None = None, engine: str | None = None, bootstrap: int = 0,
               grid_points: int | None = None) -> dict:
@@ -72,7 +87,8 @@ def _calibrate(measurement, names, method, objective, material, engine, bootstra
     result = fit(target, start, names, method=method, grid_points=grid_points, sigma=_table_sigma(target),
                  max_iterations=MAX_ITERATIONS)
     out = {"params": result.params(), "error": result.error, "metric": result.metric, "method": method,
-           "objective": objective, "evaluations": result.evaluations, "notes": result.notes}
+           "objective": objective, "evaluations": result.evaluations,
+           "notes": list(result.notes) + pinned_notes(result.values)}
     if isinstance(measurement, ResonanceTable):
         out["modes"] = {r.whisker: modal_summary(result.spec, r.geometry) for r in measurement.records}
     else:

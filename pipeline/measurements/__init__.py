@@ -6,6 +6,7 @@ its file and raises :class:`~pipeline.errors.UserError` naming file, trial (or l
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
 
 from pipeline.errors import UserError
@@ -17,12 +18,17 @@ PAPER_ALPHA_B1 = Path(__file__).parent / "data" / "paper_alpha_b1.csv"
 
 
 def load_measurement(path: str | Path) -> TimeSeriesMeasurement | ResonanceTable:
-    """A time series (``.h5``/``.hdf5``) or a resonance table (``.csv``), validated."""
+    """A time series (``.h5``/``.hdf5``) or a resonance table (``.csv``), validated; a file
+    that cannot be decoded (corrupt HDF5, binary bytes in a CSV) is a UserError naming it."""
     suffix = Path(path).suffix.lower()
-    if suffix in (".h5", ".hdf5"):
-        return load_timeseries(path)
-    if suffix == ".csv":
-        return load_table(path)
+    try:
+        if suffix in (".h5", ".hdf5"):
+            return load_timeseries(path)
+        if suffix == ".csv":
+            return load_table(path)
+    except (OSError, RuntimeError, UnicodeDecodeError, csv.Error, KeyError, ValueError, TypeError) as exc:
+        reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise UserError(f"{path}: corrupt or unreadable measurement file ({reason})") from None
     raise UserError(f"{path}: unknown measurement type '{suffix}' (.h5/.hdf5 time series or "
                     ".csv resonance table)")
 

@@ -14,6 +14,7 @@ parameters give the same OBJ bytes.
 
 from __future__ import annotations
 
+import errno
 import os
 import time
 import traceback
@@ -111,6 +112,7 @@ def build_scan(path: Path, name: str, out_dir: Path, config: MeshConfig) -> dict
     if len(points) < config.read.min_points:
         raise UserError(f"{path}: only {len(points)} points left after outlier removal "
                         f"(read.min_points = {config.read.min_points})")
+    _require_depth(path, points)
     tree = cKDTree(points)
     lap("outliers")
 
@@ -178,6 +180,18 @@ def build_scan(path: Path, name: str, out_dir: Path, config: MeshConfig) -> dict
     }
 
 
+FLAT_THICKNESS_FRACTION = 1e-6     # rms distance from the best plane, as a fraction of the extent
+
+
+def _require_depth(path: Path, points_mm: np.ndarray) -> None:
+    """UserError if the points lie in one plane (or on a line): reconstruction needs depth."""
+    centred = points_mm - points_mm.mean(axis=0)
+    spread = np.linalg.svd(centred, compute_uv=False) / np.sqrt(len(points_mm))
+    if spread[-1] <= FLAT_THICKNESS_FRACTION * max(spread[0], 1e-300):
+        raise UserError(f"{path}: all points lie in one plane (rms {spread[-1]:.3g} mm off it over "
+                        f"{spread[0]:.3g} mm): no surface with depth to reconstruct")
+
+
 def _job(path: str, name: str, out_dir: str, config_data: dict[str, Any]) -> dict[str, Any]:
     """Run one scan; never raises: returns ``{"status": "ok", ...}`` or a failure entry."""
     start = time.perf_counter()
@@ -191,7 +205,8 @@ def _job(path: str, name: str, out_dir: str, config_data: dict[str, Any]) -> dic
         return {"status": "failed", "error": f"{path}: out of memory",
                 "timings_s": {"total": round(time.perf_counter() - start, 3)}}
     except Exception as exc:  # a bug: keep the traceback in the manifest
-        return {"status": "failed", "error": f"{path}: internal error: {type(exc).__name__}: {exc}",
+        first_line = (str(exc).strip().splitlines() or [""])[0]
+        return {"status": "failed", "error": f"{path}: internal error: {type(exc).__name__}: {first_line}",
                 "traceback": traceback.format_exc(),
                 "timings_s": {"total": round(time.perf_counter() - start, 3)}}
 
@@ -204,12 +219,25 @@ def _init_worker() -> None:
 # --------------------------------------------------------------------------- the folder
 
 def find_scans(scans_dir: Path) -> list[Path]:
-    """The point files directly in ``scans_dir`` (sorted by name)."""
+    """The entries directly in ``scans_dir`` named like point files (sorted by name), also
+    those that are not readable files (directories, dangling links): they fail by name."""
     scans_dir = Path(scans_dir)
     if not scans_dir.is_dir():
         raise UserError(f"scan folder not found: {scans_dir}")
-    return sorted(p for p in scans_dir.iterdir()
-                  if p.is_file() and p.suffix.lower() in SUPPORTED_SUFFIXES)
+    return sorted(p for p in scans_dir.iterdir() if p.suffix.lower() in SUPPORTED_SUFFIXES)
+
+
+def _not_a_scan(path: Path) -> str | None:
+    """Why ``path`` cannot be read as a scan file (one line), or None if it can be."""
+    try:
+        if path.is_dir():
+            return f"{path}: a directory, not a scan file"
+        with open(path, "rb"):
+            return None
+    except OSError as exc:
+        reason = ("a symbolic link loop" if exc.errno == errno.ELOOP else "a dangling symbolic link"
+                  if path.is_symlink() and not path.exists() else exc.strerror)
+        return f"{path}: cannot be read ({reason})"
 
 
 def build_meshes(scans_dir: str | Path, out_dir: str | Path, config: MeshConfig | None = None,
@@ -223,8 +251,11 @@ def build_meshes(scans_dir: str | Path, out_dir: str | Path, config: MeshConfig 
     unless ``force``. Bad scans are reported (``status == "failed"``, one-line message)
     and do not stop the others. ``workers`` overrides ``config.workers``.
     """
+    from pipeline.datasets.manifest import refuse_complete_version
+
     config = config or MeshConfig()
     scans_dir, out_dir = Path(scans_dir), Path(out_dir)
+    refuse_complete_version(out_dir, "build-meshes output folder")
     paths = find_scans(scans_dir)
     if not paths:
         raise UserError(f"{scans_dir}: no scans ({' '.join(SUPPORTED_SUFFIXES)}) in the folder")
@@ -241,6 +272,11 @@ def build_meshes(scans_dir: str | Path, out_dir: str | Path, config: MeshConfig 
         by_name.setdefault(path.stem, []).append(path)
     for name, same in by_name.items():
         path = same[0]
+        problem = _not_a_scan(path)
+        if problem:
+            entries[name] = {"status": "failed", "input": {"path": str(path)}, "error": problem}
+            results[name] = ScanResult(name, "failed", str(path), message=problem)
+            continue
         params = scan_parameters(config, name)
         key = parameters_key(params, library)
         base = {"input": {"path": str(path), "sha256": file_sha256(path),

@@ -41,6 +41,13 @@ def robust_extent_mm(points_mm: np.ndarray) -> float:
 
 
 def read_scan(path: Path, name: str, config: MeshConfig) -> LoadedScan:
+    """Read, check and down-sample a scan. Absurd values (a PLY of the wrong byte order) are
+    reported by the checks, so numpy's overflow and cast warnings about them are silenced."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _read_scan(path, name, config)
+
+
+def _read_scan(path: Path, name: str, config: MeshConfig) -> LoadedScan:
     source = open_point_file(path)
     grid = VoxelGrid(config.downsample.voxel_mm, config.downsample.max_points)
     read = dropped = 0

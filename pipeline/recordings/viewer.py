@@ -90,6 +90,23 @@ def _rerun_executable() -> str:
     return found
 
 
+VERIFY_TIMEOUT_S = 60.0
+
+
+def check_recording(path: Path) -> None:
+    """UserError unless rerun can load ``path`` entirely (``rerun rrd verify``, bounded in time):
+    a corrupt recording must not open as an empty viewer."""
+    try:
+        result = subprocess.run([_rerun_executable(), "rrd", "verify", str(path)], capture_output=True,
+                                text=True, timeout=VERIFY_TIMEOUT_S, stdin=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired:
+        raise UserError(f"{path}: rerun could not check the recording within {VERIFY_TIMEOUT_S:g} s") from None
+    if result.returncode != 0:
+        lines = [line for line in (result.stderr + result.stdout).splitlines() if line.strip()]
+        reason = " ".join(lines[0].split())[:200] if lines else f"exit code {result.returncode}"
+        raise UserError(f"{path}: not a valid rerun recording ({reason})")
+
+
 def _check_port(port: int) -> None:
     with socket.socket() as s:
         try:
@@ -204,6 +221,7 @@ def wait_listening(viewer: ViewerProcess, port: int, timeout_s: float = 15.0) ->
 def view(path: Path, web: bool = False, port: int | None = None,
          echo: Callable[[str], None] = print) -> int:
     """Show ``path`` until the viewer is closed or Ctrl-C / SIGTERM; always stops the viewer."""
+    check_recording(path)
     viewer = start_viewer(path, web=web, port=port)
     previous = signal.signal(signal.SIGTERM, _raise_interrupt)
     try:

@@ -11,13 +11,16 @@ Entity layout (all positions in metres, world frame, timeline ``sim_time`` in se
   N·m, whisker frame) and ``signals/<whisker>/moment_magnitude`` (|M| in N·m).
 
 Bulk data goes through ``send_columns`` (one call per entity); the file is written under a
-temporary name and renamed once rerun has closed it, so the final name only ever holds a
-complete recording.
+temporary name and renamed once rerun has closed it (waits bounded by ``CLOSE_TIMEOUT_S``),
+so the final name only ever holds a complete recording; a full disk raises OSError(ENOSPC).
 """
 
 from __future__ import annotations
 
+import errno
 import os
+import shutil
+import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -27,11 +30,15 @@ from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS, TrialOutput
 from pipeline.model.rotations import quat_xyzw
 from pipeline.recordings.blueprint import make_blueprint
 from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
+from pipeline.storage import require_free_space, sync_directory
 
 if TYPE_CHECKING:
     from pipeline.model.kinematics import Pose
 
 APPLICATION_ID = "whisker-pipeline"
+CLOSE_TIMEOUT_S = 60.0                 # longest wait for rerun to flush or close a recording
+DISK_FULL_BELOW_BYTES = 256 * 1024     # free space kept beyond a recording's estimated size
+RECORDING_BYTES_PER_NODE_BYTE = 4      # a recording's size over its node positions' (float64): ~3 measured
 TIMELINE = "sim_time"
 
 WHISKER_COLOUR = (170, 190, 215, 255)
@@ -62,6 +69,8 @@ def write_recording(path: Path, output: TrialOutput, scene: Scene, pose: "Pose",
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.partial")
+    require_free_space(path.parent, RECORDING_BYTES_PER_NODE_BYTE * output.node_positions_m.nbytes
+                       + DISK_FULL_BELOW_BYTES, f"recording {path.name}")
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=str(recording_id), send_properties=True)
     try:
         rec.save(tmp, default_blueprint=make_blueprint(output))
@@ -69,13 +78,43 @@ def write_recording(path: Path, output: TrialOutput, scene: Scene, pose: "Pose",
             rec.send_recording_name(title)
         _log_world(rec, output, scene, pose)
         _log_signals(rec, output)
+        _close(rec, tmp)
+        os.replace(tmp, path)
     except BaseException:
-        rec.disconnect()
+        _disconnect_within(rec, CLOSE_TIMEOUT_S)
         tmp.unlink(missing_ok=True)
         raise
-    rec.disconnect()
-    os.replace(tmp, path)
+    sync_directory(path.parent)
     return path
+
+
+def _close(rec, tmp: Path) -> None:
+    """Flush and close the recording's file sink, each within CLOSE_TIMEOUT_S, then fsync it.
+
+    OSError (ENOSPC if the disk is full) instead of waiting for ever on a sink that cannot write.
+    """
+    try:
+        rec.flush(timeout_sec=CLOSE_TIMEOUT_S)
+    except RuntimeError as exc:          # rerun: "File-writer thread shut down prematurely"
+        _closing_failed(tmp, f"rerun could not write the recording ({exc})")
+    if not _disconnect_within(rec, CLOSE_TIMEOUT_S):
+        _closing_failed(tmp, f"rerun did not close the recording within {CLOSE_TIMEOUT_S:g} s")
+    with open(tmp, "rb") as handle:
+        os.fsync(handle.fileno())
+
+
+def _disconnect_within(rec, timeout_s: float) -> bool:
+    """Close the recording stream in a helper thread; False if it is still blocked after
+    ``timeout_s`` (the thread is a daemon: it cannot keep the process alive)."""
+    closer = threading.Thread(target=rec.disconnect, name="rerun-disconnect", daemon=True)
+    closer.start()
+    closer.join(timeout_s)
+    return not closer.is_alive()
+
+
+def _closing_failed(tmp: Path, message: str) -> None:
+    full = shutil.disk_usage(tmp.parent).free < DISK_FULL_BELOW_BYTES
+    raise OSError(errno.ENOSPC if full else errno.EIO, message, str(tmp))
 
 
 def _time_column(time_s: np.ndarray):

@@ -14,9 +14,10 @@ WORKER_WAIT_S = 120
 
 
 @contextmanager
-def dask_client(workers: int = 0, scheduler: str | None = None) -> Iterator["distributed.Client"]:  # noqa: F821
+def dask_client(workers: int = 0, scheduler: str | None = None,
+                worker_wait_s: float = WORKER_WAIT_S) -> Iterator["distributed.Client"]:  # noqa: F821
     """A client of a new LocalCluster with ``workers`` processes (0: one per core), or of
-    the scheduler at ``scheduler`` once it has a worker."""
+    the scheduler at ``scheduler`` once it has a worker (UserError after ``worker_wait_s``)."""
     from distributed import Client, LocalCluster
 
     if scheduler:
@@ -25,11 +26,11 @@ def dask_client(workers: int = 0, scheduler: str | None = None) -> Iterator["dis
         except (OSError, TimeoutError) as exc:
             raise UserError(f"cannot reach the dask scheduler at {scheduler}: {exc}") from None
         try:
-            client.wait_for_workers(1, timeout=WORKER_WAIT_S)
+            client.wait_for_workers(1, timeout=worker_wait_s)
         except TimeoutError:
             client.close()
             raise UserError(f"the dask scheduler at {scheduler} has had no worker for "
-                            f"{WORKER_WAIT_S} s (start some with `dask worker {scheduler}`)") from None
+                            f"{worker_wait_s:g} s (start some with `dask worker {scheduler}`)") from None
         with client:
             yield client
         return

@@ -1,7 +1,8 @@
 """The scenes of a run: meshes from a ``build-meshes`` folder and the fixed protocol scenes.
 
 The catalogue (names, mesh paths, sha256) is fixed when a run starts and stored in the dataset;
-workers load scenes from it lazily, and a resumed run checks that no mesh changed since.
+workers load scenes from it lazily, checking each mesh's sha256 as they load it (a mesh
+changed during a run stops the run), and a resumed run checks that no mesh changed since.
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pipeline.config.simulate import ScenesConfig
-from pipeline.errors import UserError
+from pipeline.errors import RunAborted, UserError
 from pipeline.provenance import file_sha256
 from pipeline.scenes.obstacles import Scene
 
@@ -28,10 +29,22 @@ class SceneEntry:
         return bool(self.path)
 
     def load(self) -> Scene:
+        """The scene; a mesh only if its file still has the sha256 the run recorded."""
         from pipeline.protocols.whisking import parse_scene
         from pipeline.scenes.library import mesh_scene
 
-        return mesh_scene(self.path) if self.is_mesh else parse_scene(self.name)
+        if not self.is_mesh:
+            return parse_scene(self.name)
+        try:
+            found = file_sha256(Path(self.path))
+        except OSError as exc:
+            raise RunAborted(f"mesh {self.path} of scene {self.name} cannot be read ({exc.strerror}); "
+                             "the run stopped, its remaining trials are pending") from None
+        if found != self.sha256:
+            raise RunAborted(f"mesh {self.path} changed during the run (sha256 {found[:12]}…, the run "
+                             f"recorded {self.sha256[:12]}…); the run stopped, its remaining trials are "
+                             "pending: restore the mesh and --resume, or start a new version")
+        return mesh_scene(self.path)
 
 
 def mesh_files(folder: Path) -> list[Path]:

@@ -11,6 +11,7 @@ Workers of an existing scheduler must see the same paths (meshes, the version's 
 
 from __future__ import annotations
 
+import logging
 import sys
 import time
 import uuid
@@ -30,12 +31,14 @@ from pipeline.datasets.schema import (CONFIG_FILE, DATA_FILE, FAILED, OK, PENDIN
                                       TrialRecord)
 from pipeline.datasets.versions import VersionLock, new_version, unfinished_version
 from pipeline.datasets.writer import DatasetWriter, Layout, model_file_record, provenance, whisker_table
-from pipeline.errors import UserError
+from pipeline.errors import RunAborted, UserError
 from pipeline.runner.scenes import SceneEntry, scene_catalogue
 from pipeline.runner.shards import Shard, plan_fields, run_id, shard_folder
 from pipeline.runner.trial import RunSpec, TrialResult, load_whisk_table
+from pipeline.storage import is_disk_full, write_text_durably
 
 RECORDINGS_DIR = "recordings"
+WAIT_POLL_S = 2.0          # how often a run waiting for trials checks that the cluster has workers
 
 
 def _first_difference(a: Any, b: Any, path: str = "") -> str | None:
@@ -105,7 +108,7 @@ def _open_writer(folder: Path, spec: RunSpec, shard: Shard | None, indices: rang
             raise UserError(f"the scenes changed since {label} was started (a mesh was rebuilt or "
                             "removed); finish it with the same meshes or start a new version")
         return writer
-    (folder / CONFIG_FILE).write_text(yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False))
+    write_text_durably(folder / CONFIG_FILE, yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False))
     attrs = {"name": config.dataset.name, "label": label, "seed": config.seed,
              "scenes": [vars(s) for s in scenes], "trial_range": [indices.start, indices.stop],
              "shard": [shard.number, shard.count] if shard else [1, 1], "run_id": run_id(config),
@@ -114,14 +117,50 @@ def _open_writer(folder: Path, spec: RunSpec, shard: Shard | None, indices: rang
     return DatasetWriter.create(data, spec.layout, attrs)
 
 
-def _stream(client, plugin_name: str, todo: list[int]) -> Iterator[tuple[int, Any]]:
-    """(index, TrialResult or the exception dask gave) as trials finish; a window in flight."""
-    from distributed import as_completed
+def _outcome(future) -> Any:
+    """A finished future's TrialResult, or the exception dask gave (e.g. KilledWorker).
+
+    TimeoutError if the result cannot be fetched within WAIT_POLL_S (the worker holding it died:
+    dask computes it again once it has a worker).
+    """
+    try:
+        return future.result(timeout=WAIT_POLL_S)
+    except TimeoutError:
+        raise
+    except Exception as exc:        # the task's error, KilledWorker, or cancelled
+        return exc
+
+
+class _WorkerWatch:
+    """Raises RunAborted once the cluster has had no worker for ``limit_s`` seconds."""
+
+    def __init__(self, client, limit_s: float):
+        self.client, self.limit_s, self.since = client, limit_s, None
+
+    def check(self, in_flight: int) -> None:
+        if self.client.nthreads():
+            self.since = None
+        elif self.since is None:
+            self.since = time.monotonic()
+        elif time.monotonic() - self.since > self.limit_s:
+            raise RunAborted(f"the dask cluster has had no worker for {self.limit_s:g} s "
+                             f"(cluster.worker_wait_s); {in_flight} trials in flight stay pending")
+
+
+def _stream(client, plugin_name: str, todo: list[int], worker_wait_s: float) -> Iterator[tuple[int, Any]]:
+    """(index, TrialResult or the exception dask gave) as trials finish; a window in flight.
+
+    Waits are bounded: if the cluster has had no worker for ``worker_wait_s`` (a local cluster
+    whose nanny gave up, external workers gone) the run stops with a RunAborted, its unfinished
+    trials pending.
+    """
+    from distributed import wait
 
     from pipeline.runner.plugin import run_trial
 
     token = uuid.uuid4().hex[:8]
     pending = iter(todo)
+    watch = _WorkerWatch(client, worker_wait_s)
 
     def window() -> int:
         return 2 * max(1, sum(client.nthreads().values())) + 2
@@ -129,14 +168,24 @@ def _stream(client, plugin_name: str, todo: list[int]) -> Iterator[tuple[int, An
     def submit(index: int):
         return client.submit(run_trial, plugin_name, index, key=f"trial-{token}-{index}", pure=False)
 
-    finished = as_completed([submit(i) for i in islice(pending, window())], with_results=True,
-                            raise_errors=False)
-    for future, result in finished:
-        index = int(future.key.rsplit("-", 1)[1])
-        yield index, result
-        future.release()      # written: dask must not keep (or recompute after a worker loss) it
-        for i in islice(pending, max(0, window() - finished.count())):
-            finished.add(submit(i))
+    in_flight = {submit(i) for i in islice(pending, window())}
+    while in_flight:
+        try:
+            done, not_done = wait(in_flight, timeout=WAIT_POLL_S, return_when="FIRST_COMPLETED")
+        except TimeoutError:
+            watch.check(len(in_flight))
+            continue
+        in_flight = set(not_done)
+        for future in done:
+            try:
+                result = _outcome(future)
+            except TimeoutError:          # its result died with its worker: wait for the recomputation
+                in_flight.add(future)
+                watch.check(len(in_flight))
+                continue
+            yield int(future.key.rsplit("-", 1)[1]), result
+            future.release()      # written: dask must not keep (or recompute after a worker loss) it
+        in_flight |= {submit(i) for i in islice(pending, max(0, window() - len(in_flight)))}
 
 
 @contextmanager
@@ -197,16 +246,27 @@ class _Tally:
 
 
 def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _Tally, progress: bool) -> None:
-    """Run ``todo`` on the configured cluster, writing each result as it arrives."""
+    """Run ``todo`` on the configured cluster, writing each result as it arrives.
+
+    A full disk (here or on a worker) or a :class:`RunAborted` from a worker stops the run:
+    trials not written stay pending for ``--resume``.
+    """
     from pipeline.runner.cluster import dask_client
     from pipeline.runner.plugin import SimulatorPlugin
 
     config, scenes = spec.config, spec.scenes
-    with dask_client(config.cluster.workers, config.cluster.scheduler) as client:
+    # The event loops' own loggers print tracebacks for what the run already handles: a fetch that
+    # timed out (_outcome) leaves a task whose AllExit nobody reads; a callback interrupted by
+    # Ctrl-C/SIGTERM while the cluster shuts down. Task errors reach the run through the futures.
+    for logger in ("asyncio", "tornado.application"):
+        logging.getLogger(logger).setLevel(logging.CRITICAL)
+    with dask_client(config.cluster.workers, config.cluster.scheduler, config.cluster.worker_wait_s) as client:
         name = f"whisker-simulator-{uuid.uuid4().hex[:8]}"
         client.register_plugin(SimulatorPlugin(spec, name), name=name)
         with _progress(len(todo), spec.title, progress) as advance:
-            for index, result in _stream(client, name, todo):
+            for index, result in _stream(client, name, todo, config.cluster.worker_wait_s):
+                if isinstance(result, TrialResult) and result.abort is not None:
+                    raise result.abort
                 if not isinstance(result, TrialResult):          # e.g. KilledWorker
                     result = TrialResult(index, TrialRecord(
                         status=FAILED, error=f"{type(result).__name__}: {result}",
@@ -219,6 +279,17 @@ def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _T
                 tally.duplicates += not fresh
                 advance(tally.failed)
         client.unregister_worker_plugin(name)
+
+
+def _remove_unstarted(folder: Path) -> None:
+    """Remove a version folder this run created but wrote no trial into (a failed start)."""
+    import shutil
+
+    shutil.rmtree(folder, ignore_errors=True)
+    try:
+        folder.parent.rmdir()          # the dataset's folder too, if this was its first version
+    except OSError:
+        pass
 
 
 def run_spec(config: SimulateConfig) -> RunSpec:
@@ -240,17 +311,32 @@ def simulate(config: SimulateConfig, *, resume: bool = False, shard: str | None 
     recordings = folder / RECORDINGS_DIR
     spec = replace(spec, recordings=str(recordings.resolve()), title=label)
     started, tally = time.perf_counter(), _Tally()
+    again = "the same command plus --resume" + (" (shards always continue)" if shard_spec else "")
     with VersionLock(folder):
-        with _open_writer(folder, spec, shard_spec, indices) as writer:
-            todo = [int(i) for i in writer.pending() if i in indices]
-            try:
-                if todo:
-                    _run_trials(spec, todo, writer, tally, progress)
-            except KeyboardInterrupt:
-                print(f"interrupted: {tally.written} trials written this run to {folder}; continue with the "
-                      "same command plus --resume" + (" (shards always continue)" if shard_spec else ""),
-                      file=sys.stderr)
-                raise
+        try:
+            with _open_writer(folder, spec, shard_spec, indices) as writer:
+                todo = [int(i) for i in writer.pending() if i in indices]
+                try:
+                    if todo:
+                        _run_trials(spec, todo, writer, tally, progress)
+                except KeyboardInterrupt:
+                    print(f"interrupted: {tally.written} trials written this run to {folder}; continue with "
+                          f"{again}", file=sys.stderr)
+                    raise
+                except OSError as exc:
+                    if not is_disk_full(exc):
+                        raise
+                    raise RunAborted(f"disk full writing {exc.filename or folder}: {tally.written} trials "
+                                     f"written this run, the others stay pending; free space and run {again}"
+                                     ) from None
+                lost = writer.reopen_lost()
+        except BaseException:
+            if not resume and shard_spec is None and tally.written == 0:
+                _remove_unstarted(folder)
+            raise
+        if lost.size:
+            raise RunAborted(f"trials {', '.join(map(str, lost[:10]))} of {folder} were marked done but their "
+                             f"data are not in {DATA_FILE}; they are pending again: run {again}")
         wall = time.perf_counter() - started
         totals = summarize(folder / DATA_FILE, indices)
         summary = {"dataset": str(folder), "recordings": str(recordings), "complete": totals["pending"] == 0,

@@ -6,7 +6,8 @@ mesh scene, its head pose (:mod:`pipeline.scenes.poses`); fixed scenes sit at th
 pose. The passive-peg scene has no whisking (docs/model.md §5). A :class:`Simulator` keeps one
 :class:`~pipeline.protocols.whisking.Whisking` (array and engine), the loaded scenes and pose
 samplers per process, built on first use; a trial that raises comes back as a failed record
-carrying the error, never as an exception.
+carrying the error, never as an exception; a full disk or a :class:`RunAborted` (a mesh
+changed) comes back as ``abort``: the run stops, the trial pending.
 """
 
 from __future__ import annotations
@@ -23,11 +24,12 @@ import numpy as np
 from pipeline.config.simulate import SimulateConfig, WhiskSamplingConfig
 from pipeline.datasets.schema import FAILED, OK, TrialRecord
 from pipeline.datasets.writer import Layout, trial_arrays
-from pipeline.errors import UserError
+from pipeline.errors import RunAborted, UserError
 from pipeline.model.kinematics import Pose, ProtractionDrive, sinusoidal_whisk, still
 from pipeline.protocols.whisking import Whisking
 from pipeline.runner.scenes import SceneEntry
 from pipeline.scenes.poses import PoseSampler, PoseSamplingError
+from pipeline.storage import is_disk_full
 
 
 @dataclass(frozen=True)
@@ -47,6 +49,7 @@ class TrialResult:
     index: int
     record: TrialRecord
     arrays: dict[str, np.ndarray] | None = None
+    abort: Exception | None = None    # a full disk or RunAborted: the run stops, the trial stays pending
 
 
 def load_whisk_table(path: Path) -> tuple[tuple[float, ...], tuple[float, ...]]:
@@ -131,6 +134,8 @@ class Simulator:
                 record.recording_seconds = self._record(index, output, scene, pose)
             record.status = OK
         except Exception as exc:          # a failed trial is data: recorded with its error
+            if isinstance(exc, RunAborted) or is_disk_full(exc):
+                return TrialResult(index, record, None, abort=exc)    # not the trial's fault
             record.status, record.error, arrays = FAILED, f"{type(exc).__name__}: {exc}", None
             if isinstance(exc, PoseSamplingError):
                 record.pose_attempts, record.pose_rejections = exc.attempts, tuple(exc.rejections.values())
