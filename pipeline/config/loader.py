@@ -103,7 +103,8 @@ def _describe(error: dict[str, Any], source: ConfigSource) -> str:
 
 def describe_error(error: dict[str, Any], where: str) -> str:
     """One pydantic validation error as ``<where>: field '<a.b>' = <value>: <reason>``."""
-    dotted = ".".join(str(part) for part in error["loc"]) or "(top level)"
+    loc = tuple(str(part) for part in error["loc"])
+    dotted = ".".join(loc) or "(top level)"
     if error["type"] == "extra_forbidden":
         return f"{where}: unknown field '{dotted}'"
     message = error["msg"].removeprefix("Value error, ")
