@@ -11,7 +11,6 @@ from pipeline.engines import create_engine
 from pipeline.engines.stepping import first_frequency_hz
 from pipeline.errors import SimulationError, UserError
 from pipeline.model.array import build_array, single_whisker
-from pipeline.model.physics import WhiskerPhysics
 from pipeline.model.kinematics import Pose, sinusoidal_whisk, still
 from pipeline.model.morphology import model_rat
 from pipeline.model.whisker import WhiskerGeometry

@@ -7,7 +7,6 @@ every writer refuses a path inside a complete version (:func:`refuse_complete_ve
 from __future__ import annotations
 
 import json
-import os
 import stat
 from pathlib import Path
 from typing import Any

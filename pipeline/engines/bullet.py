@@ -52,7 +52,7 @@ from pipeline.engines.base import Engine, TrialSetup, World, WorldResult
 from pipeline.engines.bullet_whisker import IDENTITY_QUAT, BulletWhisker, quat
 from pipeline.engines.common import implausible, jam_message
 from pipeline.model.array import WhiskerModel
-from pipeline.model.kinematics import Pose, ProtractionDrive
+from pipeline.model.kinematics import ProtractionDrive
 from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
 
 __all__ = ["BulletEngine"]
