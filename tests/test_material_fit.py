@@ -17,7 +17,7 @@ def test_defaults_reproduce_measured_resonances():
     for m in PAPER_TABLE_1:
         r = results[m.name]
         assert r.f1_hz == pytest.approx(m.f1_hz, rel=0.01)
-        assert abs(r.log_decrement - m.log_decrement) <= m.log_decrement_sd + 0.01
+        assert abs(r.paper_log_decrement - m.log_decrement) <= m.log_decrement_sd + 0.01
     assert msa(log_ratios(PAPER_TABLE_1, results)) < 0.1
 
 
@@ -33,10 +33,11 @@ def test_refit_from_the_papers_values_lands_on_a_young_modulus():
 
 def test_resonance_command_prints_json():
     result = subprocess.run([sys.executable, "-m", "pipeline.cli", "resonance", "--length-mm", "29.6",
-                             "--base-diameter-um", "120", "--tip-diameter-um", "35", "--json"],
+                             "--base-diameter-um", "120", "--tip-diameter-um", "35", "--modes", "2", "--json"],
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     data = json.loads(result.stdout.strip().splitlines()[-1])
-    assert set(data) == {"f1_hz", "log_decrement", "damping_ratio"}
+    assert set(data) == {"f1_hz", "zeta1", "f2_hz", "zeta2", "paper_log_decrement", "paper_damping_ratio"}
     assert data["f1_hz"] == pytest.approx(67.6, rel=0.01)
-    assert np.isfinite(data["log_decrement"])
+    assert data["f1_hz"] < data["f2_hz"] < 500.0
+    assert 0 < data["zeta1"] < 0.2 and np.isfinite(data["paper_log_decrement"])

@@ -110,7 +110,7 @@ def _median_ratios(pairs) -> tuple[float, float]:
 
 def protocol_trial(name: str) -> Trial:
     """The resonance protocol (MODEL.md §5) as a trial: tip of a base pulse about z, 1 s at 1 kHz."""
-    from pipeline.protocols.resonance import DURATION_S, pulse_drive
+    from pipeline.analysis.resonance import DURATION_S, pulse_drive
 
     drive = pulse_drive()
     angles = np.zeros((len(drive.time_s), 3))
@@ -133,7 +133,7 @@ class TableObjective:
         """Simulated f1, δ (protocol) and f2, f3 (linear in-plane modes) of every whisker."""
         from pipeline.diagnosis.fastsim import damped_modes
         from pipeline.diagnosis.linear import linearise
-        from pipeline.protocols.resonance import analyse_tip
+        from pipeline.analysis.resonance import analyse_tip
 
         out = []
         for record, prepared in zip(self.table.records, self.prepared):
@@ -143,7 +143,7 @@ class TableObjective:
             result = analyse_tip(positions[1:, 0, 1], trial.time_s[1:], trial.sampling_rate_hz)
             freqs, _, in_plane = damped_modes(linearise(physics))
             modes = freqs[in_plane]
-            out.append({"f1_hz": result.f1_hz, "log_decrement": result.log_decrement,
+            out.append({"f1_hz": result.f1_hz, "log_decrement": result.paper_log_decrement,
                         "f2_hz": modes[1] if len(modes) > 1 else np.nan,
                         "f3_hz": modes[2] if len(modes) > 2 else np.nan})
         return out
