@@ -6,9 +6,9 @@ to SI once, where the model is built.
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Literal, Optional
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 
 class StrictModel(BaseModel):
@@ -27,8 +27,48 @@ class FollicleConfig(StrictModel):
                                        description="c_f, N·m·s/rad (compliant only)")
 
 
+# Named material presets (``material: {preset: NAME}`` in a config, ``--preset NAME`` on the CLI):
+# the preset's values fill every material field the config does not set itself.
+MATERIAL_PRESETS = {
+    # the paper's two trimmed, motor-driven whiskers (α, B1; Table 1): E and θ_ζ refitted with eq. 3
+    # at N = 20 (pipeline.analysis.material_fit: E = 7.45 GPa, θ_ζ = 0.118, MSA 0.048), and the
+    # stiff follicle used with them
+    "trimmed": {"youngs_modulus_gpa": 7.45, "damping_ratio": 0.118, "damping_model": "paper",
+                "follicle": {"stiffness_nm_per_rad": 1e-4, "damping_nms_per_rad": 1e-7}},
+    # untrimmed whiskers, isolated and glued at the base (Hartmann et al. 2003 D row, both methods):
+    # joint fit of E and the Kelvin–Voigt ζ1 (`pipeline calibrate --library --where trimmed=no`,
+    # D2 and D4 held out): E = 3.39 ± 0.16 GPa (tensile tests: 3.34 ± 1.48, Quist et al. 2011),
+    # ζ1 = 0.139 ± 0.06 (measured 0.11-0.17), the same at any N. Compliant follicle: k_f = 5e-7
+    # N·m/rad, 0.4× the original WHISKiT code's 1.25e-6 (the paper's in-vivo fit is unpublished)
+    # and 0.4× the RB1 whisker's own base stiffness E·I/S, the largest round value giving
+    # Fig. 4's rigid/compliant base-force ratio ≥ 5 (5.6 at 6e-7, 3.1 at 1.25e-6); c_f for a
+    # follicle damping ratio 0.2 on RB1 (c_f = 2·0.2·√(k_f·J), J = 5.7e-11 kg·m²). Uncertain
+    # to a factor ≈ 2: only that ratio constrains them.
+    "untrimmed": {"youngs_modulus_gpa": 3.39, "damping_ratio": 0.139, "damping_model": "kelvin_voigt",
+                  "follicle": {"stiffness_nm_per_rad": 5e-7, "damping_nms_per_rad": 2.1e-9}},
+}
+
+
+def _apply_preset(data):
+    """Fill the material fields a config leaves unset from its named preset."""
+    if not isinstance(data, dict) or data.get("preset") is None:
+        return data
+    name = data["preset"]
+    if name not in MATERIAL_PRESETS:
+        raise ValueError(f"unknown preset '{name}' (known: {', '.join(MATERIAL_PRESETS)})")
+    preset = MATERIAL_PRESETS[name]
+    merged = {**{k: v for k, v in preset.items() if k != "follicle"}, **data}
+    follicle = data.get("follicle")
+    follicle = follicle.model_dump() if isinstance(follicle, BaseModel) else dict(follicle or {})
+    merged["follicle"] = {**preset["follicle"], **follicle}
+    return merged
+
+
 class MaterialConfig(StrictModel):
     """Material and discretisation of every whisker (MODEL.md §2)."""
+
+    preset: Optional[Literal["trimmed", "untrimmed"]] = Field(
+        None, description="named defaults (MATERIAL_PRESETS) for the fields not set explicitly")
 
     # Defaults refitted on the paper's measured α and B1 resonances (Table 1) with eq. 2 on the
     # link length, N = 20 and eq. 3 damping: E = 7.45 GPa, ζ = 0.118, MSA 0.048
@@ -43,6 +83,8 @@ class MaterialConfig(StrictModel):
     links: int = Field(20, ge=2, le=120, description="N, links per whisker")
     gravity: bool = False
     follicle: FollicleConfig = FollicleConfig()
+
+    _preset = model_validator(mode="before")(_apply_preset)
 
 
 class EngineConfig(StrictModel):

@@ -8,8 +8,9 @@ Every objective has ``residuals(spec)`` (the vector a least-squares optimiser se
 - :class:`FeatureObjective`: the paper's features of each trial's tip signal (eq. 4a for
   motor-driven trials, 4b for releases), residuals ln(sim/exp); error = MSA.
 - :class:`TableObjective`: resonance tables; each whisker is run through the resonance
-  protocol (MODEL.md §5) and f1, δ (and f2, f3 from the linear model's in-plane modes) are
-  compared, residuals ln(sim/exp); error = MSA.
+  protocol (MODEL.md §5) and f1, the paper's two-peak δ (or, for ``damping=modal`` tables, the
+  first in-plane mode's damping ratio ζ1 of the linear chain) and f2, f3 (the linear model's
+  in-plane modes) are compared, residuals ln(sim/exp); error = MSA.
 """
 
 from __future__ import annotations
@@ -141,9 +142,10 @@ class TableObjective:
             positions = self.simulator.simulate(physics, [prepared])[0]
             trial = prepared.trial
             result = analyse_tip(positions[1:, 0, 1], trial.time_s[1:], trial.sampling_rate_hz)
-            freqs, _, in_plane = damped_modes(linearise(physics))
+            freqs, zetas, in_plane = damped_modes(linearise(physics))
             modes = freqs[in_plane]
             out.append({"f1_hz": result.f1_hz, "log_decrement": result.paper_log_decrement,
+                        "zeta1": zetas[in_plane][0] if in_plane.any() else np.nan,
                         "f2_hz": modes[1] if len(modes) > 1 else np.nan,
                         "f3_hz": modes[2] if len(modes) > 2 else np.nan})
         return out
@@ -153,7 +155,10 @@ class TableObjective:
         out = []
         for r in self.table.records:
             items = {f"f{m + 1}_hz": (r.frequencies_hz[m], r.frequency_sd_hz[m]) for m in range(3)}
-            items["log_decrement"] = (r.decrement, r.decrement_sd)
+            if r.damping_measure == "modal":
+                items["zeta1"] = (r.damping_ratio, r.damping_ratio_sd)
+            else:
+                items["log_decrement"] = (r.decrement, r.decrement_sd)
             out.append({k: v for k, v in items.items() if np.isfinite(v[0])})
         return out
 
@@ -166,10 +171,13 @@ class TableObjective:
         return np.array(out)
 
     def ratios(self, spec: ModelSpec) -> tuple[float, float]:
-        """Median measured/simulated ratios of (f1, δ) at ``spec``."""
-        pairs = [({"frf_hz": m["f1_hz"][0], "log_decrement": m.get("log_decrement", (np.nan,))[0]},
-                  {"frf_hz": s["f1_hz"], "log_decrement": s["log_decrement"]})
-                 for m, s in zip(self.measured(), self.record_features(spec))]
+        """Median measured/simulated ratios of (f1, damping) at ``spec``; damping is δ or ζ1,
+        whichever the record measured (both roughly proportional to θ_ζ)."""
+        pairs = []
+        for m, s in zip(self.measured(), self.record_features(spec)):
+            key = "zeta1" if "zeta1" in m else "log_decrement"
+            pairs.append(({"frf_hz": m["f1_hz"][0], "log_decrement": m.get(key, (np.nan,))[0]},
+                          {"frf_hz": s["f1_hz"], "log_decrement": s[key]}))
         return _median_ratios(pairs)
 
     def log_sd(self) -> np.ndarray:
