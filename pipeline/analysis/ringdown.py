@@ -27,8 +27,9 @@ MAX_POLES = 17              # largest pencil order: the constant and up to 8 con
 RANK_TOLERANCE = 1e-4       # singular values below this fraction of the largest are noise
 NYQUIST_MARGIN = 0.98       # poles above this fraction of Nyquist are not trusted
 MAX_ZETA = 0.9              # more damped poles are not counted as oscillating modes
-HARMONIC_TOLERANCE = 0.02   # relative frequency match of a harmonic of a stronger component
-MIN_SHARE = 0.01            # modes whose amplitude is below this fraction of the largest are dropped
+HARMONIC_TOLERANCE = 0.02   # relative frequency match of a distortion product of stronger components
+PRODUCT_RATE_TOLERANCE = 0.35  # relative decay-rate match of one (weak components' rates are less certain)
+MIN_SHARE = 0.01            # modes whose RMS over the record is below this fraction of the largest are dropped
 
 
 @dataclass(frozen=True)
@@ -48,24 +49,23 @@ def spectral_peak(signal: np.ndarray, rate_hz: float, pad: int = 16) -> tuple[fl
     """(refined, plain) frequency of the largest FFT peak above DC, Hz, both below Nyquist.
 
     The plain peak is the paper's method; the refined one searches a Hann-windowed,
-    zero-padded spectrum within one plain bin of it and interpolates parabolically, and is
-    clipped to the plain peak's neighbours so it can never leave (0, Nyquist).
+    zero-padded spectrum within one plain bin of it and interpolates parabolically, by at most
+    one padded bin (the unbounded vertex of a flat top once gave 539 Hz for a 341 Hz mode);
+    both are capped at Nyquist (a sampled signal shows nothing above it).
     """
     x = signal - signal.mean()
     plain = np.abs(np.fft.rfft(x))
     plain_bin = int(np.argmax(plain[1:]) + 1)
     n = len(x) * pad
     spectrum = np.abs(np.fft.rfft(x * np.hanning(len(x)), n))
-    lo, hi = (plain_bin - 1) * pad, min((plain_bin + 1) * pad + 1, len(spectrum))
+    lo, hi = (plain_bin - 1) * pad, (plain_bin + 1) * pad + 1
     k = float(np.argmax(spectrum[lo:hi]) + lo)
     i = int(k)
-    if lo < i < hi - 1:
+    if 1 <= i < len(spectrum) - 1:
         a, b, c = np.log(spectrum[i - 1:i + 2] + 1e-300)
-        curvature = a - 2 * b + c
-        if curvature < 0:
-            k = i + float(np.clip(0.5 * (a - c) / curvature, -0.5, 0.5))
+        k = i + float(np.clip(0.5 * (a - c) / (a - 2 * b + c), -1.0, 1.0))   # a flat top can extrapolate far
     nyquist = rate_hz / 2
-    return float(min(k * rate_hz / n, nyquist)), float(plain_bin * rate_hz / len(x))
+    return float(np.clip(k * rate_hz / n, 0.0, nyquist)), float(plain_bin * rate_hz / len(x))
 
 
 def paper_log_decrement(signal: np.ndarray) -> float:
@@ -140,32 +140,41 @@ def _unresolved(omega_d: np.ndarray, rates: np.ndarray, amplitudes: np.ndarray) 
     return (close & weaker).any(axis=1)
 
 
-def _harmonics(freqs: np.ndarray, rates: np.ndarray, amplitudes: np.ndarray) -> np.ndarray:
-    """True where a component is m·(f, σ) of a stronger one within ``HARMONIC_TOLERANCE``: a
-    distortion product of the geometric nonlinearity, not a mode."""
+def _distortion_products(freqs: np.ndarray, rates: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """True where a component is a harmonic m·(f, σ) of a stronger one, or a sum or difference
+    tone (f_j ± f_k, σ_j + σ_k) of two stronger ones, within ``HARMONIC_TOLERANCE`` in frequency
+    and ``PRODUCT_RATE_TOLERANCE`` in decay rate: products of the geometric nonlinearity (the tip's y is not
+    linear in the joint angles), not modes."""
     out = np.zeros(len(freqs), bool)
     for i in range(len(freqs)):
-        for j in range(len(freqs)):
-            m = freqs[i] / freqs[j]
-            order = round(m)
-            if (j != i and order >= 2 and amplitudes[j] > amplitudes[i]
-                    and abs(m - order) < HARMONIC_TOLERANCE * order
-                    and abs(rates[i] / (order * rates[j]) - 1) < 10 * HARMONIC_TOLERANCE):
+        stronger = np.flatnonzero(weights > weights[i])
+        for j in stronger:
+            order = round(freqs[i] / freqs[j])
+            if (order >= 2 and abs(freqs[i] / (order * freqs[j]) - 1) < HARMONIC_TOLERANCE
+                    and abs(rates[i] / (order * rates[j]) - 1) < PRODUCT_RATE_TOLERANCE):
                 out[i] = True
+            for k in stronger:
+                if k <= j:
+                    continue
+                for tone in (freqs[j] + freqs[k], abs(freqs[j] - freqs[k])):
+                    if (abs(freqs[i] / tone - 1) < HARMONIC_TOLERANCE
+                            and abs(rates[i] / (rates[j] + rates[k]) - 1) < PRODUCT_RATE_TOLERANCE):
+                        out[i] = True
     return out
 
 
 def fit_ringdown(signal: np.ndarray, rate_hz: float, modes: int = 3) -> Modes:
     """The ``modes`` lowest-frequency damped modes of a free decay sampled at ``rate_hz`` (Hz).
 
-    The model order (how many modes the whole decay holds) is the one of least BIC among pencil
-    ranks up to ``MAX_POLES`` (amplitudes fitted linearly to the pencil's poles); only that
-    model is refined. Real decaying poles (a slow drift toward rest) are fitted as exponentials
-    and neither harmonics of a stronger component (the tip's y is not linear in the joint angles)
-    nor components inside a stronger one's half-power band are reported as modes, so modes beyond ``modes`` are still modelled and do not bias the
-    reported ones, and noise is not fitted as modes. Fewer modes are returned when the signal
-    holds fewer (frequencies within (0, Nyquist), decaying, amplitude ≥ ``MIN_SHARE`` of the
-    largest).
+    The model order (how many components the whole decay holds) is the one of least BIC among
+    pencil ranks up to ``MAX_POLES`` (amplitudes fitted linearly to the pencil's poles); only
+    that model is refined, so components beyond ``modes`` are still modelled and do not bias
+    the reported ones, and noise is not fitted as modes. Real decaying poles (a slow drift
+    toward rest) are fitted as exponentials. Not reported as modes: distortion products
+    (harmonics, sum and difference tones of stronger components), components inside a stronger
+    one's half-power band, and components whose RMS over the record is below ``MIN_SHARE`` of
+    the largest (a large but instantly decaying term fitted to the first samples is no mode);
+    frequencies stay within (0, Nyquist). Fewer modes are returned when the signal holds fewer.
     """
     empty = Modes(np.array([]), np.array([]), np.array([]), float("nan"))
     y = np.asarray(signal, float)
@@ -194,8 +203,13 @@ def fit_ringdown(signal: np.ndarray, rate_hz: float, modes: int = 3) -> Modes:
     amplitude, residual = _project(t, y, omega_d, rate, decays)
     amplitude = amplitude * scale
     zeta = rate / np.hypot(omega_d, rate)
-    significant = ((amplitude >= MIN_SHARE * amplitude.max()) & (omega_d < NYQUIST_MARGIN * 2 * np.pi * nyquist)
-                   & ~_harmonics(omega_d, rate, amplitude) & ~_unresolved(omega_d, rate, amplitude))
+    duration = t[-1] + h
+    weight = amplitude * np.sqrt(-np.expm1(-2 * rate * duration) / (2 * rate * duration))   # RMS over the record
+    valid = (omega_d < NYQUIST_MARGIN * 2 * np.pi * nyquist) & (zeta < MAX_ZETA)
+    if not valid.any():
+        return empty
+    significant = (valid & (weight >= MIN_SHARE * weight[valid].max())
+                   & ~_distortion_products(omega_d, rate, weight) & ~_unresolved(omega_d, rate, weight))
     order = np.argsort(omega_d[significant])[:modes]
     return Modes(omega_d[significant][order] / (2 * np.pi), zeta[significant][order],
                  amplitude[significant][order], float(np.sqrt(np.mean(residual ** 2)) * scale))

@@ -122,3 +122,11 @@ class ModelConfig(StrictModel):
     material: MaterialConfig = MaterialConfig()
     engine: EngineConfig = EngineConfig()
     whisk: WhiskConfig = WhiskConfig()
+
+
+def with_preset(material: MaterialConfig, name: str) -> MaterialConfig:
+    """``material`` with every field of preset ``name`` set from it (discretisation kept)."""
+    values = MATERIAL_PRESETS[name]
+    follicle = material.follicle.model_copy(update=values["follicle"])
+    return material.model_copy(update={**{k: v for k, v in values.items() if k != "follicle"},
+                                       "follicle": follicle, "preset": name})

@@ -102,12 +102,33 @@ def run_diagnose(path: Path | None, material, report: Path | None, engine: str |
     from pipeline.measurements import ResonanceTable, load_measurement
     from pipeline.measurements.table import combine
 
-    measurement = combine(_tables([], True, None)) if library else load_measurement(path)
+    if library:
+        tables = _tables([], True, None)
+        with single_threaded_blas():
+            data, lines = _diagnose_table(combine(tables), material, report, engine)
+        return _with_condition_splits(data, lines, tables, material)
+    measurement = load_measurement(path)
     with single_threaded_blas():
         if isinstance(measurement, ResonanceTable):
             return _diagnose_table(measurement, material, report, engine)
         chosen = [c.strip() for c in candidates.split(",") if c.strip()] if candidates else None
         return _diagnose_series(measurement, material, report, engine, chosen)
+
+
+def _with_condition_splits(data: dict, lines: list[str], tables, material) -> tuple[dict, list[str]]:
+    """Add what a uniform model gets wrong across sets: for each condition that differs between
+    them, the χ² gain of fitting E and the damping separately per value of that condition."""
+    from pipeline.diagnosis.joint import condition_splits
+
+    splits = condition_splits(tables, material=material)
+    data["condition_splits"] = [{k: v for k, v in s.items()} for s in splits]
+    lines.append("  across sets (E and damping fitted per value of a condition, all whiskers):")
+    for s in splits:
+        values = ", ".join(f"{value}: E {p['E']['value'] / 1e9:.2f} GPa, θ_ζ {p['zeta']['value']:.3f}"
+                           for value, p in s["params"].items())
+        lines.append(f"    {s['condition']:<12} χ² {s['chi2_shared']:.1f} → {s['chi2_split']:.1f} "
+                     f"(gain {100 * s['gain']:.0f} %, ΔBIC {s['delta_bic']:+.1f}); {values}")
+    return _jsonable(data), lines
 
 
 def _diagnose_series(measurement, material, report, engine, candidates) -> tuple[dict, list[str]]:

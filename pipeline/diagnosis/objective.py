@@ -131,23 +131,29 @@ class TableObjective:
         self.prepared = [PreparedTrial(protocol_trial(r.whisker), (0.0, 0.0, -1.0)) for r in table.records]
 
     def record_features(self, spec: ModelSpec) -> list[dict[str, float]]:
-        """Simulated f1, δ (protocol) and f2, f3 (linear in-plane modes) of every whisker."""
+        """Simulated f1, δ, ζ1, f2, f3 of every whisker. Records measured on the resonance
+        protocol (two-peak δ) run it, f1 and δ from its tip; for modal records (a bandwidth or
+        free-decay measurement of the first mode) f1 and ζ1 are the linear chain's first damped
+        in-plane mode, as are f2 and f3 for every record."""
+        from pipeline.analysis.resonance import analyse_tip
         from pipeline.diagnosis.fastsim import damped_modes
         from pipeline.diagnosis.linear import linearise
-        from pipeline.analysis.resonance import analyse_tip
 
         out = []
         for record, prepared in zip(self.table.records, self.prepared):
             physics = spec.physics(record.geometry)
-            positions = self.simulator.simulate(physics, [prepared])[0]
-            trial = prepared.trial
-            result = analyse_tip(positions[1:, 0, 1], trial.time_s[1:], trial.sampling_rate_hz)
             freqs, zetas, in_plane = damped_modes(linearise(physics))
             modes = freqs[in_plane]
-            out.append({"f1_hz": result.f1_hz, "log_decrement": result.paper_log_decrement,
+            features = {"f1_hz": modes[0] if len(modes) else np.nan, "log_decrement": np.nan,
                         "zeta1": zetas[in_plane][0] if in_plane.any() else np.nan,
                         "f2_hz": modes[1] if len(modes) > 1 else np.nan,
-                        "f3_hz": modes[2] if len(modes) > 2 else np.nan})
+                        "f3_hz": modes[2] if len(modes) > 2 else np.nan}
+            if record.damping_measure != "modal":
+                trial = prepared.trial
+                positions = self.simulator.simulate(physics, [prepared])[0]
+                result = analyse_tip(positions[1:, 0, 1], trial.time_s[1:], trial.sampling_rate_hz)
+                features.update(f1_hz=result.f1_hz, log_decrement=result.paper_log_decrement)
+            out.append(features)
         return out
 
     def measured(self) -> list[dict[str, tuple[float, float]]]:
