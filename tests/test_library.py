@@ -79,3 +79,17 @@ def test_calibrate_cli_library_and_bad_where(pipeline_cli):
     assert bad.returncode == 2 and bad.stderr.startswith("error: --where") and "Traceback" not in bad.stderr
     none = pipeline_cli("calibrate")
     assert none.returncode == 2 and "error:" in none.stderr
+
+
+def test_condition_split_finds_trimmed_and_untrimmed_disagree():
+    """A uniform model over the trimmed α/B1 and the untrimmed D row misfits both; fitting E and
+    damping per value of 'trimmed' removes most of χ² (trimmed E ≈ 7.4 GPa, untrimmed ≈ 4 GPa)."""
+    from pipeline.diagnosis.joint import condition_splits
+
+    paper, vibration, _ = load_library()
+    splits = condition_splits([paper, vibration], material=MaterialConfig(preset="untrimmed"))
+    by_name = {s["condition"]: s for s in splits}
+    assert set(by_name) == {"trimmed", "base", "excitation", "damping"}
+    trimmed = by_name["trimmed"]
+    assert trimmed["gain"] > 0.5 and trimmed["delta_bic"] < 0
+    assert trimmed["params"]["yes"]["E"]["value"] > 1.5 * trimmed["params"]["no"]["E"]["value"]

@@ -94,35 +94,46 @@ def calibrate_sets(tables, names=("E", "zeta"), material: MaterialConfig | None 
     return out
 
 
+def _fit_chi2(tables, names, material: MaterialConfig) -> tuple[float, int, dict]:
+    """(χ², number of values, fitted parameters) of ``names`` fitted to ``tables`` combined."""
+    objective = TableObjective(combine(tables))
+    sd, _ = log_sd_with_defaults(objective)
+    start = matched_start(objective, ModelSpec(material), names=names)
+    result = fit(objective, start, tuple(names), sigma=sd, max_iterations=MAX_ITERATIONS)
+    return float(np.sum(result.residuals ** 2)), int(result.residuals.size), result.params()
+
+
 def condition_splits(tables, names=("E", "zeta"), material: MaterialConfig | None = None) -> list[dict]:
     """For every condition that differs between the sets: χ² of one shared model against
     ``names`` fitted separately per value of that condition (all records, none held out), and
-    ΔBIC = Δχ² − Δp·ln m (negative: the split is worth its extra parameters)."""
+    ΔBIC = Δχ² − Δp·ln m (negative: the split is worth its extra parameters). Conditions that
+    split the sets alike share their fits."""
     from pipeline.diagnosis.threads import single_threaded_blas
     from pipeline.measurements.table import CONDITIONS
 
     material = material or MaterialConfig()
-    with single_threaded_blas():
-        def chi2_of(group) -> tuple[float, int, dict]:
-            objective = TableObjective(combine(group))
-            sd, _ = log_sd_with_defaults(objective)
-            start = matched_start(objective, ModelSpec(material), names=names)
-            result = fit(objective, start, tuple(names), sigma=sd, max_iterations=MAX_ITERATIONS)
-            return float(np.sum(result.residuals ** 2)), int(result.residuals.size), result.params()
+    fits: dict[tuple, tuple[float, int, dict]] = {}
 
+    def chi2_of(group) -> tuple[float, int, dict]:
+        key = tuple(id(t) for t in group)
+        if key not in fits:
+            fits[key] = _fit_chi2(group, names, material)
+        return fits[key]
+
+    out = []
+    with single_threaded_blas():
         shared, m, _ = chi2_of(tables)
-        out = []
         for key in CONDITIONS:
             groups: dict[str, list] = {}
             for table in tables:
                 groups.setdefault(table.conditions[key], []).append(table)
             if len(groups) < 2:
                 continue
-            fits = {value: chi2_of(group) for value, group in groups.items()}
-            split = sum(f[0] for f in fits.values())
+            split_fits = {value: chi2_of(group) for value, group in groups.items()}
+            split = sum(f[0] for f in split_fits.values())
             extra = len(names) * (len(groups) - 1)
             out.append({"condition": key, "chi2_shared": shared, "chi2_split": split,
                         "gain": (shared - split) / shared if shared > 0 else 0.0,
                         "delta_bic": split - shared + extra * np.log(m),
-                        "params": {value: f[2] for value, f in fits.items()}})
+                        "params": {value: f[2] for value, f in split_fits.items()}})
     return sorted(out, key=lambda item: item["delta_bic"])

@@ -30,9 +30,8 @@ AFTER_RELEASE_S = 0.05         # the paper analysed 40–50 ms after release
 
 
 def compliant_follicle(config: ModelConfig) -> FollicleConfig:
-    """The configured follicle if compliant, else the default constants."""
-    follicle = config.material.follicle
-    return follicle if follicle.kind == "compliant" else FollicleConfig(kind="compliant")
+    """The configured follicle's constants (a preset's, or the defaults), made compliant."""
+    return config.material.follicle.model_copy(update={"kind": "compliant"})
 
 
 def release(config: ModelConfig, geometry: WhiskerGeometry) -> dict:
