@@ -154,26 +154,31 @@ def resonance(
     follicle: Optional[str] = typer.Option(None, "--follicle", help="'rigid' or 'K,C'."),
     engine: Optional[str] = typer.Option(None, "--engine", help="Physics engine (bullet or mujoco)."),
     dt_s: Optional[float] = typer.Option(None, "--dt-s", help="Integration step, s."),
+    modes: int = typer.Option(1, "--modes", min=1, max=8, help="Report f1..fK and ζ1..ζK of this many modes."),
+    preset: Optional[str] = typer.Option(None, "--preset", help="Material preset (untrimmed or trimmed)."),
     config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML."),
     model_file: Optional[Path] = typer.Option(None, "--model", help="Fitted model file (docs/model_file.md)."),
     json_output: bool = typer.Option(False, "--json", help="Print JSON."),
 ) -> None:
-    """Resonance protocol (Gaussian pulse, abrupt stop): f1, log decrement, damping ratio."""
+    """Resonance protocol (Gaussian pulse, abrupt stop): per-mode f and ζ from the ring-down, and
+    the paper's two-peak log decrement."""
     from pipeline.model.whisker import WhiskerGeometry
     from pipeline.protocols.resonance import run_resonance
 
     material = {"youngs_modulus_gpa": e_gpa, "damping_ratio": zeta, "links": links,
-                "follicle": _follicle_override(follicle)}
+                "follicle": _follicle_override(follicle), "preset": preset}
     model = _model_config(config, {"file": _model_path(model_file), "material": material,
                                    "engine": {"name": engine, "dt_s": dt_s}})
     geometry = WhiskerGeometry(length_mm * 1e-3, base_diameter_um * 0.5e-6, tip_diameter_um * 0.5e-6,
                                curvature_per_mm * 1e3)
-    result = run_resonance(geometry, model).as_dict()
+    result = run_resonance(geometry, model, max(modes, 3)).as_dict(modes)
     if json_output:
-        typer.echo(json.dumps({k: result[k] for k in ("f1_hz", "log_decrement", "damping_ratio")}))
+        typer.echo(json.dumps({k: (None if v != v else v) for k, v in result.items() if k != "f1_fft_bin_hz"}))
     else:
-        typer.echo(f"f1 = {result['f1_hz']:.2f} Hz   δ = {result['log_decrement']:.3f}   "
-                   f"ζ = {result['damping_ratio']:.3f}")
+        for i in range(1, modes + 1):
+            typer.echo(f"f{i} = {result[f'f{i}_hz']:.2f} Hz   ζ{i} = {result[f'zeta{i}']:.4f}")
+        typer.echo(f"paper's two-peak δ = {result['paper_log_decrement']:.3f} "
+                   f"(ζ = {result['paper_damping_ratio']:.3f})")
 
 
 @app.command()
@@ -396,7 +401,10 @@ def validate(
 # --- measured data: `pipeline calibrate`, `diagnose`, `synth` (issue 8) ---
 @app.command()
 def calibrate(
-    file: Path = typer.Argument(..., help="Measurement: time series (.h5) or resonance table (.csv)."),
+    files: Optional[list[Path]] = typer.Argument(None, help="Measurements: one time series (.h5), or resonance tables (.csv) fitted jointly."),
+    library: bool = typer.Option(False, "--library", help="Add the shipped measurement library's resonance tables."),
+    where: Optional[str] = typer.Option(None, "--where", help="Only tables with these conditions, e.g. 'trimmed=no'."),
+    hold_out: bool = typer.Option(True, "--hold-out/--no-hold-out", help="Keep the library's held-out whiskers out of a joint fit and report the error on them."),
     params: str = typer.Option("E,zeta", "--params", help="Parameters to fit, e.g. E,zeta,follicle.k_f."),
     method: str = typer.Option("optimizer", "--method", help="optimizer (least squares) or grid (paper)."),
     objective: str = typer.Option("msa", "--objective", help="msa (paper eq. 4a/4b) or trajectory."),
@@ -405,16 +413,26 @@ def calibrate(
     engine: Optional[str] = typer.Option(None, "--engine", help="Check and refine the fit on an engine (bullet or mujoco)."),
     config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML (material, links, damping)."),
     save_model: Optional[Path] = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md)."),
+    preset: Optional[str] = typer.Option(None, "--preset", help="Material preset to start from (untrimmed or trimmed)."),
     json_output: bool = typer.Option(False, "--json", help="Print JSON."),
 ) -> None:
-    """Fit model parameters to measured data (median symmetric accuracy), with uncertainties."""
-    from pipeline.diagnosis.commands import run_calibrate
+    """Fit model parameters to measured data (median symmetric accuracy), with uncertainties;
+    several resonance tables (or --library) are fitted jointly, with each set's misfit."""
+    from pipeline.diagnosis.commands import run_calibrate, run_calibrate_sets
 
     _engine_name(engine)
     _writable_out(save_model, "--save-model")
-    material = _model_config(config, {}).material
-    data, lines = run_calibrate(file, params, method, objective, material, engine, bootstrap, grid_points,
-                                save_model)
+    material = _model_config(config, {"material": {"preset": preset}}).material
+    files = list(files or [])
+    if library or where or len(files) > 1:
+        if save_model is not None:
+            raise UserError("--save-model saves the fit of one measurement FILE, not a joint fit over sets")
+        data, lines = run_calibrate_sets(files, library, where, hold_out, params, material)
+    elif len(files) == 1:
+        data, lines = run_calibrate(files[0], params, method, objective, material, engine, bootstrap, grid_points,
+                                    save_model)
+    else:
+        raise UserError("calibrate needs a measurement FILE or --library")
     if json_output:
         _print_json(data)
     else:
@@ -423,12 +441,14 @@ def calibrate(
 
 @app.command()
 def diagnose(
-    file: Path = typer.Argument(..., help="Measurement: time series (.h5) or resonance table (.csv)."),
+    file: Optional[Path] = typer.Argument(None, help="Measurement: time series (.h5) or resonance table (.csv)."),
+    library: bool = typer.Option(False, "--library", help="Diagnose the shipped measurement library's resonance tables combined."),
     report: Optional[Path] = typer.Option(None, "--report", help="Write report.md and PNG figures here."),
     engine: Optional[str] = typer.Option(None, "--engine", help="Check and refine the result on an engine (bullet or mujoco)."),
     candidates: Optional[str] = typer.Option(None, "--candidates", help="Only these extensions (comma-separated)."),
     config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML (material, links, damping)."),
     save_model: Optional[Path] = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md)."),
+    preset: Optional[str] = typer.Option(None, "--preset", help="Material preset to start from (untrimmed or trimmed)."),
     json_output: bool = typer.Option(False, "--json", help="Print JSON."),
 ) -> None:
     """What the model gets wrong on measured data, and which model extension explains it."""
@@ -439,7 +459,10 @@ def diagnose(
     _writable_out(save_model, "--save-model")
     if report is not None and report.exists() and not report.is_dir():
         raise UserError(f"--report {report} is a file; give a folder for report.md and the figures")
-    data, lines = run_diagnose(file, _model_config(config, {}).material, report, engine, candidates, save_model)
+    if library == (file is not None):
+        raise UserError("diagnose needs exactly one of FILE or --library")
+    data, lines = run_diagnose(file, _model_config(config, {"material": {"preset": preset}}).material, report, engine,
+                               candidates, library, save_model)
     if json_output:
         _print_json(data)
     else:

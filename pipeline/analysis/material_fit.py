@@ -64,7 +64,7 @@ def simulate_all(measurements, config: ModelConfig) -> dict[str, ResonanceResult
 
 def log_ratios(measurements, results) -> np.ndarray:
     return np.array([np.log(results[m.name].f1_hz / m.f1_hz) for m in measurements]
-                    + [np.log(results[m.name].log_decrement / m.log_decrement) for m in measurements])
+                    + [np.log(results[m.name].paper_log_decrement / m.log_decrement) for m in measurements])
 
 
 def fit_material(measurements=PAPER_TABLE_1, config: ModelConfig | None = None,
@@ -74,7 +74,7 @@ def fit_material(measurements=PAPER_TABLE_1, config: ModelConfig | None = None,
 
     def delta_error(zeta: float) -> float:
         results = simulate_all(measurements, with_material(config, e0, zeta))
-        return float(np.sum([np.log(results[m.name].log_decrement / m.log_decrement) ** 2
+        return float(np.sum([np.log(results[m.name].paper_log_decrement / m.log_decrement) ** 2
                              for m in measurements]))
 
     zeta = float(minimize_scalar(delta_error, bounds=zeta_bounds, method="bounded",

@@ -54,11 +54,73 @@ def run_calibrate(path: Path, names: str, method: str, objective: str, material,
     return _jsonable(result), lines
 
 
-def run_diagnose(path: Path, material, report: Path | None, engine: str | None,
-                 candidates: str | None = None, save_model: Path | None = None) -> tuple[dict, list[str]]:
+def _tables(paths, library: bool, where: str | None) -> list:
+    """Resonance tables of ``paths`` plus the shipped library's, kept when they match ``where``
+    ('key=value;...', conditions of docs/measurements.md)."""
+    from pipeline.errors import UserError
+    from pipeline.measurements import ResonanceTable, load_measurement
+    from pipeline.measurements.library import load_library
+    from pipeline.measurements.table import CONDITIONS
+
+    tables = [load_measurement(p) for p in paths] + (load_library() if library else [])
+    for table, path in zip(tables, paths):
+        if not isinstance(table, ResonanceTable):
+            raise UserError(f"{path}: a joint fit takes resonance tables (.csv) only")
+    wanted = {}
+    for item in filter(None, (part.strip() for part in (where or "").split(";"))):
+        key, _, value = (x.strip() for x in item.partition("="))
+        if key not in CONDITIONS or value not in CONDITIONS[key]:
+            raise UserError(f"--where '{item}': not a condition (known: "
+                            + "; ".join(f"{k}={'|'.join(v)}" for k, v in CONDITIONS.items()) + ")")
+        wanted[key] = value
+    chosen = [t for t in tables if all(t.conditions[k] == v for k, v in wanted.items())]
+    if not chosen:
+        raise UserError(f"no measurement set matches --where '{where}'")
+    return chosen
+
+
+def run_calibrate_sets(paths, library: bool, where: str | None, hold_out: bool, names: str,
+                       material) -> tuple[dict, list[str]]:
+    from pipeline.diagnosis.joint import calibrate_sets
+    from pipeline.diagnosis.parameters import parse_names
+
+    result = calibrate_sets(_tables(paths, library, where), parse_names(names), material, hold_out)
+    lines = [f"joint fit of {result['values']} values ({len(result['fitted_records'])} whiskers): "
+             f"{result['metric']} = {result['error']:.4g}, χ² = {result['chi2']:.1f}; "
+             f"{material.damping_model} damping, {material.links} links"]
+    lines += _format_params(result["params"])
+    lines.append(f"  {'set':<36} {'conditions':<58} {'MSA':>6} {'χ²/n':>7}")
+    for name, s in result["sets"].items():
+        c = s["conditions"]
+        text = ", ".join(f"{k}={c[k]}" for k in ("trimmed", "base", "excitation", "preparation", "damping"))
+        lines.append(f"  {name:<36} {text:<58} {s['msa']:>6.3f} {s['chi2_per_value']:>7.2f}")
+    if "held_out" in result:
+        h = result["held_out"]
+        lines.append(f"  held out (not fitted): median |f1 error| {100 * h['median_abs_f1_error']:.1f} %; ζ1 model "
+                     f"{h['zeta1_model'][0]:.3f}-{h['zeta1_model'][1]:.3f} vs measured "
+                     f"{h['zeta1_measured_range'][0]:.2f}-{h['zeta1_measured_range'][1]:.2f}")
+        lines += [f"    {w}: f1 {r['f1_model_hz']:.1f} Hz vs {r['f1_measured_hz']:.1f} Hz ({100 * r['f1_error']:+.1f} %), "
+                  f"ζ1 {r['zeta1_model']:.3f} vs {r['zeta1_measured']:.2f}" for w, r in h["whiskers"].items()]
+    lines += [f"  note: {n}" for n in result["notes"]]
+    return _jsonable(result), lines
+
+
+def run_diagnose(path: Path | None, material, report: Path | None, engine: str | None,
+                 candidates: str | None = None, library: bool = False,
+                 save_model: Path | None = None) -> tuple[dict, list[str]]:
     from pipeline.diagnosis.threads import single_threaded_blas
     from pipeline.measurements import ResonanceTable, load_measurement
+    from pipeline.measurements.table import combine
 
+    if library:
+        if save_model is not None:
+            from pipeline.errors import UserError
+
+            raise UserError("--save-model saves the diagnosis of one measurement FILE, not of the library")
+        tables = _tables([], True, None)
+        with single_threaded_blas():
+            data, lines, _ = _diagnose_table(combine(tables), material, report, engine)
+        return _with_condition_splits(data, lines, tables, material)
     measurement = load_measurement(path)
     with single_threaded_blas():
         if isinstance(measurement, ResonanceTable):
@@ -83,6 +145,22 @@ def _save_diagnosis(out: Path, result, path: Path, geometry, whisker: str) -> Pa
     summary = {"method": "diagnose", "cause": result.cause, "metric": final.metric, "error": final.error,
                "whisker": whisker, **modal_summary(final.spec, geometry)}
     return save_model(out, final.spec, final.params(), [path], summary)
+
+
+def _with_condition_splits(data: dict, lines: list[str], tables, material) -> tuple[dict, list[str]]:
+    """Add what a uniform model gets wrong across sets: for each condition that differs between
+    them, the χ² gain of fitting E and the damping separately per value of that condition."""
+    from pipeline.diagnosis.joint import condition_splits
+
+    splits = condition_splits(tables, material=material)
+    data["condition_splits"] = [{k: v for k, v in s.items()} for s in splits]
+    lines.append("  across sets (E and damping fitted per value of a condition, all whiskers):")
+    for s in splits:
+        values = ", ".join(f"{value}: E {p['E']['value'] / 1e9:.2f} GPa, θ_ζ {p['zeta']['value']:.3f}"
+                           for value, p in s["params"].items())
+        lines.append(f"    {s['condition']:<12} χ² {s['chi2_shared']:.1f} → {s['chi2_split']:.1f} "
+                     f"(gain {100 * s['gain']:.0f} %, ΔBIC {s['delta_bic']:+.1f}); {values}")
+    return _jsonable(data), lines
 
 
 def _diagnose_series(measurement, material, report, engine, candidates) -> tuple[dict, list[str], object]:
@@ -114,7 +192,7 @@ def _diagnose_table(table, material, report, engine) -> tuple[dict, list[str], o
 
     result = diagnose_table(table, material)
     data = result.as_dict()
-    lines = [f"{table.path}: cause = {result.cause}", f"  {result.summary}"]
+    lines = [f"{table.path or 'measurement library'}: cause = {result.cause}", f"  {result.summary}"]
     lines += _format_params(result.baseline.params())
     lines += [f"  {i['name']}.{i['param'].split('.')[-1]}: {i['verdict']}" for i in result.identifiability]
     lines += [f"  note: {n}" for n in result.notes]

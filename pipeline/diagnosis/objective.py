@@ -8,8 +8,9 @@ Every objective has ``residuals(spec)`` (the vector a least-squares optimiser se
 - :class:`FeatureObjective`: the paper's features of each trial's tip signal (eq. 4a for
   motor-driven trials, 4b for releases), residuals ln(sim/exp); error = MSA.
 - :class:`TableObjective`: resonance tables; each whisker is run through the resonance
-  protocol (docs/model.md §5) and f1, δ (and f2, f3 from the linear model's in-plane modes) are
-  compared, residuals ln(sim/exp); error = MSA.
+  protocol (docs/model.md §5) and f1, the paper's two-peak δ (or, for ``damping=modal`` tables, the
+  first in-plane mode's damping ratio ζ1 of the linear chain) and f2, f3 (the linear model's
+  in-plane modes) are compared, residuals ln(sim/exp); error = MSA.
 """
 
 from __future__ import annotations
@@ -110,7 +111,7 @@ def _median_ratios(pairs) -> tuple[float, float]:
 
 def protocol_trial(name: str) -> Trial:
     """The resonance protocol (docs/model.md §5) as a trial: tip of a base pulse about z, 1 s at 1 kHz."""
-    from pipeline.protocols.resonance import DURATION_S, pulse_drive
+    from pipeline.analysis.resonance import DURATION_S, pulse_drive
 
     drive = pulse_drive()
     angles = np.zeros((len(drive.time_s), 3))
@@ -130,22 +131,29 @@ class TableObjective:
         self.prepared = [PreparedTrial(protocol_trial(r.whisker), (0.0, 0.0, -1.0)) for r in table.records]
 
     def record_features(self, spec: ModelSpec) -> list[dict[str, float]]:
-        """Simulated f1, δ (protocol) and f2, f3 (linear in-plane modes) of every whisker."""
+        """Simulated f1, δ, ζ1, f2, f3 of every whisker. Records measured on the resonance
+        protocol (two-peak δ) run it, f1 and δ from its tip; for modal records (a bandwidth or
+        free-decay measurement of the first mode) f1 and ζ1 are the linear chain's first damped
+        in-plane mode, as are f2 and f3 for every record."""
+        from pipeline.analysis.resonance import analyse_tip
         from pipeline.diagnosis.fastsim import damped_modes
         from pipeline.diagnosis.linear import linearise
-        from pipeline.protocols.resonance import analyse_tip
 
         out = []
         for record, prepared in zip(self.table.records, self.prepared):
             physics = spec.physics(record.geometry)
-            positions = self.simulator.simulate(physics, [prepared])[0]
-            trial = prepared.trial
-            result = analyse_tip(positions[1:, 0, 1], trial.time_s[1:], trial.sampling_rate_hz)
-            freqs, _, in_plane = damped_modes(linearise(physics))
+            freqs, zetas, in_plane = damped_modes(linearise(physics))
             modes = freqs[in_plane]
-            out.append({"f1_hz": result.f1_hz, "log_decrement": result.log_decrement,
+            features = {"f1_hz": modes[0] if len(modes) else np.nan, "log_decrement": np.nan,
+                        "zeta1": zetas[in_plane][0] if in_plane.any() else np.nan,
                         "f2_hz": modes[1] if len(modes) > 1 else np.nan,
-                        "f3_hz": modes[2] if len(modes) > 2 else np.nan})
+                        "f3_hz": modes[2] if len(modes) > 2 else np.nan}
+            if record.damping_measure != "modal":
+                trial = prepared.trial
+                positions = self.simulator.simulate(physics, [prepared])[0]
+                result = analyse_tip(positions[1:, 0, 1], trial.time_s[1:], trial.sampling_rate_hz)
+                features.update(f1_hz=result.f1_hz, log_decrement=result.paper_log_decrement)
+            out.append(features)
         return out
 
     def measured(self) -> list[dict[str, tuple[float, float]]]:
@@ -153,7 +161,10 @@ class TableObjective:
         out = []
         for r in self.table.records:
             items = {f"f{m + 1}_hz": (r.frequencies_hz[m], r.frequency_sd_hz[m]) for m in range(3)}
-            items["log_decrement"] = (r.decrement, r.decrement_sd)
+            if r.damping_measure == "modal":
+                items["zeta1"] = (r.damping_ratio, r.damping_ratio_sd)
+            else:
+                items["log_decrement"] = (r.decrement, r.decrement_sd)
             out.append({k: v for k, v in items.items() if np.isfinite(v[0])})
         return out
 
@@ -166,10 +177,13 @@ class TableObjective:
         return np.array(out)
 
     def ratios(self, spec: ModelSpec) -> tuple[float, float]:
-        """Median measured/simulated ratios of (f1, δ) at ``spec``."""
-        pairs = [({"frf_hz": m["f1_hz"][0], "log_decrement": m.get("log_decrement", (np.nan,))[0]},
-                  {"frf_hz": s["f1_hz"], "log_decrement": s["log_decrement"]})
-                 for m, s in zip(self.measured(), self.record_features(spec))]
+        """Median measured/simulated ratios of (f1, damping) at ``spec``; damping is δ or ζ1,
+        whichever the record measured (both roughly proportional to θ_ζ)."""
+        pairs = []
+        for m, s in zip(self.measured(), self.record_features(spec)):
+            key = "zeta1" if "zeta1" in m else "log_decrement"
+            pairs.append(({"frf_hz": m["f1_hz"][0], "log_decrement": m.get(key, (np.nan,))[0]},
+                          {"frf_hz": s["f1_hz"], "log_decrement": s[key]}))
         return _median_ratios(pairs)
 
     def log_sd(self) -> np.ndarray:

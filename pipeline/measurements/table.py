@@ -3,7 +3,9 @@
 One row per whisker: geometry (SI), the first natural frequency and optionally higher modes,
 the log decrement and/or damping ratio, each with an optional standard deviation. The first
 line names the format and version; further lines starting with ``#`` are comments (cite the
-source there). Contract: docs/measurements.md.
+source there). A comment ``# conditions: key=value; ...`` states how the whiskers were measured
+(:data:`CONDITIONS`); ``damping=modal`` says the damping ratio is the first mode's (half-power
+bandwidth or free-decay fit) rather than the paper's two-peak δ. Contract: docs/measurements.md.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ from __future__ import annotations
 import csv
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from pipeline.errors import UserError
@@ -25,6 +27,15 @@ REQUIRED = ("whisker", "arc_length_m", "base_diameter_m", "tip_diameter_m", "f1_
 OPTIONAL = ("curvature_per_m", "f1_sd_hz", "f2_hz", "f2_sd_hz", "f3_hz", "f3_sd_hz",
             "log_decrement", "log_decrement_sd", "damping_ratio", "damping_ratio_sd", "trials")
 MODES = 3
+_CONDITIONS = re.compile(r"#\s*conditions:\s*(.*)$")
+# what a table may state about its measurements: key → allowed values (first: assumed when absent)
+CONDITIONS = {
+    "trimmed": ("unknown", "yes", "no"),
+    "base": ("unknown", "clamp", "glue", "follicle"),
+    "excitation": ("unknown", "motor", "pluck", "vibration_table"),
+    "preparation": ("unknown", "ex_vivo", "in_vivo"),
+    "damping": ("two_peak", "modal"),
+}
 
 
 @dataclass(frozen=True)
@@ -40,6 +51,8 @@ class ResonanceRecord:
     damping_ratio: float
     damping_ratio_sd: float
     trials: float
+    damping_measure: str = "two_peak"      # 'two_peak': δ of the first two peaks; 'modal': ζ1
+    source: str = ""                       # the set (file stem) the record came from
 
     @property
     def decrement(self) -> float:
@@ -62,6 +75,40 @@ class ResonanceTable:
     records: tuple[ResonanceRecord, ...]
     path: Path | None = None
     comments: tuple[str, ...] = ()
+    conditions: dict = field(default_factory=dict)   # CONDITIONS keys → values (all keys present)
+
+
+def parse_conditions(lines, path) -> dict:
+    """The ``# conditions:`` line(s) as a dict over every :data:`CONDITIONS` key (defaults filled)."""
+    found = {}
+    for number, line in lines:
+        match = _CONDITIONS.match(line)
+        if not match:
+            continue
+        for item in filter(None, (part.strip() for part in match.group(1).split(";"))):
+            key, _, value = (x.strip() for x in item.partition("="))
+            if key not in CONDITIONS:
+                raise UserError(f"{path}: line {number}: unknown condition '{key}' (known: {', '.join(CONDITIONS)})")
+            if value not in CONDITIONS[key]:
+                raise UserError(f"{path}: line {number}: condition {key}='{value}' "
+                                f"(one of {', '.join(CONDITIONS[key])})")
+            found[key] = value
+    return {key: found.get(key, values[0]) for key, values in CONDITIONS.items()}
+
+
+def combine(tables) -> ResonanceTable:
+    """One table of the records of several (names prefixed by their set: ``set/whisker``), for
+    a joint fit; each record keeps its set's damping measure and names its set in ``source``."""
+    from dataclasses import replace
+
+    records = []
+    for table in tables:
+        name = table.path.stem if table.path else "table"
+        records += [replace(r, whisker=f"{name}/{r.whisker}", source=name) for r in table.records]
+    names = [r.whisker for r in records]
+    if len(set(names)) != len(names):
+        raise UserError("the same measurement file is given twice")
+    return ResonanceTable(tuple(records), None, ())
 
 
 def _value(row: dict, column: str, where: str, required: bool = False, sign: str = "positive") -> float:
@@ -94,6 +141,7 @@ def load_table(path: str | Path) -> ResonanceTable:
         raise UserError(f"{path}: line 1: version {match.group(1)} is not supported "
                         f"(this reader knows version {VERSION})")
     comments = tuple(line.lstrip("#").strip() for line in lines if line.startswith("#"))
+    conditions = parse_conditions([(i + 1, line) for i, line in enumerate(lines)], path)
     numbered = [(i + 1, line) for i, line in enumerate(lines) if line.strip() and not line.startswith("#")]
     if not numbered:
         raise UserError(f"{path}: no header row")
@@ -130,7 +178,7 @@ def load_table(path: str | Path) -> ResonanceTable:
             name, geometry, freqs, sds,
             _value(row, "log_decrement", where), _value(row, "log_decrement_sd", where, sign="non-negative"),
             _value(row, "damping_ratio", where), _value(row, "damping_ratio_sd", where, sign="non-negative"),
-            _value(row, "trials", where))
+            _value(row, "trials", where), conditions["damping"], path.stem)
         if record.damping_ratio >= 1:
             raise UserError(f"{where}: column 'damping_ratio': {record.damping_ratio} ≥ 1 is not a ringing whisker")
         records.append(record)
@@ -140,4 +188,6 @@ def load_table(path: str | Path) -> ResonanceTable:
     if len(set(names)) != len(names):
         raise UserError(f"{path}: whisker names must be unique (repeated: "
                         f"{', '.join(sorted({n for n in names if names.count(n) > 1}))})")
-    return ResonanceTable(tuple(records), path, comments)
+    if conditions["damping"] == "modal" and any(not math.isfinite(r.damping_ratio) for r in records):
+        raise UserError(f"{path}: damping=modal needs a damping_ratio on every row")
+    return ResonanceTable(tuple(records), path, comments, conditions)

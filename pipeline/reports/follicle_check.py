@@ -31,13 +31,12 @@ AFTER_RELEASE_S = 0.05         # the paper analysed 40–50 ms after release
 
 
 def compliant_follicle(config: ModelConfig) -> FollicleConfig:
-    """The model's compliant follicle (its ``follicle`` extension, else the material's), else the
-    default constants."""
+    """The model's compliant follicle (its ``follicle`` extension), else the configured follicle's
+    constants (a preset's, or the defaults), made compliant."""
     fitted = next((e for e in model_parts(config)[1] if isinstance(e, CompliantFollicle)), None)
     if fitted is not None:
         return FollicleConfig(kind="compliant", stiffness_nm_per_rad=fitted.k_f, damping_nms_per_rad=fitted.c_f)
-    follicle = config.material.follicle
-    return follicle if follicle.kind == "compliant" else FollicleConfig(kind="compliant")
+    return config.material.follicle.model_copy(update={"kind": "compliant"})
 
 
 def release(config: ModelConfig, geometry: WhiskerGeometry) -> dict:

@@ -55,8 +55,10 @@ def fig2(section: Section, plt):
     grid = np.linspace(arc.min() * 0.9, arc.max() * 1.05, 200)
     curve = s["fit"]["coefficient"] * grid ** s["fit"]["exponent"] + s["fit"]["offset"]
     axes[0].plot(grid, curve, "k-", label="published fit 8963·S^−1.4 − 3.8")
-    for factor in (1 - s["band"], 1 + s["band"]):
-        axes[0].plot(grid, curve * factor, "k--", lw=0.7)
+    band_label = (f"±{s['band']:.0%} band (ours: spans the paper's measured scatter; "
+                  "its prediction interval is drawn, not tabulated)")
+    for factor, label in ((1 - s["band"], band_label), (1 + s["band"], None)):
+        axes[0].plot(grid, curve * factor, "k--", lw=0.7, label=label)
     for row in "ABCDE":
         pick = [r == row for r in rows]
         axes[0].scatter(arc[pick], f1[pick], color=ROW_COLOURS[row], label=f"row {row}", s=18)
@@ -70,8 +72,9 @@ def fig2(section: Section, plt):
     axes[0].legend(fontsize=7)
     axes[1].axhline(0, color="k")
     for edge in (-s["band"], s["band"]):
-        axes[1].axhline(edge, color="k", ls="--", lw=0.7)
-    axes[1].axvline(15, color="grey", ls=":")
+        axes[1].axhline(edge, color="k", ls="--", lw=0.7, label=f"±{s['band']:.0%} band" if edge > 0 else None)
+    axes[1].axvline(15, color="grey", ls=":", label="15 mm: shorter whiskers may fall outside")
+    axes[1].legend(fontsize=7)
     axes[1].set_xlabel("arc length S (mm)")
     axes[1].set_ylabel("f1 / fit − 1")
     axes[1].set_title("residuals (right side; the left mirrors it)")
