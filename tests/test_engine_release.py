@@ -14,7 +14,7 @@ from pipeline.model.array import build_array, single_whisker
 from pipeline.model.kinematics import Pose, sinusoidal_whisk, still
 from pipeline.model.morphology import model_rat
 from pipeline.model.whisker import WhiskerGeometry
-from pipeline.analysis.ringdown import spectral_peak
+from pipeline.signals.ringdown import spectral_peak
 from pipeline.scenes import empty
 
 ALPHA = WhiskerGeometry(29.6e-3, 60e-6, 17.5e-6)

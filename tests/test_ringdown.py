@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from pipeline.analysis.chain_modes import chain_damped_modes
-from pipeline.analysis.resonance import analyse_tip
-from pipeline.analysis.ringdown import fit_ringdown, spectral_peak
+from pipeline.signals.chain_modes import chain_damped_modes
+from pipeline.signals.resonance import analyse_tip
+from pipeline.signals.ringdown import fit_ringdown, spectral_peak
 from pipeline.config.physics import MaterialConfig
 from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial
 from pipeline.diagnosis.objective import protocol_trial

@@ -13,7 +13,7 @@ from pipeline.config import load_config
 from pipeline.config.simulate import Range, ScenesConfig, SimulateConfig, WhiskSamplingConfig
 from pipeline.errors import UserError
 from pipeline.runner.scenes import scene_catalogue
-from pipeline.runner.shards import Shard, run_id
+from pipeline.datasets.shards import Shard, run_id
 from pipeline.runner.trial import draw_whisk, load_whisk_table
 
 

@@ -47,7 +47,7 @@ def _shards(run_folder: Path) -> list[tuple[Path, range]]:
     partition (same shard count and trials, each holding its own block)."""
     import h5py
 
-    from pipeline.runner.shards import Shard
+    from pipeline.datasets.shards import Shard
 
     found, partitions = {}, set()
     for folder in sorted(run_folder.glob("shard_*_of_*")):

@@ -17,7 +17,7 @@ from pipeline.errors import UserError
 
 DEFAULT_ROOT = Path("outputs/datasets")
 LOCK_FILE = ".lock"
-SHARDS_DIR = "shards"          # <root>/<name>/shards/<run>/shard_<i>_of_<N>/ (pipeline.runner.shards)
+SHARDS_DIR = "shards"          # <root>/<name>/shards/<run>/shard_<i>_of_<N>/ (pipeline.datasets.shards)
 _VERSION = re.compile(r"^v(\d+)$")
 
 

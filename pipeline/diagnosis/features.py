@@ -21,7 +21,7 @@ from scipy.signal import find_peaks, savgol_filter
 
 from pipeline.diagnosis.drives import base_motion, last_motion_time
 from pipeline.measurements.timeseries import ReleaseDrive, Trial
-from pipeline.analysis.ringdown import spectral_peak
+from pipeline.signals.ringdown import spectral_peak
 
 PEAK_PROMINENCE = 0.1       # of the largest excursion
 SETTLED_FRACTION = 0.2      # last part of a trial taken as the resting position

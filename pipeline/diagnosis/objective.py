@@ -111,7 +111,7 @@ def _median_ratios(pairs) -> tuple[float, float]:
 
 def protocol_trial(name: str) -> Trial:
     """The resonance protocol (docs/model.md §5) as a trial: tip of a base pulse about z, 1 s at 1 kHz."""
-    from pipeline.analysis.resonance import DURATION_S, pulse_drive
+    from pipeline.signals.resonance import DURATION_S, pulse_drive
 
     drive = pulse_drive()
     angles = np.zeros((len(drive.time_s), 3))
@@ -135,7 +135,7 @@ class TableObjective:
         protocol (two-peak δ) run it, f1 and δ from its tip; for modal records (a bandwidth or
         free-decay measurement of the first mode) f1 and ζ1 are the linear chain's first damped
         in-plane mode, as are f2 and f3 for every record."""
-        from pipeline.analysis.resonance import analyse_tip
+        from pipeline.signals.resonance import analyse_tip
         from pipeline.diagnosis.fastsim import damped_modes
         from pipeline.diagnosis.linear import linearise
 

@@ -1,9 +1,9 @@
 """Resonance protocol on an engine (paper §4.5.1, docs/model.md §5): a Gaussian pulse of base
-rotation, an abrupt stop, then ringing; drive and analysis in :mod:`pipeline.analysis.resonance`."""
+rotation, an abrupt stop, then ringing; drive and analysis in :mod:`pipeline.signals.resonance`."""
 
 from __future__ import annotations
 
-from pipeline.analysis.resonance import DURATION_S, MODES, ResonanceResult, analyse_tip, pulse_drive
+from pipeline.signals.resonance import DURATION_S, MODES, ResonanceResult, analyse_tip, pulse_drive
 from pipeline.config.physics import ModelConfig
 from pipeline.model.array import single_whisker
 from pipeline.model.extensions import model_parts

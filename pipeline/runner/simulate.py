@@ -33,7 +33,7 @@ from pipeline.datasets.versions import VersionLock, new_version, unfinished_vers
 from pipeline.datasets.writer import DatasetWriter, Layout, model_file_record, provenance, whisker_table
 from pipeline.errors import RunAborted, UserError
 from pipeline.runner.scenes import SceneEntry, scene_catalogue
-from pipeline.runner.shards import Shard, plan_fields, run_id, shard_folder
+from pipeline.datasets.shards import Shard, plan_fields, run_id, shard_folder
 from pipeline.runner.trial import RunSpec, TrialResult, load_whisk_table
 from pipeline.storage import is_disk_full, write_text_durably
 

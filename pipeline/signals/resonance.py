@@ -4,7 +4,7 @@ protocol (:mod:`pipeline.protocols.resonance`) and the fast simulator (:mod:`pip
 A straight whisker lies along x in the horizontal plane, its base clamped to a motor turning
 about the vertical axis by ν(t) = ν0·exp(−½((t−μ)/σ)²), ν0 = π/3, σ = 25 ms, μ = 4σ, stopped
 abruptly at 128 ms and held. 1 s at 1 kHz. Per-mode f and ζ come from a damped-sinusoid fit
-to the tip's y after the stop (:mod:`pipeline.analysis.ringdown`); the paper's own numbers
+to the tip's y after the stop (:mod:`pipeline.signals.ringdown`); the paper's own numbers
 (FFT peak after dropping the first 125 samples, δ = ln(y0/y1) of the first two peaks after
 the stop) are kept under ``f1_fft_bin_hz`` and ``paper_log_decrement``.
 """
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.analysis.ringdown import fit_ringdown, paper_log_decrement, ratio_from_decrement, spectral_peak
+from pipeline.signals.ringdown import fit_ringdown, paper_log_decrement, ratio_from_decrement, spectral_peak
 from pipeline.model.kinematics import ProtractionDrive
 
 PULSE_AMPLITUDE_RAD = np.pi / 3
@@ -41,7 +41,7 @@ class ResonanceResult:
     """What the protocol measures on the tip's y (m) at the output rate.
 
     f1 and ζ1 come from a fit of damped sinusoids to the free ring-down after the stop
-    (:func:`pipeline.analysis.ringdown.fit_ringdown`), bounded by Nyquist; the paper's numbers
+    (:func:`pipeline.signals.ringdown.fit_ringdown`), bounded by Nyquist; the paper's numbers
     (plain FFT peak, two-peak δ and the ζ derived from it) are kept under their own names.
     """
 
