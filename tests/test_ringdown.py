@@ -10,7 +10,7 @@ from pipeline.config.physics import MaterialConfig
 from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial
 from pipeline.diagnosis.objective import protocol_trial
 from pipeline.diagnosis.parameters import ModelSpec
-from pipeline.model.array import make_chain
+from pipeline.model.physics import build_physics
 from pipeline.model.whisker import WhiskerGeometry
 
 RATE = 1000.0
@@ -66,7 +66,7 @@ def _protocol(material: MaterialConfig, geometry=ALPHA):
 def test_protocol_on_the_chain_matches_its_eigenvalues(damping_model, zeta):
     """The linear chain's ring-down shows its complex eigenvalues: f1 to 0.1 %, ζ1 to 1 %."""
     material = MaterialConfig(youngs_modulus_gpa=3.7, damping_model=damping_model, damping_ratio=zeta)
-    freqs, zetas = chain_damped_modes(make_chain(ALPHA, material))
+    freqs, zetas = chain_damped_modes(build_physics(ALPHA, material).chain)
     result = _protocol(material)
     assert result.f1_hz == pytest.approx(freqs[0], rel=1e-3)
     assert result.damping_ratio == pytest.approx(zetas[0], rel=0.01)
@@ -81,7 +81,7 @@ def test_untrimmed_whisker_three_modes_match_the_chain(links):
     """Where the paper's two-peak δ is undefined or negative (long untrimmed whisker, mode 2
     beating with mode 1), the fit still finds f1..f3 and ζ1..ζ3 of the chain."""
     material = MaterialConfig(youngs_modulus_gpa=3.7, damping_model="paper", damping_ratio=0.118, links=links)
-    freqs, zetas = chain_damped_modes(make_chain(D1, material))
+    freqs, zetas = chain_damped_modes(build_physics(D1, material).chain)
     result = _protocol(material, D1)
     np.testing.assert_allclose(result.frequencies_hz, freqs[:3], rtol=0.01)
     np.testing.assert_allclose(result.damping_ratios[:2], zetas[:2], rtol=0.03)
@@ -91,7 +91,7 @@ def test_untrimmed_whisker_three_modes_match_the_chain(links):
 def test_chain_zeta1_under_eq3_falls_with_links_and_kelvin_voigt_holds():
     def zeta1(model, links):
         material = MaterialConfig(links=links, damping_model=model, damping_ratio=0.14)
-        return chain_damped_modes(make_chain(ALPHA, material))[1][0]
+        return chain_damped_modes(build_physics(ALPHA, material).chain)[1][0]
 
     paper = [zeta1("paper", n) for n in (20, 40, 80)]
     kv = [zeta1("kelvin_voigt", n) for n in (20, 40, 80)]
