@@ -29,10 +29,12 @@ STAGES["simulate"] = _simulate
 # --- end simulate
 
 
-def _whisk_beside_meshes(config_path, **args) -> dict[str, Any]:
+def _whisk_beside_meshes(config_path, meshes="outputs/meshes", out="outputs/trials", whiskers="R",
+                         duration_s=0.25, distance_mm=28.0, engine=None) -> dict[str, Any]:
     from pipeline.protocols.demo_trial import whisk_beside_meshes
 
-    return whisk_beside_meshes(config_path, **args)
+    return whisk_beside_meshes(config_path, meshes=meshes, out=out, whiskers=whiskers,
+                               duration_s=duration_s, distance_mm=distance_mm, engine=engine)
 
 
 STAGES["whisk-beside-meshes"] = _whisk_beside_meshes

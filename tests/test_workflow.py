@@ -78,10 +78,11 @@ def test_bad_workflows_get_one_line_errors(project):
 
 def test_shipped_workflow_names_known_stages_and_existing_configs():
     from pipeline.stages import STAGES
-    from pipeline.workflow import load_workflow
+    from pipeline.workflow import _check_args, load_workflow
 
     spec = load_workflow(REPO / "workflows" / "natural.yaml")
     assert [s.stage for s in spec.stages] == ["build-meshes", "whisk-beside-meshes", "simulate"]
     for stage in spec.stages:
         assert stage.stage in STAGES and stage.outputs
         assert stage.config is None or (REPO / stage.config).is_file()
+        _check_args(Path("natural.yaml"), stage, STAGES[stage.stage])      # the stage takes its args
