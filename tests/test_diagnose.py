@@ -169,7 +169,7 @@ def test_calibrate_recovers_young_modulus_and_damping():
 def test_diagnose_paper_table_says_what_it_can_and_cannot_identify():
     from pipeline.diagnosis.table_diagnosis import diagnose_table
 
-    result = diagnose_table(load_measurement(PAPER_ALPHA_B1))
+    result = diagnose_table(load_measurement(PAPER_ALPHA_B1), MaterialConfig(preset="trimmed"))
     data = result.as_dict()
     assert set(data) == {"baseline", "candidates", "cause", "params", "gain"}
     assert data["cause"] == "none" and result.dof == 2

@@ -41,7 +41,7 @@ def test_static_tip_load_gives_balancing_base_wrench():
 
 
 def test_resonance_alpha_against_chain_and_continuum():
-    config = ModelConfig(material=MaterialConfig(youngs_modulus_gpa=5.0, damping_ratio=0.33))
+    config = ModelConfig(material=MaterialConfig(youngs_modulus_gpa=5.0, damping_ratio=0.33, damping_model="paper"))
     result = run_resonance(ALPHA, config)
     continuum = cantilever_frequencies(ALPHA.arc_length_m, ALPHA.base_radius_m,
                                        ALPHA.tip_radius_m, 5e9)[0]

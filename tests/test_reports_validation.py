@@ -142,7 +142,7 @@ def test_quick_validate_command(tmp_path):
 
 @pytest.mark.slow
 def test_refit_lands_on_the_configured_material():
-    """--refit (fit_material, ~100 s) reproduces the shipped defaults E = 7.45 GPa, ζ = 0.118."""
+    """--refit (fit_material, ~100 s) reproduces the trimmed preset E = 7.45 GPa, ζ = 0.118."""
     section, config = table_1(ModelConfig(), refit=True)
     assert section.summary["refit"] and section.summary["fit_msa"] < 0.08
     assert config.material.youngs_modulus_gpa == pytest.approx(7.45, rel=0.03)
