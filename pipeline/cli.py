@@ -511,6 +511,21 @@ def _terminate(signum, frame) -> None:
     raise KeyboardInterrupt
 
 
+def _interrupt_again(signum, frame) -> None:
+    raise KeyboardInterrupt
+
+
+def _redeliver_swallowed_interrupt(hook_args) -> None:
+    """A SIGTERM that landed inside a finalizer or weakref callback is swallowed there (Python
+    prints it as an ignored exception, a traceback): deliver it again to the main code 10 ms
+    later (SIGALRM), outside the callback, instead."""
+    if isinstance(hook_args.exc_value, KeyboardInterrupt) and _TERMINATED_BY:
+        signal.signal(signal.SIGALRM, _interrupt_again)
+        signal.setitimer(signal.ITIMER_REAL, 0.01)
+        return
+    sys.__unraisablehook__(hook_args)
+
+
 def _exit(code: int) -> None:
     if _TERMINATED_BY:
         typer.echo(f"error: terminated by {_TERMINATED_BY[0]}", err=True)
@@ -532,6 +547,7 @@ def main() -> None:
     """
     debug = "--debug" in sys.argv[1:]
     signal.signal(signal.SIGTERM, _terminate)
+    sys.unraisablehook = _redeliver_swallowed_interrupt
     usage_errors, aborts, exits = _click_errors()
     try:
         code = app(standalone_mode=False)

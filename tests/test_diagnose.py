@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from pipeline.config.physics import MaterialConfig
+from pipeline.config.physics import MaterialConfig, with_preset
 from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial, damped_modes
 from pipeline.diagnosis.linear import linearise
 from pipeline.errors import UserError
@@ -85,7 +85,8 @@ def test_gravity_sag_converges_to_euler_bernoulli():
     r = 60e-6 + (17.5e-6 - 60e-6) * x / x[-1]
     load = (1260 + 430 * x / x[-1]) * np.pi * r ** 2 * 9.81
     moment = np.array([np.trapezoid(load[i:] * (x[i:] - xi), x[i:]) for i, xi in enumerate(x)])
-    sag = np.trapezoid(moment * (x[-1] - x) / (7.45e9 * np.pi * r ** 4 / 4), x)
+    youngs_pa = MaterialConfig().youngs_modulus_gpa * 1e9
+    sag = np.trapezoid(moment * (x[-1] - x) / (youngs_pa * np.pi * r ** 4 / 4), x)
     assert 2 * tips[1][0, 2] - tips[0][0, 2] == pytest.approx(-sag, rel=0.005)
 
 
@@ -209,8 +210,9 @@ def test_misfit_no_candidate_explains_is_unexplained():
     from pipeline.diagnosis.scenarios import draw
     from pipeline.diagnosis.synth import synthesise
 
-    scenario = draw("stiffness_gradient", 14)
-    result = diagnose(synthesise(scenario.config), candidates=("length", "gravity"))
+    scenario = draw("stiffness_gradient", 14)      # drawn for the trimmed whiskers' material
+    trimmed = scenario.config.model_copy(update={"material": with_preset(scenario.config.material, "trimmed")})
+    result = diagnose(synthesise(trimmed), candidates=("length", "gravity"))
     assert result.cause == "unexplained"
     assert result.as_dict()["params"].keys() == {"E", "zeta"}
     with pytest.raises(UserError, match="unknown candidate"):

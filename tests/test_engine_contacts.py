@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from pipeline.config.physics import ModelConfig
+from pipeline.config.physics import MaterialConfig, ModelConfig
 from pipeline.errors import SimulationError
 from pipeline.engines.stepping import first_frequency_hz, refinement_levels
 from pipeline.model.array import build_array
@@ -29,12 +29,13 @@ def bumpy_sheet(size_m=0.06, spacing_m=0.001, bump_m=0.0015, seed=0) -> Triangle
 
 
 def with_engine(**fields) -> ModelConfig:
-    model = ModelConfig()
+    """The trimmed whiskers' material (the jam case was found with it) and these engine fields."""
+    model = ModelConfig(material=MaterialConfig(preset="trimmed"))
     return model.model_copy(update={"engine": model.engine.model_copy(update=fields)})
 
 
 def test_step_per_whisker_follows_its_first_mode():
-    model = ModelConfig()
+    model = ModelConfig(material=MaterialConfig(preset="trimmed"))     # the levels below are its
     array = build_array(load_morphology("model_rat").select("R"), model.material)
     levels = refinement_levels(array, model.engine)
     dt = model.engine.dt_s / 2.0 ** levels

@@ -715,3 +715,29 @@ with DatasetWriter.resume({str(path)!r}) as writer:
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout) == list(range(len(written), 6))
     assert assert_ok_trials_readable(path) == (6, 0)
+
+
+def test_a_sigterm_swallowed_by_a_finalizer_is_delivered_again_without_a_traceback():
+    """SIGTERM raises KeyboardInterrupt wherever the main thread is; inside a weakref callback
+    Python would swallow it and print a traceback. The CLI's hook delivers it again instead."""
+    script = """
+import sys, time, weakref
+from pipeline import cli
+cli._TERMINATED_BY.append("SIGTERM")
+sys.unraisablehook = cli._redeliver_swallowed_interrupt
+class Thing: pass
+def interrupted(_):
+    raise KeyboardInterrupt
+thing = Thing()
+ref = weakref.ref(thing, interrupted)
+try:
+    del thing                                   # the callback's KeyboardInterrupt is swallowed
+    deadline = time.monotonic() + 5
+    while time.monotonic() < deadline:
+        time.sleep(0.01)
+    print("not delivered")
+except KeyboardInterrupt:
+    print("delivered")
+"""
+    result = subprocess.run([sys.executable, "-c", script], cwd=REPO, text=True, capture_output=True, timeout=60)
+    assert result.stdout.strip() == "delivered" and "Traceback" not in result.stderr, result.stderr
