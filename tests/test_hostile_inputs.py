@@ -319,6 +319,16 @@ CASES = {
     "show-unknown-dataset": _simple("datasets", "show", "nope/v9", "--root", lambda w, t: w.root, names=["nope"]),
     "follicle-garbage": _simple("resonance", "--follicle", "soft", "--length-mm", "30", "--base-diameter-um", "100",
                                 "--tip-diameter-um", "5", names=["--follicle"]),
+    # options added with the model file, presets, modes and the measurement library
+    "preset-unknown": _simple("resonance", "--preset", "nope", "--length-mm", "30", "--base-diameter-um", "100",
+                              "--tip-diameter-um", "30", names=["nope"]),
+    "modes-zero": _simple("resonance", "--modes", "0", "--length-mm", "30", "--base-diameter-um", "100",
+                          "--tip-diameter-um", "30", names=["--modes"]),
+    "where-unknown-condition": _simple("calibrate", "--library", "--where", "trimmed=maybe", names=["trimmed=maybe"]),
+    "model-file-missing": _simple("trial", "--model", "/nonexistent/m.yaml", names=["/nonexistent/m.yaml"]),
+    "save-model-of-library": _simple("diagnose", "--library", "--save-model", lambda w, t: t / "m.yaml",
+                                     names=["--save-model"]),
+    "calibrate-nothing": _simple("calibrate", names=["calibrate"]),
 }
 
 
