@@ -110,11 +110,6 @@ def euler_joint_rates(row: int, side: int) -> np.ndarray:
     return rates * (np.array([-1.0, -1.0, 1.0]) if side < 0 else 1.0)
 
 
-def whisker_frame(rest_angles_rad, row: int, side: int, theta: float = 0.0) -> np.ndarray:
-    """3×3 rotation: whisker frame axes (columns) in the head frame at protraction ``theta``."""
-    return rotation_zyx(*euler_joint_angles(rest_angles_rad, row, side, theta)) @ WHISKER_FRAME_OFFSET[side]
-
-
 @dataclass(frozen=True)
 class Pose:
     """A rigid transform: head frame → world. Position (m) and yaw–pitch–roll (rad, Z–Y–X)."""
