@@ -12,6 +12,7 @@ import os
 import shutil
 from pathlib import Path
 
+from pipeline.datasets.dimensions import SCALE_ATTRIBUTES, attach_dimensions
 from pipeline.datasets.manifest import write_manifest
 from pipeline.datasets.reader import decode_attr
 from pipeline.datasets.schema import ARRAYS, CONFIG_FILE, DATA_FILE, OK, FAILED, PENDING
@@ -93,8 +94,8 @@ def _write_joined(path: Path, label: str, shards: list[tuple[Path, range]]) -> N
         del out.attrs["shard"]
         out.attrs.update(label=label, trial_range=[0, first["trials/status"].shape[0]],
                          joined_from=json.dumps([f"{SHARDS_DIR}/{p.name}" for p, _ in shards]))
-        for key in ("time_s", "node_time_s", "whiskers", "trials"):
-            if key in first:
+        for key in first:
+            if key not in ARRAYS:
                 first.copy(first[key], out, name=key)
         for data, block in shards[1:]:
             with h5py.File(data, "r") as shard:
@@ -108,7 +109,9 @@ def _write_joined(path: Path, label: str, shards: list[tuple[Path, range]]) -> N
             for data, block in shards:
                 virtual = h5py.VirtualSource(f"{SHARDS_DIR}/{data.name}", name, shape=source.shape)
                 layout[block.start:block.stop] = virtual[block.start:block.stop]
-            out.create_virtual_dataset(name, layout, fillvalue=source.fillvalue).attrs.update(source.attrs)
+            out.create_virtual_dataset(name, layout, fillvalue=source.fillvalue).attrs.update(
+                {key: value for key, value in source.attrs.items() if key not in SCALE_ATTRIBUTES})
+        attach_dimensions(out)
     os.replace(partial, path)
 
 

@@ -1,28 +1,37 @@
-"""Reading datasets: arrays with named axes, the trial and whisker tables, provenance.
+"""Reading datasets: arrays as lazy ``xarray.DataArray``, the trial and whisker tables as
+``pandas.DataFrame``, provenance.
 
     import pipeline.datasets as pd
     with pd.open("natural") as ds:                # NAME, NAME/vK, a version folder or a file
         ok = ds.ok                                # trial indices with status 'ok'
-        mz = ds.base_wrench.sel(whisker="RC1", signal="Mz").isel(trial=ok)   # (trial, time)
+        mz = ds.base_wrench.sel(whisker="RC1", signal="Mz").isel(trial=ok)   # (trial, time), N*m
+        mz.sel(time=slice(0.1, 0.2)).mean("time")  # reads only the selected trials
         ds.trials["scene"][ok], ds.whiskers["arc_length_m"], ds.provenance["git_commit"]
 
-Files are opened in SWMR read mode, so a dataset being written (or whose writer was killed)
-reads fine: rows whose ``status`` is pending hold fill values (NaN / 0).
+Arrays are read only when their values are needed, and only the selected part (xarray's
+lazy indexing over h5py; ``.chunk(trial=1)`` hands them to dask). Table columns with
+components (``pose_position_m``, ``rest_rotation``, ...) are column groups: two-level column
+labels, e.g. ``ds.trials["pose_position_m"]["x"]``; matrices are flattened row-major with
+labels "xx", "xy", ... (row axis first). Files are opened in SWMR read mode, so a dataset being
+written (or whose writer was killed) reads fine: rows whose ``status`` is pending hold fill
+values (NaN / 0). Files of schema version 1 read the same way.
 """
 
 from __future__ import annotations
 
+import functools
+import itertools
 import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from pipeline.datasets.named import NamedArray
-from pipeline.datasets.schema import ARRAYS, FAILED, OK, PENDING
+from pipeline.datasets.schema import (ARRAYS, COORDINATES, FAILED, OK, PENDING, SIGNAL_UNITS_VARIABLE,
+                                      TRIAL_COLUMNS, WHISKER_COLUMNS)
 from pipeline.datasets.versions import DEFAULT_ROOT, resolve
 from pipeline.errors import UserError
-from pipeline.model.outputs import SIGNALS
+from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS
 
 
 def _first_line(exc: BaseException) -> str:
@@ -45,6 +54,54 @@ def decode_attr(value: Any) -> Any:
     return value.tolist() if isinstance(value, np.ndarray) else value
 
 
+@functools.cache
+def lazy_dataset_class():
+    """The xarray backend array over an h5py dataset (made on first use: xarray is imported only
+    when an array is read)."""
+    from xarray.backends import BackendArray
+    from xarray.core import indexing
+
+    class LazyDataset(BackendArray):
+        """An h5py dataset that reads only the part xarray selects (basic indexing)."""
+
+        def __init__(self, dataset):
+            self.dataset, self.shape, self.dtype = dataset, dataset.shape, dataset.dtype
+
+        def __getitem__(self, key):
+            return indexing.explicit_indexing_adapter(key, self.shape, indexing.IndexingSupport.BASIC, self.read)
+
+        def read(self, key: tuple) -> np.ndarray:
+            return np.asarray(self.dataset[key])
+
+    return LazyDataset
+
+
+def _columns(group, schema: dict[str, dict]) -> dict[str, np.ndarray]:
+    """A table's columns as numpy (text decoded), in schema order (a version 1 file has fewer)."""
+    return {name: _decoded(group[name][()]) for name in schema if name in group}
+
+
+def table_frame(columns: dict[str, np.ndarray], schema: dict[str, dict], index_name: str):
+    """A table as a DataFrame: a column per scalar, a column group per multi-component column
+    (second label from the component's coordinate labels; '' for scalars)."""
+    import pandas as pd
+
+    data = {}
+    for name, values in columns.items():
+        if values.ndim == 1:
+            data[(name, "")] = values
+            continue
+        dims = schema.get(name, {}).get("dims", ())
+        axes = [COORDINATES[d].labels for d in dims] if len(dims) == values.ndim - 1 else []
+        if [len(a) for a in axes] != list(values.shape[1:]):
+            axes = [tuple(str(i) for i in range(n)) for n in values.shape[1:]]
+        for label, column in zip(itertools.product(*axes), values.reshape(len(values), -1).T):
+            data[(name, "".join(label))] = column
+    frame = pd.DataFrame(data, index=pd.RangeIndex(len(next(iter(columns.values()))), name=index_name))
+    frame.columns = pd.MultiIndex.from_tuples(frame.columns)
+    return frame
+
+
 class DatasetFile:
     """An open dataset file. Arrays are read lazily; tables are read at open (and ``refresh``)."""
 
@@ -58,7 +115,8 @@ class DatasetFile:
             raise UserError(f"{self.path}: not a readable dataset file ({_first_line(exc)})") from None
         try:
             self.attrs = {key: decode_attr(value) for key, value in self.file.attrs.items()}
-            self.whiskers = {k: _decoded(v[()]) for k, v in self.file["whiskers"].items()}
+            self._whiskers = _columns(self.file["whiskers"], WHISKER_COLUMNS)
+            self.whiskers = table_frame(self._whiskers, WHISKER_COLUMNS, "whisker_index")
             self.refresh()
             self._check_shards()
         except (OSError, RuntimeError, KeyError, ValueError) as exc:
@@ -84,7 +142,8 @@ class DatasetFile:
                 item.refresh()
         for column in self.file["trials"].values():
             column.refresh()
-        self.trials = {k: _decoded(v[()]) for k, v in self.file["trials"].items()}
+        self._trials = _columns(self.file["trials"], TRIAL_COLUMNS)
+        self.trials = table_frame(self._trials, TRIAL_COLUMNS, "trial")
 
     @property
     def provenance(self) -> dict[str, Any]:
@@ -92,7 +151,7 @@ class DatasetFile:
 
     @property
     def status(self) -> np.ndarray:
-        return self.trials["status"]
+        return self._trials["status"]
 
     @property
     def ok(self) -> np.ndarray:
@@ -108,47 +167,69 @@ class DatasetFile:
 
     @property
     def time_s(self) -> np.ndarray:
-        return self.file["time_s"][()]
+        return self.file["time" if "time" in self.file else "time_s"][()]
 
     def _coords(self) -> dict[str, np.ndarray]:
-        coords = {"trial": np.arange(len(self.status)), "time": self.time_s, "whisker": self.whiskers["name"],
-                  "signal": np.array(SIGNALS), "xyz": np.array(["x", "y", "z"])}
-        if "node_time_s" in self.file:
-            coords["node_time"] = self.file["node_time_s"][()]
+        """Coordinates per dimension (version 1 files: from the time axes and the tables)."""
+        links = int(self.attrs["links"])
+        coords = {"trial": np.arange(len(self.status)), "time": self.time_s, "whisker": self._whiskers["name"],
+                  "signal": np.array(SIGNALS), "link": np.arange(links), "node": np.arange(links + 1),
+                  "xyz": np.array(COORDINATES["xyz"].labels)}
+        for name in ("node_time", "node_time_s"):
+            if name in self.file:
+                coords["node_time"] = self.file[name][()]
         return coords
 
-    def array(self, name: str) -> NamedArray:
-        """One of ``schema.ARRAYS`` as a lazy named array."""
-        if name not in self.file:
+    def array(self, name: str):
+        """One of ``schema.ARRAYS`` as a lazy ``xarray.DataArray`` with its coordinates and units
+        (``base_wrench``: units per signal in the coordinate ``signal_units``)."""
+        import xarray as xr
+        from xarray.core import indexing
+
+        if name not in ARRAYS or name not in self.file:
             stored = [n for n in ARRAYS if n in self.file]
             raise KeyError(f"{self.path} has no '{name}' (arrays: {', '.join(stored)})")
-        data, spec = self.file[name], ARRAYS[name]
-        return NamedArray(data, spec.dims, self._coords(), decode_attr(data.attrs["units"]), name,
-                          units_axis="signal" if isinstance(spec.units, tuple) else None)
+        data, spec, coords = self.file[name], ARRAYS[name], self._coords()
+        attrs = {key: decode_attr(data.attrs[key]) for key in ("units", "description", "frame")
+                 if key in data.attrs}
+        variable = xr.Variable(spec.dims, indexing.LazilyIndexedArray(lazy_dataset_class()(data)), attrs)
+        labels = {d: coords[d] for d in spec.dims}
+        if "signal" in spec.dims:
+            labels[SIGNAL_UNITS_VARIABLE] = ("signal", np.array(SIGNAL_UNITS))
+        return xr.DataArray(variable, coords=labels, name=name)
 
     @property
-    def base_wrench(self) -> NamedArray:
+    def arrays(self):
+        """Every stored array as one lazy ``xarray.Dataset``."""
+        import xarray as xr
+
+        return xr.Dataset({name: self.array(name) for name in ARRAYS if name in self.file},
+                          attrs={"name": self.attrs.get("label") or self.attrs.get("name", ""),
+                                 "schema_version": self.attrs.get("schema_version")})
+
+    @property
+    def base_wrench(self):
         return self.array("base_wrench")
 
     @property
-    def contact(self) -> NamedArray:
+    def contact(self):
         return self.array("contact")
 
     @property
-    def point_of_contact(self) -> NamedArray:
+    def point_of_contact(self):
         return self.array("point_of_contact")
 
     @property
-    def protraction_rad(self) -> NamedArray:
+    def protraction_rad(self):
         return self.array("protraction_rad")
 
     @property
-    def node_positions_m(self) -> NamedArray:
+    def node_positions_m(self):
         return self.array("node_positions_m")
 
     def trial(self, index: int) -> dict[str, Any]:
         """Trial ``index``: its table row and every stored array (numpy, padded to full length)."""
-        row = {name: column[index] for name, column in self.trials.items()}
+        row = {name: column[index] for name, column in self._trials.items()}
         arrays = {name: self.file[name][index] for name in ARRAYS if name in self.file}
         return {"trial": int(index), **row, **arrays}
 

@@ -3,18 +3,24 @@
 One HDF5 file holds N trials in rows 0..N−1 (row = trial index). Trial-major arrays are
 chunked one trial per chunk; a trial is written data first, then its table row, its
 ``status`` last, each step flushed, so a row whose status is not pending is complete.
-Bump ``SCHEMA_VERSION`` on any change a reader would notice.
+Every array and column names its dimensions; the file holds a coordinate variable per
+dimension (an HDF5 dimension scale, :data:`COORDINATES`), so netCDF readers (xarray with
+h5netcdf) see named dims. Bump ``SCHEMA_VERSION`` on any change a reader would notice;
+version 1 (no dimension scales, ``time_s``/``node_time_s`` for the time axes, no frames in the
+tables) is still read.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
 
+import numpy as np
+
 from pipeline.config.simulate import POSE_REJECTION_REASONS
-from pipeline.model.outputs import SIGNAL_UNITS
+from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS
 
 SCHEMA = "whisker-pipeline/dataset"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 DATA_FILE = "data.h5"
 CONFIG_FILE = "config.yaml"
 MANIFEST_FILE = "manifest.json"
@@ -51,8 +57,44 @@ ARRAYS: dict[str, ArraySpec] = {
 }
 
 
-def _column(default, dtype: str, units: str, doc: str, shape: tuple[int, ...] = ()):
-    return field(default=default, metadata={"dtype": dtype, "units": units, "doc": doc, "shape": shape})
+AXES = ("x", "y", "z")
+
+
+@dataclass(frozen=True)
+class CoordinateSpec:
+    """A dimension's coordinate variable: fixed ``labels``, or values the writer computes."""
+
+    dtype: str
+    units: str
+    description: str
+    labels: tuple = ()
+
+
+COORDINATES: dict[str, CoordinateSpec] = {
+    "trial": CoordinateSpec("i8", "1", "trial index (row of every trial-major array and column)"),
+    "time": CoordinateSpec("f8", "s", "sample time; sample i covers (i/rate, (i+1)/rate] and is stamped at its end"),
+    "node_time": CoordinateSpec("f8", "s", "time of the stored node positions (every k-th sample)"),
+    "whisker": CoordinateSpec("S8", "", "whisker name (side + row + column, e.g. RC1)"),
+    "signal": CoordinateSpec("S2", "", "base signal: force Fx, Fy, Fz (N), moment Mx, My, Mz (N*m)",
+                             tuple(SIGNALS)),
+    "link": CoordinateSpec("i4", "1", "link index, 0 at the base"),
+    "node": CoordinateSpec("i4", "1", "node index, 0 = base point ... links = tip"),
+    "xyz": CoordinateSpec("S1", "", "component along the frame's x, y, z axis", AXES),
+    "euler": CoordinateSpec("S1", "", "axis of the Z-Y-X Euler angle (R = Rz(a_z)*Ry(a_y)*Rx(a_x))",
+                            ("z", "y", "x")),
+    "reason": CoordinateSpec("S32", "", "why a drawn pose was rejected", tuple(POSE_REJECTION_REASONS)),
+    "head_axis": CoordinateSpec("S1", "", "axis of the head frame (x lateral, y rostral, z dorsal)", AXES),
+    "whisker_axis": CoordinateSpec("S1", "", "axis of the whisker frame (x base tangent, y concave side)", AXES),
+    "world_axis": CoordinateSpec("S1", "", "axis of the world frame (z up)", AXES),
+}
+SIGNAL_UNITS_VARIABLE = "signal_units"   # coordinate along ``signal``: the units of each signal
+
+
+def _column(default, dtype: str, units: str, doc: str, dims: tuple[str, ...] = (), fill=None):
+    """A table column; ``dims`` names its axes after the row axis (coordinates in COORDINATES)."""
+    shape = tuple(len(COORDINATES[d].labels) for d in dims)
+    return field(default=default, metadata={"dtype": dtype, "units": units, "doc": doc, "shape": shape,
+                                            "dims": dims, "fill": fill})
 
 
 NAN = float("nan")
@@ -72,17 +114,20 @@ class TrialRecord:
     whisk_frequency_hz: float = _column(NAN, "f8", "Hz", "whisk frequency (sinusoid; NaN otherwise)")
     whisk_protraction_rad: float = _column(NAN, "f8", "rad", "largest protraction angle of the drive")
     whisk_retraction_rad: float = _column(NAN, "f8", "rad", "largest retraction angle (positive)")
-    pose_position_m: tuple = _column((0.0, 0.0, 0.0), "f8", "m", "array origin in the world frame", (3,))
+    pose_position_m: tuple = _column((0.0, 0.0, 0.0), "f8", "m", "array origin in the world frame", ("xyz",))
     pose_euler_zyx_rad: tuple = _column(
         (0.0, 0.0, 0.0), "f8", "rad",
         "head rotation Rz(a0)*Ry(a1)*Rx(a2), head x lateral, y rostral, z dorsal: a0 heading, "
-        "a1 roll (about rostral y), a2 pitch (about lateral x, nose up > 0)", (3,))
+        "a1 roll (about rostral y), a2 pitch (about lateral x, nose up > 0)", ("euler",))
+    pose_rotation: tuple = _column(
+        tuple(map(tuple, np.eye(3))), "f8", "1",
+        "head frame in the world frame: column j = head axis j in world coordinates "
+        "(v_world = pose_rotation @ v_head + pose_position_m)", ("world_axis", "head_axis"), NAN)
     pose_side: int = _column(0, "i1", "", "+1 right or -1 left side aimed at the surface; 0 fixed scene")
     pose_distance_m: float = _column(NAN, "f8", "m", "array origin to the aimed surface point")
     pose_attempts: int = _column(0, "i4", "", "poses drawn until one was accepted (0: fixed scene)")
     pose_rejections: tuple = _column((0,) * len(POSE_REJECTION_REASONS), "i4", "",
-                                     "rejected poses per reason (attribute 'reasons')",
-                                     (len(POSE_REJECTION_REASONS),))
+                                     "rejected poses per reason (attribute 'reasons')", ("reason",))
     whiskers_reaching: int = _column(0, "i2", "", "whiskers whose swept rest shape crosses the surface")
     whiskers_in_contact: int = _column(0, "i2", "", "whiskers with at least one contact in the trial")
     cpu_seconds: float = _column(0.0, "f8", "s", "worker CPU time for the whole trial")
@@ -96,14 +141,21 @@ class TrialRecord:
 TRIAL_COLUMNS = {f.name: f.metadata for f in fields(TrialRecord)}
 
 WHISKER_COLUMNS: dict[str, dict] = {
-    "name": {"dtype": "S8", "units": "", "doc": "side + row + column, e.g. RC1", "shape": ()},
-    "side": {"dtype": "i1", "units": "", "doc": "+1 right, -1 left", "shape": ()},
-    "row": {"dtype": "i1", "units": "", "doc": "1..5 = A..E", "shape": ()},
-    "col": {"dtype": "i1", "units": "", "doc": "0 = Greek arc", "shape": ()},
-    "arc_length_m": {"dtype": "f8", "units": "m", "doc": "arc length S", "shape": ()},
-    "base_radius_m": {"dtype": "f8", "units": "m", "doc": "radius at the base", "shape": ()},
-    "tip_radius_m": {"dtype": "f8", "units": "m", "doc": "radius at the tip", "shape": ()},
-    "curvature_per_m": {"dtype": "f8", "units": "1/m", "doc": "A of y = A*x^2", "shape": ()},
-    "base_point_m": {"dtype": "f8", "units": "m",
-                     "doc": "base point in the head frame, relative to the array origin", "shape": (3,)},
-}
+    name: {"dtype": dtype, "units": units, "doc": doc, "dims": dims,
+           "shape": tuple(len(COORDINATES[d].labels) for d in dims)}
+    for name, dtype, units, doc, dims in [
+        ("name", "S8", "", "side + row + column, e.g. RC1", ()),
+        ("side", "i1", "", "+1 right, -1 left", ()),
+        ("row", "i1", "", "1..5 = A..E", ()),
+        ("col", "i1", "", "0 = Greek arc", ()),
+        ("arc_length_m", "f8", "m", "arc length S", ()),
+        ("base_radius_m", "f8", "m", "radius at the base", ()),
+        ("tip_radius_m", "f8", "m", "radius at the tip", ()),
+        ("curvature_per_m", "f8", "1/m", "A of y = A*x^2", ()),
+        ("base_point_m", "f8", "m", "base point in the head frame, relative to the array origin", ("xyz",)),
+        ("rest_rotation", "f8", "1", "whisker frame at rest (protraction 0) in the head frame: column j = "
+         "whisker axis j in head coordinates (v_head = rest_rotation @ v_whisker)", ("head_axis", "whisker_axis")),
+        ("rest_euler_zyx_rad", "f8", "rad", "driven Z-Y-X joint angles e0 at rest; at protraction theta the "
+         "whisker frame is Rzyx(e0 + rates*theta) @ Rzyx(e0).T @ rest_rotation", ("euler",)),
+        ("euler_rates", "f8", "rad/rad", "rates: d(driven Z-Y-X joint angles)/d(protraction angle)", ("euler",)),
+    ]}

@@ -22,10 +22,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from pipeline.datasets.dimensions import attach_dimensions, describe, storage_dtype, write_coordinates
 from pipeline.datasets.schema import (ARRAYS, OK, PENDING, POSE_REJECTION_REASONS, SCHEMA, SCHEMA_VERSION,
                                       TRIAL_COLUMNS, WHISKER_COLUMNS, TrialRecord)
 from pipeline.errors import UserError
 from pipeline.model.outputs import SIGNALS, TrialOutput
+from pipeline.model.rotations import rotation_zyx
 from pipeline.storage import replacing, require_free_space
 
 if TYPE_CHECKING:
@@ -73,8 +75,13 @@ class Layout:
 
 
 def whisker_table(morphology: "Morphology") -> dict[str, np.ndarray]:
-    """Whisker table columns of a (selected) morphology; base points relative to the array origin."""
+    """Whisker table columns of a (selected) morphology; base points relative to the array origin,
+    rest frames and the drive's joint angles as :func:`pipeline.model.array.build_array` makes them."""
+    from pipeline.model import kinematics
+
     specs = list(morphology)
+    rest = np.array([kinematics.euler_joint_angles(s.rest_angles_rad, s.row, s.side, 0.0) for s in specs])
+    offsets = np.array([kinematics.WHISKER_FRAME_OFFSET[s.side] for s in specs])
     return {"name": np.array([s.name.encode() for s in specs], "S8"),
             "side": np.array([s.side for s in specs], "i1"),
             "row": np.array([s.row for s in specs], "i1"),
@@ -83,7 +90,10 @@ def whisker_table(morphology: "Morphology") -> dict[str, np.ndarray]:
             "base_radius_m": np.array([s.base_radius_m for s in specs]),
             "tip_radius_m": np.array([s.tip_radius_m for s in specs]),
             "curvature_per_m": np.array([s.curvature_per_m for s in specs]),
-            "base_point_m": np.array([s.base_point_m for s in specs]).reshape(-1, 3) - morphology.origin_m}
+            "base_point_m": np.array([s.base_point_m for s in specs]).reshape(-1, 3) - morphology.origin_m,
+            "rest_rotation": rotation_zyx(*rest.reshape(-1, 3).T) @ offsets.reshape(-1, 3, 3),
+            "rest_euler_zyx_rad": rest.reshape(-1, 3),
+            "euler_rates": np.array([kinematics.euler_joint_rates(s.row, s.side) for s in specs]).reshape(-1, 3)}
 
 
 def trial_arrays(output: TrialOutput, protraction_rad: np.ndarray, layout: Layout) -> dict[str, np.ndarray]:
@@ -135,18 +145,16 @@ def encode(text: str, dtype: str) -> bytes:
 
 
 def _create_column(group, name: str, meta: dict, rows: int, chunk_rows: int, data=None) -> None:
-    import h5py
-
-    dtype = h5py.string_dtype("utf-8", int(meta["dtype"][1:])) if meta["dtype"][0] == "S" else meta["dtype"]
+    dtype = storage_dtype(meta["dtype"])
     shape = (rows,) + tuple(meta["shape"])
     if data is not None:
         column = group.create_dataset(name, data=np.asarray(data, dtype=dtype).reshape(shape))
     else:
         default = TrialRecord.__dataclass_fields__[name].default
-        fill = b"" if meta["dtype"][0] == "S" else (default[0] if isinstance(default, tuple) else default)
+        fill = meta["fill"] if meta["fill"] is not None else np.asarray(default, dtype).ravel()[0]
         column = group.create_dataset(name, shape=shape, dtype=dtype, chunks=(chunk_rows,) + shape[1:],
                                       fillvalue=fill)
-    column.attrs.update(units=meta["units"], description=meta["doc"])
+    describe(column, meta["units"], meta["doc"])
 
 
 def create_file(path: Path, layout: Layout, attrs: dict[str, Any]):
@@ -159,9 +167,11 @@ def create_file(path: Path, layout: Layout, attrs: dict[str, Any]):
                    node_every=layout.node_every, units="SI: m, s, rad, N, N*m")
     for key, value in attrs.items():
         f.attrs[key] = json.dumps(value) if isinstance(value, (dict, list, tuple)) else value
-    f.create_dataset("time_s", data=layout.time_s).attrs.update(units="s", axes=["time"])
+    computed = {"trial": np.arange(layout.trials), "time": layout.time_s, "whisker": layout.whiskers["name"],
+                "link": np.arange(layout.links)}
     if layout.node_every:
-        f.create_dataset("node_time_s", data=layout.node_time_s).attrs.update(units="s", axes=["node_time"])
+        computed.update(node_time=layout.node_time_s, node=np.arange(layout.links + 1))
+    write_coordinates(f, computed)
     whiskers = f.create_group("whiskers")
     for name, meta in WHISKER_COLUMNS.items():
         _create_column(whiskers, name, meta, len(layout.whiskers["name"]), 0, layout.whiskers[name])
@@ -179,6 +189,7 @@ def create_file(path: Path, layout: Layout, attrs: dict[str, Any]):
     f["base_wrench"].attrs.update(signals=list(SIGNALS), frame="whisker")
     if layout.node_every:
         f["node_positions_m"].attrs.update(frame="world", every=layout.node_every)
+    attach_dimensions(f)
     return f
 
 
@@ -191,6 +202,7 @@ def recover(path: Path) -> None:
         new.attrs.update(old.attrs)
         for key in old:
             old.copy(old[key], new, name=key)
+        attach_dimensions(new)
         new.flush()
         os.fsync(new.id.get_vfd_handle())
 
@@ -360,6 +372,7 @@ def write_single_trial(path: str | Path, output: TrialOutput, model: "ModelConfi
         whisk_kind=drive.kind, whisk_frequency_hz=drive.frequency_hz,
         whisk_protraction_rad=float(np.max(theta)), whisk_retraction_rad=float(-np.min(theta)),
         pose_position_m=tuple(pose.position_m), pose_euler_zyx_rad=tuple(pose.yaw_pitch_roll_rad),
+        pose_rotation=pose.rotation,
         whiskers_in_contact=output.whiskers_in_contact(),
         cpu_seconds=output.metadata.get("cpu_seconds", 0.0),
         physics_cpu_seconds=output.metadata.get("cpu_seconds", 0.0),

@@ -1,0 +1,83 @@
+"""Named dimensions in a dataset file: coordinate variables as HDF5 dimension scales.
+
+netCDF-4 readers (xarray with the h5netcdf engine, MATLAB's ``ncread``) name a dataset's axes
+after the dimension scales attached to them, and a scale whose name is its dimension's is
+that dimension's coordinate variable. Every array and table column attaches the scales named
+in :mod:`pipeline.datasets.schema`. Text is fixed-length UTF-8 with ``_Encoding = "utf-8"``,
+so xarray decodes it to ``str``. Scales and attachments are made before the writer enters
+SWMR mode (HDF5 cannot add attributes then); a copy of the file (recovery, join) attaches
+them again, since references do not survive a copy into another file. h5py is imported
+inside functions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.datasets.schema import (ARRAYS, COORDINATES, SIGNAL_UNITS_VARIABLE, TRIAL_COLUMNS,
+                                      WHISKER_COLUMNS)
+from pipeline.model.outputs import SIGNAL_UNITS
+
+TABLES = {"trials": ("trial", TRIAL_COLUMNS), "whiskers": ("whisker", WHISKER_COLUMNS)}
+SCALE_ATTRIBUTES = ("DIMENSION_LIST", "REFERENCE_LIST", "CLASS", "NAME")
+
+
+def storage_dtype(code: str):
+    """The HDF5 type of a schema dtype code: ``S<n>`` is n bytes of UTF-8 text."""
+    import h5py
+
+    return h5py.string_dtype("utf-8", int(code[1:])) if code[0] == "S" else np.dtype(code)
+
+
+def describe(dataset, units, description: str) -> None:
+    """Set a dataset's ``units`` and ``description`` (and ``_Encoding`` for text)."""
+    dataset.attrs.update(units=units, description=description)
+    if dataset.dtype.kind == "S":
+        dataset.attrs["_Encoding"] = "utf-8"
+
+
+def write_coordinates(f, values: dict[str, np.ndarray]) -> None:
+    """Create the coordinate variables: ``values`` for the computed ones (trial, time, whisker,
+    link, and node_time and node if node positions are stored), the schema's labels for the
+    rest; plus ``signal_units`` along ``signal``."""
+    for name, spec in COORDINATES.items():
+        data = values.get(name, spec.labels)
+        if len(data):
+            describe(f.create_dataset(name, data=np.asarray(data, storage_dtype(spec.dtype))),
+                     spec.units, spec.description)
+    describe(f.create_dataset(SIGNAL_UNITS_VARIABLE, data=np.asarray(SIGNAL_UNITS, storage_dtype("S3"))),
+             "", "units of each base signal")
+
+
+def _variables(f):
+    """(dataset, its dims) of every array and table column in the file."""
+    for name, spec in ARRAYS.items():
+        if name in f:
+            yield f[name], spec.dims
+    if SIGNAL_UNITS_VARIABLE in f:
+        yield f[SIGNAL_UNITS_VARIABLE], ("signal",)
+    for group, (row, columns) in TABLES.items():
+        for name, meta in columns.items():
+            if name in f[group]:
+                yield f[group][name], (row, *meta["dims"])
+
+
+def attach_dimensions(f) -> None:
+    """Make every coordinate variable a dimension scale and attach the scales to every array and
+    column, replacing scale attributes a copy may have brought along. Files of schema version 1
+    have no coordinate variables and are left as they are."""
+    if "trial" not in f:
+        return
+    variables = list(_variables(f))
+    for dataset in [f[name] for name in COORDINATES if name in f] + [d for d, _ in variables]:
+        for key in SCALE_ATTRIBUTES:
+            if key in dataset.attrs:
+                del dataset.attrs[key]
+    for name in COORDINATES:
+        if name in f:
+            f[name].make_scale(name)
+    for dataset, dims in variables:
+        for axis, dim in enumerate(dims):
+            dataset.dims[axis].attach_scale(f[dim])
+    if "base_wrench" in f:
+        f["base_wrench"].attrs["coordinates"] = SIGNAL_UNITS_VARIABLE
