@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline.datasets.named import NamedArray
+from pipeline.datasets.reader import lazy_dataset_class
 from pipeline.datasets.schema import TrialRecord
 from pipeline.datasets.writer import DatasetWriter, Layout, trial_arrays, whisker_table
 from pipeline.errors import UserError
@@ -172,14 +172,19 @@ def test_scenes_are_compared(dataset, report):
 def test_reads_one_trial_at_a_time(dataset, tmp_path, monkeypatch):
     """No read ever spans the trial axis: the dataset is streamed, never loaded whole."""
     path, _ = dataset
-    real = NamedArray.values.fget
+    lazy = lazy_dataset_class()
+    real, reads = lazy.read, []
 
-    def guarded(self):
-        assert "trial" not in self.dims, f"{self.name} read across trials"
-        return real(self)
+    def guarded(self, key):
+        trial = key[0]
+        assert isinstance(trial, (int, np.integer)) or len(range(*trial.indices(self.shape[0]))) == 1, \
+            f"{self.dataset.name} read across trials: {key}"
+        reads.append(key)
+        return real(self, key)
 
-    monkeypatch.setattr(NamedArray, "values", property(guarded))
+    monkeypatch.setattr(lazy, "read", guarded)
     assert stats_report(path, tmp_path, tmp_path / "out")["trials_used"] == 4
+    assert len(reads) == 2 * 4                     # base wrench and contacts of each ok trial
 
 
 def test_a_dataset_without_ok_trials_is_refused(tmp_path):

@@ -310,7 +310,7 @@ def stats_report(target: str | Path, root: str | Path, out: str | Path | None = 
                             f"{counts['trials_pending']} pending)")
         rate = float(ds.attrs["sampling_rate_hz"])
         tallies = read_tallies(ds)
-        whiskers = {k: ds.whiskers[k] for k in ("name", "row", "col", "side")}
+        whiskers = {k: ds.whiskers[k].to_numpy() for k in ("name", "row", "col", "side")}
     out = Path(out) if out is not None else DEFAULT_OUT / label.replace("/", "_")
     out.mkdir(parents=True, exist_ok=True)
     stats = {"dataset": label, "file": str(path), **counts, "trials_used": counts["trials_ok"],

@@ -214,7 +214,8 @@ def _progress(total: int, label: str, enabled: bool) -> Iterator[Callable[[int],
 def summarize(data_file: Path, indices: range) -> dict[str, Any]:
     """Totals over the trials ``indices`` of a dataset file."""
     with DatasetFile(data_file) as ds:
-        table = {k: v[indices.start:indices.stop] for k, v in ds.trials.items()}
+        rows = ds.trials.iloc[indices.start:indices.stop]
+    table = {name: rows[name].to_numpy() for name in rows.columns.get_level_values(0).unique()}
     status = table["status"]
     ok, failed = status == OK, status == FAILED
     sampled = table["pose_attempts"] > 0                # includes trials whose sampling gave up
