@@ -66,3 +66,16 @@ def test_join_names_missing_shards(tmp_path):
     write_shard(tmp_path, 3)
     with pytest.raises(UserError, match="shards missing: 2/3"):
         join_shards(tmp_path, "scan")
+
+
+def test_joined_dataset_opens_in_xarray_with_named_dims(tmp_path):
+    xr = pytest.importorskip("xarray")
+    pytest.importorskip("h5netcdf")
+    for number in range(1, SHARDS + 1):
+        write_shard(tmp_path, number)
+    version = join_shards(tmp_path, "scan")
+    with xr.open_dataset(version / "data.h5", engine="h5netcdf") as ds:
+        assert ds.base_wrench.dims == ("trial", "time", "whisker", "signal")
+        np.testing.assert_array_equal(ds.base_wrench.sel(trial=5).values, fake_output(5).base_wrench)
+    with xr.open_dataset(version / "data.h5", engine="h5netcdf", group="trials") as trials:
+        assert trials.scene.dims == ("trial",) and trials.scene.values[4] == "scene-4"

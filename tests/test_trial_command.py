@@ -30,7 +30,7 @@ def test_trial_out_writes_the_api_result_and_never_overwrites(tmp_path, pipeline
         assert ds.trials["whisk_frequency_hz"][0] == model.whisk.frequency_hz
         assert ds.attrs["sampling_rate_hz"] == 1000
         stored = ds.base_wrench.values[0]
-        assert ds.base_wrench.units[-1] == "N*m"
+        assert ds.base_wrench.signal_units.values[-1] == "N*m"
     # bit-identical to the API run in this process: the trial is a pure function of its inputs
     assert np.array_equal(stored, expected.base_wrench)
 

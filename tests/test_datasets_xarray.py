@@ -1,0 +1,190 @@
+"""Datasets as xarray sees them: named dims and coordinates in one `xr.open_dataset` call, units on
+every variable, text as str, dimension scales surviving SWMR writing and a killed writer;
+schema version 1 files still read; base signals turned into the head and world frames agree
+with the model's own whisker frames and with analytic frames."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+xr = pytest.importorskip("xarray")
+pytest.importorskip("h5netcdf")
+
+import pipeline.datasets as datasets                                          # noqa: E402
+from pipeline.config.physics import MaterialConfig                            # noqa: E402
+from pipeline.datasets.frames import to_head_frame, to_world_frame, whisker_frames  # noqa: E402
+from pipeline.datasets.schema import ARRAYS, TRIAL_COLUMNS, WHISKER_COLUMNS, TrialRecord  # noqa: E402
+from pipeline.datasets.writer import DatasetWriter, trial_arrays              # noqa: E402
+from pipeline.model.array import build_array                                  # noqa: E402
+from pipeline.model.kinematics import Pose, sinusoidal_whisk                  # noqa: E402
+from pipeline.model.morphology import model_rat                               # noqa: E402
+from test_datasets_io import KILLER, LINKS, NAMES, REPO, T, fake_output, layout, write_trials  # noqa: E402
+
+V1_FIXTURE = Path(__file__).parent / "data" / "dataset_v1.h5"   # written by the schema-1 writer (6377b39)
+
+
+def open_xr(path: Path):
+    return xr.open_dataset(path, engine="h5netcdf")
+
+
+def test_xarray_opens_named_dims_with_coordinates_and_units(tmp_path):
+    path = tmp_path / "d.h5"
+    outputs = write_trials(path, [0, 1, 3])
+    with open_xr(path) as ds:
+        assert ds.base_wrench.dims == ("trial", "time", "whisker", "signal")
+        assert ds.contact.dims == ("trial", "time", "whisker", "link")
+        assert ds.node_positions_m.dims == ("trial", "node_time", "whisker", "node", "xyz")
+        assert not [d for d in ds.sizes if d.startswith("phony_dim")]
+        assert ds.whisker.values.tolist() == NAMES and isinstance(ds.whisker.values[0], str)
+        assert ds.signal.values.tolist() == ["Fx", "Fy", "Fz", "Mx", "My", "Mz"]
+        assert ds.signal_units.sel(signal="Mz").item() == "N*m"
+        np.testing.assert_allclose(ds.time.values, np.arange(1, T + 1) / 1000.0)
+        assert ds.time.attrs["units"] == "s" and ds.sizes["link"] == LINKS
+        assert all("units" in v.attrs for v in ds.variables.values())
+        mz = ds.base_wrench.sel(whisker="RC2", signal="Mz")
+        np.testing.assert_array_equal(mz.sel(trial=3, time=slice(0.0105, 0.0205)).values,
+                                      outputs[3].base_wrench[10:20, 1, 5])
+        assert mz.sel(trial=0, time=0.0119, method="nearest").item() == outputs[0].base_wrench[11, 1, 5]
+        mean = ds.base_wrench.isel(trial=[0, 1, 3]).mean("time")
+        np.testing.assert_allclose(mean.sel(trial=0, whisker="LA0").values,
+                                   outputs[0].base_wrench[:, 2].mean(axis=0), rtol=1e-5)
+    tree = xr.open_datatree(path, engine="h5netcdf")
+    try:
+        trials, whiskers = tree["trials"].to_dataset(), tree["whiskers"].to_dataset()
+        assert trials.scene.dims == ("trial",) and trials.scene.values[3] == "mesh:rock"
+        assert trials.status.values.tolist() == ["ok", "ok", "", "ok", ""]
+        assert trials.pose_rejections.dims == ("trial", "reason")
+        assert trials.pose_rotation.dims == ("trial", "world_axis", "head_axis")
+        assert whiskers.rest_rotation.dims == ("whisker", "head_axis", "whisker_axis")
+        assert whiskers.name.values.tolist() == NAMES
+        assert all("units" in v.attrs for v in [*trials.variables.values(), *whiskers.variables.values()])
+    finally:
+        tree.close()
+
+
+def test_dimension_scales_survive_a_killed_writer_and_its_recovery(tmp_path):
+    path = tmp_path / "d.h5"
+    subprocess.run([sys.executable, "-c", KILLER.format(tests=str(REPO / "tests"), path=str(path))],
+                   cwd=REPO, timeout=60)
+    with datasets.open(path) as ds:                     # SWMR reader of the killed writer's file
+        assert list(ds.ok) == [0, 1, 2] and ds.base_wrench.dims == ("trial", "time", "whisker", "signal")
+    write_trials(path, [3])                             # resume: recovered copy, dims attached again
+    with open_xr(path) as ds:
+        assert ds.base_wrench.dims == ("trial", "time", "whisker", "signal")
+        assert ds.whisker.values.tolist() == NAMES and not np.isnan(ds.base_wrench[3]).all()
+
+
+def test_reader_returns_xarray_and_pandas(tmp_path):
+    path = tmp_path / "d.h5"
+    outputs = write_trials(path, [0, 3])
+    with datasets.open(path) as ds:
+        assert isinstance(ds.base_wrench, xr.DataArray) and isinstance(ds.arrays, xr.Dataset)
+        assert set(ds.arrays.data_vars) == set(ARRAYS)
+        assert isinstance(ds.trials, pd.DataFrame) and isinstance(ds.whiskers, pd.DataFrame)
+        mz = ds.base_wrench.sel(whisker="RC1", signal="Mz")
+        window = mz.sel(trial=3, time=slice(0.0105, 0.0205))
+        np.testing.assert_array_equal(window.values, outputs[3].base_wrench[10:20, 0, 5])
+        nearest = mz.sel(trial=0, time=0.0119, method="nearest")
+        assert nearest.item() == outputs[0].base_wrench[11, 0, 5] and float(nearest.time) == 0.012
+        np.testing.assert_allclose((2 * mz.isel(trial=[0, 3])).mean("time").values,
+                                   2 * np.nanmean(mz.values[[0, 3]], axis=1), rtol=1e-6)
+        assert mz.to_series().size == 5 * T
+        assert ds.trials["pose_rejections"].loc[3].tolist() == [1, 2, 3, 4, 5]
+        assert ds.whiskers["rest_rotation"].to_numpy().reshape(-1, 3, 3).shape == (3, 3, 3)
+        chunked = ds.base_wrench.chunk(trial=1).sel(whisker="RC1").mean("time").compute(scheduler="sync")
+        np.testing.assert_allclose(chunked.sel(trial=0).values, outputs[0].base_wrench[:, 0].mean(axis=0),
+                                   rtol=1e-5)
+
+
+def test_schema_version_1_files_still_open():
+    with datasets.open(V1_FIXTURE) as ds:
+        assert ds.attrs["schema_version"] == 1 and list(ds.ok) == [0, 2] and list(ds.pending) == [1]
+        wrench = ds.base_wrench
+        assert wrench.dims == ("trial", "time", "whisker", "signal")
+        assert wrench.whisker.values.tolist() == NAMES
+        np.testing.assert_allclose(wrench.time.values, np.arange(1, 13) / 1000.0)
+        np.testing.assert_array_equal(wrench.sel(trial=2).values, fake_output(2, samples=12).base_wrench)
+        assert ds.node_positions_m.dims[1] == "node_time" and ds.node_positions_m.sizes["node_time"] == 3
+        assert ds.trials["scene"][0] == "mesh:rock" and "rest_rotation" not in ds.whiskers.columns
+        np.testing.assert_allclose(ds.trials["pose_position_m"].loc[2], [0.01, 0.02, 0.03])
+        with pytest.raises(KeyError, match="rest_rotation"):
+            to_head_frame(wrench.isel(trial=0), ds.whiskers)
+
+
+def test_whisker_frames_match_the_model_at_every_protraction(tmp_path):
+    """The stored frames reproduce WhiskerModel.frame(θ), the frame the engines report in."""
+    path = tmp_path / "d.h5"
+    write_trials(path, [0])
+    array = build_array(model_rat().select(NAMES), MaterialConfig())
+    theta = xr.DataArray(np.linspace(-0.6, 0.9, 7), dims="time")
+    with datasets.open(path) as ds:
+        frames = whisker_frames(ds.whiskers, theta)
+        rest = whisker_frames(ds.whiskers)
+    for k, whisker in enumerate(array.whiskers):
+        np.testing.assert_allclose(rest.isel(whisker=k).values, whisker.frame(0.0), atol=1e-12)
+        for i, angle in enumerate(theta.values):
+            np.testing.assert_allclose(frames.isel(whisker=k, time=i).values, whisker.frame(angle), atol=1e-12)
+
+
+def analytic_whiskers() -> pd.DataFrame:
+    """One whisker whose rest frame is the head frame, turned about head z by θ (a bench whisker)."""
+    columns = {("name", ""): ["W"], **{("rest_euler_zyx_rad", a): [0.0] for a in "zyx"},
+               **{("euler_rates", a): [r] for a, r in zip("zyx", (1.0, 0.0, 0.0))},
+               **{("rest_rotation", a + b): [float(a == b)] for a in "xyz" for b in "xyz"}}
+    return pd.DataFrame(columns)
+
+
+def test_to_head_frame_against_an_analytic_frame():
+    """Whisker frame = Rz(θ): at θ = 90° the whisker's x is head y and its y is head −x."""
+    wrench = xr.DataArray(np.array([[[1.0, 2.0, 3.0, 0.1, 0.2, 0.3]]] * 2), dims=("time", "whisker", "signal"),
+                          coords={"whisker": ["W"], "signal": ["Fx", "Fy", "Fz", "Mx", "My", "Mz"]})
+    theta = xr.DataArray([0.0, np.pi / 2], dims="time")
+    head = to_head_frame(wrench, analytic_whiskers(), theta)
+    np.testing.assert_allclose(head.isel(time=0, whisker=0).values, [1, 2, 3, 0.1, 0.2, 0.3], atol=1e-12)
+    np.testing.assert_allclose(head.isel(time=1, whisker=0).values, [-2, 1, 3, -0.2, 0.1, 0.3], atol=1e-12)
+    np.testing.assert_allclose(to_head_frame(wrench, analytic_whiskers()).values, wrench.values)
+    assert head.attrs["frame"] == "head" and head.dims == wrench.dims
+
+
+def test_to_world_frame_uses_each_trials_pose(tmp_path):
+    """World = pose rotation · whisker frame · signal, against Pose and WhiskerModel directly."""
+    path, plan = tmp_path / "d.h5", layout(trials=2)
+    poses = [Pose((0.0, 0.0, 0.0), (0.3, -0.2, 0.5)), Pose((0.01, 0.0, 0.0), (-1.0, 0.4, 0.0))]
+    outputs = [fake_output(i) for i in range(2)]
+    drive = sinusoidal_whisk(duration_s=0.05)
+    with DatasetWriter.create(path, plan, {"name": "w"}) as writer:
+        for i, pose in enumerate(poses):
+            writer.write(i, TrialRecord(status="ok", samples=T, pose_rotation=pose.rotation),
+                         trial_arrays(outputs[i], drive(outputs[i].time_s), plan))
+    array = build_array(model_rat().select(NAMES), MaterialConfig())
+    with datasets.open(path) as ds:
+        world = to_world_frame(ds.base_wrench, ds.whiskers, ds.trials, ds.protraction_rad)
+        theta = ds.protraction_rad.values
+    for i, pose in enumerate(poses):
+        for k, whisker in enumerate(array.whiskers):
+            t = 13
+            turn = pose.rotation @ whisker.frame(float(theta[i, t]))
+            signal = outputs[i].base_wrench[t, k].astype(float)
+            np.testing.assert_allclose(world.isel(trial=i, time=t, whisker=k).values,
+                                       np.r_[turn @ signal[:3], turn @ signal[3:]], rtol=1e-6, atol=1e-12)
+    assert world.attrs["frame"] == "world"
+
+
+def test_every_schema_column_is_written_with_its_dims(tmp_path):
+    import h5py
+
+    path = tmp_path / "d.h5"
+    write_trials(path, [0])
+    with h5py.File(path, "r") as f:
+        for group, columns, row in (("trials", TRIAL_COLUMNS, "trial"), ("whiskers", WHISKER_COLUMNS, "whisker")):
+            for name, meta in columns.items():
+                dims = [d[0].name.lstrip("/") for d in f[group][name].dims]
+                assert dims == [row, *meta["dims"]], (group, name)
+        assert np.isnan(f["trials/pose_rotation"][1]).all()          # pending row: NaN, not identity
+        np.testing.assert_allclose(f["trials/pose_rotation"][0], np.eye(3))
