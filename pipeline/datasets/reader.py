@@ -97,9 +97,7 @@ def table_frame(columns: dict[str, np.ndarray], schema: dict[str, dict], index_n
             axes = [tuple(str(i) for i in range(n)) for n in values.shape[1:]]
         for label, column in zip(itertools.product(*axes), values.reshape(len(values), -1).T):
             data[(name, "".join(label))] = column
-    frame = pd.DataFrame(data, index=pd.RangeIndex(len(next(iter(columns.values()))), name=index_name))
-    frame.columns = pd.MultiIndex.from_tuples(frame.columns)
-    return frame
+    return pd.DataFrame(data, index=pd.RangeIndex(len(next(iter(columns.values()))), name=index_name))
 
 
 class DatasetFile:
@@ -116,7 +114,6 @@ class DatasetFile:
         try:
             self.attrs = {key: decode_attr(value) for key, value in self.file.attrs.items()}
             self._whiskers = _columns(self.file["whiskers"], WHISKER_COLUMNS)
-            self.whiskers = table_frame(self._whiskers, WHISKER_COLUMNS, "whisker_index")
             self.refresh()
             self._check_shards()
         except (OSError, RuntimeError, KeyError, ValueError) as exc:
@@ -143,7 +140,19 @@ class DatasetFile:
         for column in self.file["trials"].values():
             column.refresh()
         self._trials = _columns(self.file["trials"], TRIAL_COLUMNS)
-        self.trials = table_frame(self._trials, TRIAL_COLUMNS, "trial")
+        self._trial_frame = None
+
+    @property
+    def trials(self):
+        """The trial table as a ``pandas.DataFrame`` (index: trial), as of the last ``refresh``."""
+        if self._trial_frame is None:
+            self._trial_frame = table_frame(self._trials, TRIAL_COLUMNS, "trial")
+        return self._trial_frame
+
+    @functools.cached_property
+    def whiskers(self):
+        """The whisker table as a ``pandas.DataFrame`` (rows in the order of the whisker axis)."""
+        return table_frame(self._whiskers, WHISKER_COLUMNS, "whisker_index")
 
     @property
     def provenance(self) -> dict[str, Any]:
@@ -169,8 +178,10 @@ class DatasetFile:
     def time_s(self) -> np.ndarray:
         return self.file["time" if "time" in self.file else "time_s"][()]
 
+    @functools.cached_property
     def _coords(self) -> dict[str, np.ndarray]:
-        """Coordinates per dimension (version 1 files: from the time axes and the tables)."""
+        """Coordinates per dimension (fixed when the file is created; version 1 files: from the
+        time axes and the tables)."""
         links = int(self.attrs["links"])
         coords = {"trial": np.arange(len(self.status)), "time": self.time_s, "whisker": self._whiskers["name"],
                   "signal": np.array(SIGNALS), "link": np.arange(links), "node": np.arange(links + 1),
@@ -189,7 +200,7 @@ class DatasetFile:
         if name not in ARRAYS or name not in self.file:
             stored = [n for n in ARRAYS if n in self.file]
             raise KeyError(f"{self.path} has no '{name}' (arrays: {', '.join(stored)})")
-        data, spec, coords = self.file[name], ARRAYS[name], self._coords()
+        data, spec, coords = self.file[name], ARRAYS[name], self._coords
         attrs = {key: decode_attr(data.attrs[key]) for key in ("units", "description", "frame")
                  if key in data.attrs}
         variable = xr.Variable(spec.dims, indexing.LazilyIndexedArray(lazy_dataset_class()(data)), attrs)
@@ -245,7 +256,7 @@ class DatasetFile:
     def __repr__(self) -> str:
         return (f"<DatasetFile {self.path}: {len(self.status)} trials ({len(self.ok)} ok, "
                 f"{len(self.failed)} failed, {len(self.pending)} pending), "
-                f"{len(self.whiskers['name'])} whiskers>")
+                f"{len(self._whiskers['name'])} whiskers>")
 
 
 def open_dataset(target: str | Path, root: str | Path = DEFAULT_ROOT) -> DatasetFile:
