@@ -117,6 +117,17 @@ def test_schema_version_1_files_still_open():
             to_head_frame(wrench.isel(trial=0), ds.whiskers)
 
 
+def test_a_version_1_file_is_not_continued(tmp_path):
+    import shutil
+
+    from pipeline.errors import UserError
+
+    copy = tmp_path / "data.h5"
+    shutil.copy(V1_FIXTURE, copy)
+    with pytest.raises(UserError, match="schema version 1.*cannot be continued"):
+        DatasetWriter.resume(copy)
+
+
 def test_whisker_frames_match_the_model_at_every_protraction(tmp_path):
     """The stored frames reproduce WhiskerModel.frame(θ), the frame the engines report in."""
     path = tmp_path / "d.h5"

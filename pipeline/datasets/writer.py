@@ -248,6 +248,11 @@ class DatasetWriter:
                 raise UserError(f"{path} cannot be recovered ({failure}); remove its folder and start "
                                 "again") from None
             f = h5py.File(path, "r+", libver="latest")
+        version = int(f.attrs.get("schema_version", 0))
+        if version != SCHEMA_VERSION:
+            f.close()
+            raise UserError(f"{path} has dataset schema version {version}, this writer writes version "
+                            f"{SCHEMA_VERSION}: it cannot be continued (run without --resume for a new version)")
         writer = cls(f, path)
         writer.reopen_lost()
         return writer
