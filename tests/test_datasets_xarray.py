@@ -12,21 +12,21 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+import xarray as xr
 
-xr = pytest.importorskip("xarray")
-pytest.importorskip("h5netcdf")
+import pipeline.datasets as datasets
+from pipeline.config.physics import MaterialConfig
+from pipeline.datasets.frames import to_head_frame, to_world_frame, whisker_frames
+from pipeline.datasets.schema import ARRAYS, TRIAL_COLUMNS, WHISKER_COLUMNS, TrialRecord
+from pipeline.datasets.writer import DatasetWriter, trial_arrays
+from pipeline.model.array import build_array
+from pipeline.model.kinematics import Pose, sinusoidal_whisk
+from pipeline.model.morphology import model_rat
+from test_datasets_io import KILLER, LINKS, NAMES, REPO, T, fake_output, layout, write_trials
 
-import pipeline.datasets as datasets                                          # noqa: E402
-from pipeline.config.physics import MaterialConfig                            # noqa: E402
-from pipeline.datasets.frames import to_head_frame, to_world_frame, whisker_frames  # noqa: E402
-from pipeline.datasets.schema import ARRAYS, TRIAL_COLUMNS, WHISKER_COLUMNS, TrialRecord  # noqa: E402
-from pipeline.datasets.writer import DatasetWriter, trial_arrays              # noqa: E402
-from pipeline.model.array import build_array                                  # noqa: E402
-from pipeline.model.kinematics import Pose, sinusoidal_whisk                  # noqa: E402
-from pipeline.model.morphology import model_rat                               # noqa: E402
-from test_datasets_io import KILLER, LINKS, NAMES, REPO, T, fake_output, layout, write_trials  # noqa: E402
-
-V1_FIXTURE = Path(__file__).parent / "data" / "dataset_v1.h5"   # written by the schema-1 writer (6377b39)
+# Written by the schema-1 writer (main at 6377b39): test_datasets_io.write_trials with T = 12, three
+# trials of which 0 and 2 written, node positions every 4th sample.
+V1_FIXTURE = Path(__file__).parent / "data" / "dataset_v1.h5"
 
 
 def open_xr(path: Path):
