@@ -134,9 +134,9 @@ class DatasetFile:
 
     def refresh(self) -> None:
         """Re-read the trial table (a dataset being written grows its finished trials)."""
-        for item in self.file.values():
-            if hasattr(item, "refresh"):
-                item.refresh()
+        for name in ARRAYS:
+            if name in self.file:
+                self.file[name].refresh()
         for column in self.file["trials"].values():
             column.refresh()
         self._trials = _columns(self.file["trials"], TRIAL_COLUMNS)
