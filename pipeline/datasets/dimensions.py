@@ -1,6 +1,6 @@
 """Named dimensions in a dataset file: coordinate variables as HDF5 dimension scales.
 
-netCDF-4 readers (xarray with the h5netcdf engine, MATLAB's ``ncread``) name a dataset's axes
+netCDF-4 readers (xarray with the h5netcdf engine) name a dataset's axes
 after the dimension scales attached to them, and a scale whose name is its dimension's is
 that dimension's coordinate variable. Every array and table column attaches the scales named
 in :mod:`pipeline.datasets.schema`. Text is fixed-length UTF-8 with ``_Encoding = "utf-8"``,

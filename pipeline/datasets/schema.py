@@ -85,7 +85,7 @@ COORDINATES: dict[str, CoordinateSpec] = {
     "reason": CoordinateSpec("S32", "", "why a drawn pose was rejected", tuple(POSE_REJECTION_REASONS)),
     "head_axis": CoordinateSpec("S1", "", "axis of the head frame (x lateral, y rostral, z dorsal)", AXES),
     "whisker_axis": CoordinateSpec("S1", "", "axis of the whisker frame (x base tangent, y concave side)", AXES),
-    "world_axis": CoordinateSpec("S1", "", "axis of the world frame (z up)", AXES),
+    "world_axis": CoordinateSpec("S1", "", "axis of the scene's world frame", AXES),
 }
 SIGNAL_UNITS_VARIABLE = "signal_units"   # coordinate along ``signal``: the units of each signal
 
