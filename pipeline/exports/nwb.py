@@ -17,11 +17,13 @@ import json
 import uuid
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any
+from typing import Any, Optional
 
 import numpy as np
 
-from pipeline.exports.source import DatasetTrials
+from pipeline.datasets.versions import DEFAULT_ROOT
+from pipeline.errors import UserError
+from pipeline.exports.source import DatasetTrials, read_trials
 from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS
 
 WRENCH_FRAME = ("whisker frame, fixed to the follicle and moving with it: origin at the base point, x along "
@@ -153,14 +155,27 @@ def build_nwbfile(data: DatasetTrials):
     return nwbfile
 
 
+DEFAULT_FOLDER = Path("outputs/exports")
+
+
 def write_nwb(data: DatasetTrials, path: str | Path) -> dict[str, Any]:
-    """Write ``data`` to the NWB file ``path`` (parents created); a summary of what was written."""
+    """Write ``data`` to the new NWB file ``path`` (parents created); a summary of what was written."""
     from pynwb import NWBHDF5IO
 
     path = Path(path)
+    if path.exists():
+        raise UserError(f"--out {path} exists (an export never replaces a file: remove it or choose another)")
     path.parent.mkdir(parents=True, exist_ok=True)
     with NWBHDF5IO(str(path), "w") as io:
         io.write(build_nwbfile(data))
     return {"dataset": data.label, "nwb": str(path), "trials": len(data.indices),
             "whiskers": len(data.whisker_names), "sampling_rate_hz": data.sampling_rate_hz,
             "series": [*SIGNALS, "contact", "protraction"], "size_mb": round(path.stat().st_size / 1e6, 3)}
+
+
+def export_nwb(target: str | Path, root: str | Path = DEFAULT_ROOT, trials: Optional[str] = None,
+               out: Optional[str | Path] = None) -> dict[str, Any]:
+    """``pipeline export nwb``: ``trials`` (``"0,2,5-7"``, default every ok trial) of a dataset into
+    ``out`` (default outputs/exports/<name>_v<k>.nwb)."""
+    data = read_trials(target, root, trials)
+    return write_nwb(data, out or DEFAULT_FOLDER / f"{data.label.replace('/', '_')}.nwb")

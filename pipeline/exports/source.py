@@ -9,7 +9,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any, Optional, Sequence
 
 import numpy as np
 
@@ -53,10 +53,8 @@ class DatasetTrials:
         return [str(name) for name in self.whiskers["name"]]
 
 
-def parse_trials(text: Optional[str], count: int, option: str = "--trials") -> Optional[list[int]]:
-    """Trial indices from ``"0,2,5-7"`` (ranges inclusive); None for None. UserError names ``option``."""
-    if text is None:
-        return None
+def parse_trials(text: str, count: int, option: str = "--trials") -> list[int]:
+    """Trial indices from ``"0,2,5-7"`` (ranges inclusive) of a dataset of ``count`` trials."""
     chosen: list[int] = []
     for part in (p.strip() for p in str(text).split(",")):
         match = _RANGE.match(part)
@@ -70,10 +68,13 @@ def parse_trials(text: Optional[str], count: int, option: str = "--trials") -> O
 
 
 def read_trials(target: str | Path, root: str | Path = DEFAULT_ROOT,
-                trials: Optional[list[int]] = None, option: str = "--trials") -> DatasetTrials:
-    """Read ``trials`` (default: every ok trial) of a dataset; a pending or unknown trial is a UserError."""
+                trials: Optional[str | Sequence[int]] = None, option: str = "--trials") -> DatasetTrials:
+    """Read ``trials`` (indices, or text like ``"0,2,5-7"``; default: every ok trial) of a dataset.
+    An unknown or pending trial is a UserError naming ``option``."""
     with datasets.open(target, root) as ds:
         status = ds.status
+        if isinstance(trials, str):
+            trials = parse_trials(trials, len(status), option)
         rows = np.flatnonzero(status == OK) if trials is None else np.asarray(trials, dtype=int)
         if rows.size == 0:
             raise UserError(f"{ds.path}: no ok trial to export")
