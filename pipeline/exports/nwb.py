@@ -99,7 +99,8 @@ def _add_trials(nwbfile, data: DatasetTrials, block_s: float) -> None:
 def _provenance_notes(data: DatasetTrials) -> str:
     keys = ("name", "label", "seed", "run_id", "schema", "schema_version", "sampling_rate_hz", "links", "scenes")
     return json.dumps({"dataset": {key: data.attrs.get(key) for key in keys}, "data_file": str(data.path),
-                       "provenance": data.provenance}, indent=1, default=str)
+                       "provenance": data.provenance}, indent=1,
+                      default=lambda value: value.tolist() if hasattr(value, "tolist") else str(value))
 
 
 def build_nwbfile(data: DatasetTrials):
