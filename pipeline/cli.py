@@ -349,14 +349,6 @@ export_app = typer.Typer(help="Export a dataset to NWB or to the original WHISKi
 app.add_typer(export_app, name="export")
 
 
-def _print_export(summary: dict, json_output: bool) -> None:
-    if json_output:
-        _print_json(summary)
-        return
-    for key, value in summary.items():
-        typer.echo(f"{key:>16}: {', '.join(map(str, value)) if isinstance(value, list) else value}")
-
-
 @export_app.command("nwb")
 def export_nwb(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a version folder or a data file."),
                out: Optional[Path] = typer.Option(None, "--out", help="NWB file to write (default "
@@ -369,7 +361,7 @@ def export_nwb(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a 
     from pipeline.exports.nwb import export_nwb as run_export
 
     _writable_out(out)
-    _print_export(run_export(target, root, trials, out), json_output)
+    _print_summary(run_export(target, root, trials, out), json_output)
 
 
 @export_app.command("whiskit")
@@ -383,7 +375,7 @@ def export_whiskit(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK
     from pipeline.exports.whiskit import export_whiskit as run_export
 
     _writable_out(out)
-    _print_export(run_export(target, trial, out, root), json_output)
+    _print_summary(run_export(target, trial, out, root), json_output)
 
 
 @app.command("compare-whiskit")
