@@ -32,31 +32,6 @@ WRENCH_FRAME = ("whisker frame, fixed to the follicle and moving with it: origin
                 "follicle exerts on the whisker. Columns: whiskers in the order of the 'whiskers' table.")
 SIGNAL_NAMES = {"Fx": "force along x", "Fy": "force along y", "Fz": "force along z",
                 "Mx": "moment about x (twist)", "My": "moment about y", "Mz": "moment about z"}
-TRIAL_COLUMNS = {   # trial-table columns copied to the NWB trials table (docs/dataset.md)
-    "status": "'ok' or 'failed' (a failed trial's series are NaN)",
-    "error": "exception type and message of a failed trial",
-    "scene": "scene name (mesh:NAME, peg-passive, pegs-active, wall)",
-    "duration_s": "simulated duration, s",
-    "samples": "valid samples of the trial (the rest of its block is padding)",
-    "whisk_kind": "sinusoid, table or still",
-    "whisk_frequency_hz": "whisk frequency, Hz (sinusoid; NaN otherwise)",
-    "whisk_protraction_rad": "largest protraction angle of the drive, rad",
-    "whisk_retraction_rad": "largest retraction angle (positive), rad",
-    "pose_position_m": "array origin (head-frame origin) in the world frame, m",
-    "pose_euler_zyx_rad": "head rotation R = Rz(a0)·Ry(a1)·Rx(a2), rad: a0 heading, a1 roll, a2 pitch "
-                          "(head x lateral, y rostral, z dorsal); world point = R·head point + position",
-    "pose_side": "+1 right or -1 left side aimed at the surface; 0 fixed scene",
-    "pose_distance_m": "array origin to the aimed surface point, m",
-    "whiskers_in_contact": "whiskers with at least one contact in the trial",
-}
-WHISKER_COLUMNS = {   # the dataset's whisker table; its 'name' is 'whisker' here (a table has a name)
-    "whisker": "side + row + column, e.g. RC1", "side": "+1 right, -1 left", "row": "1..5 = A..E",
-    "col": "column, 0 = Greek arc", "arc_length_m": "arc length S, m",
-    "base_radius_m": "radius at the base, m", "tip_radius_m": "radius at the tip, m",
-    "curvature_per_m": "A of the rest shape y = A·x², 1/m",
-    "base_point_m": "base point in the head frame (x lateral, y rostral, z dorsal) relative to the array "
-                    "origin, m",
-}
 
 
 def _session_start(provenance: dict[str, Any]) -> datetime:
@@ -74,26 +49,31 @@ def _concatenated(per_trial: np.ndarray) -> np.ndarray:
 
 
 def _whisker_table(data: DatasetTrials):
+    """Every column of the dataset's whisker table; its ``name`` column is ``whisker`` here (an NWB
+    table has a name of its own)."""
     from hdmf.common import DynamicTable, VectorData
 
-    table = {"whisker": data.whisker_names, **{name: data.whiskers[name] for name in WHISKER_COLUMNS
-                                                 if name != "whisker"}}
-    columns = [VectorData(name=name, description=doc, data=table[name]) for name, doc in WHISKER_COLUMNS.items()]
+    columns = [VectorData(name="whisker" if name == "name" else name, description=data.column_docs.get(name, name),
+                          data=data.whisker_names if name == "name" else values)
+               for name, values in data.whiskers.items()]
     return DynamicTable(name="whiskers", description="the simulated whiskers; row w is column w of every "
                         "base-signal and contact series", columns=columns)
 
 
+def _cell(value: Any) -> Any:
+    """A table cell as pynwb stores it: arrays as lists, numpy strings as str."""
+    return value.tolist() if isinstance(value, np.ndarray) else str(value) if isinstance(value, np.str_) else value
+
+
 def _add_trials(nwbfile, data: DatasetTrials, block_s: float) -> None:
+    """Every column of the dataset's trial table, plus ``dataset_trial`` (the row in data.h5)."""
     nwbfile.add_trial_column("dataset_trial", "trial index in the dataset (its row in data.h5)")
-    for name, doc in TRIAL_COLUMNS.items():
-        nwbfile.add_trial_column(name, doc)
+    for name in data.trials:
+        nwbfile.add_trial_column(name, data.column_docs.get(name, name))
     for k, index in enumerate(data.indices):
-        row = {name: data.trials[name][k] for name in TRIAL_COLUMNS}
-        row = {name: (value.tolist() if isinstance(value, np.ndarray) else
-                      str(value) if isinstance(value, np.str_) else value) for name, value in row.items()}
         duration = float(data.samples[k]) / data.sampling_rate_hz
-        nwbfile.add_trial(start_time=k * block_s, stop_time=k * block_s + duration,
-                          dataset_trial=int(index), **row)
+        nwbfile.add_trial(start_time=k * block_s, stop_time=k * block_s + duration, dataset_trial=int(index),
+                          **{name: _cell(column[k]) for name, column in data.trials.items()})
 
 
 def _provenance_notes(data: DatasetTrials) -> str:

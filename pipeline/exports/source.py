@@ -14,7 +14,8 @@ from typing import Any, Optional, Sequence
 import numpy as np
 
 import pipeline.datasets as datasets
-from pipeline.datasets.schema import OK, PENDING
+from pipeline.config.simulate import POSE_REJECTION_REASONS
+from pipeline.datasets.schema import OK, PENDING, TRIAL_COLUMNS, WHISKER_COLUMNS
 from pipeline.datasets.versions import DEFAULT_ROOT
 from pipeline.errors import UserError
 
@@ -40,6 +41,7 @@ class DatasetTrials:
     node_every: int                   # node positions every k-th sample (0: not stored)
     trials: dict[str, np.ndarray]     # trial-table columns, rows of the selected trials
     whiskers: dict[str, np.ndarray]   # whisker-table columns (docs/dataset.md)
+    column_docs: dict[str, str]       # description with units of every trial and whisker column
     attrs: dict[str, Any]             # root attributes (seed, run_id, schema_version, …)
     provenance: dict[str, Any]        # created_utc, command, git_commit, packages, engine, config, model_file
 
@@ -51,6 +53,20 @@ class DatasetTrials:
     @property
     def whisker_names(self) -> list[str]:
         return [str(name) for name in self.whiskers["name"]]
+
+
+def _column_docs() -> dict[str, str]:
+    """Column name → its schema description, with its units when it has any."""
+    columns = {**TRIAL_COLUMNS, **WHISKER_COLUMNS}
+    docs = {name: meta["doc"] + (f" [{meta['units']}]" if meta["units"] else "") for name, meta in columns.items()}
+    docs["pose_rejections"] = f"rejected poses per reason: {', '.join(POSE_REJECTION_REASONS)}"
+    return docs
+
+
+def _in_schema_order(columns: dict[str, np.ndarray], schema: dict[str, dict]) -> dict[str, np.ndarray]:
+    """``columns`` in the schema's column order (unknown columns last, as found)."""
+    order = list(schema)
+    return dict(sorted(columns.items(), key=lambda item: order.index(item[0]) if item[0] in order else len(order)))
 
 
 def parse_trials(text: str, count: int, option: str = "--trials") -> list[int]:
@@ -94,5 +110,6 @@ def read_trials(target: str | Path, root: str | Path = DEFAULT_ROOT,
             protraction_rad=np.stack([t["protraction_rad"] for t in picked]),
             node_positions_m=np.stack([t["node_positions_m"] for t in picked]) if node_every else None,
             node_every=node_every,
-            trials={name: column[rows] for name, column in ds.trials.items()},
-            whiskers=dict(ds.whiskers), attrs=dict(ds.attrs), provenance=dict(ds.provenance))
+            trials=_in_schema_order({name: column[rows] for name, column in ds.trials.items()}, TRIAL_COLUMNS),
+            whiskers=_in_schema_order(dict(ds.whiskers), WHISKER_COLUMNS), column_docs=_column_docs(), attrs=dict(ds.attrs),
+            provenance=dict(ds.provenance))
