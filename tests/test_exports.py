@@ -162,6 +162,14 @@ def test_compare_whiskit_command_prints_every_whisker(dataset, tmp_path):
     assert human.returncode == 0 and "RC1" in human.stdout and "correlation" in human.stdout
 
 
+def dynamics_only(folder: Path, names: list[str], rows: str) -> None:
+    """A WHISKiT folder with whisker_ID.csv and the six dynamics files, each holding ``rows``."""
+    (folder / "dynamics").mkdir(parents=True)
+    (folder / "whisker_ID.csv").write_text("".join(f"{name},\n" for name in names))
+    for signal in SIGNALS:
+        (folder / f"dynamics/{signal}.csv").write_text(rows)
+
+
 @pytest.mark.parametrize("args, message", [
     (("export", "whiskit", "{ds}", "--trial", 9, "--out", "{tmp}/x"), "--trial 9"),
     (("export", "nwb", "{ds}", "--trials", "1-x", "--out", "{tmp}/x.nwb"), "--trials '1-x'"),
@@ -171,14 +179,13 @@ def test_compare_whiskit_command_prints_every_whisker(dataset, tmp_path):
     (("export", "whiskit", "{ds}", "--trial", 0, "--out", "{tmp}/exists.nwb"), "not an empty folder"),
     (("compare-whiskit", "{tmp}", "{ds}", "--trial", 0), "no whisker_ID.csv"),
     (("compare-whiskit", "{tmp}/bad", "{ds}", "--trial", 0), "2 columns for 1 whiskers"),
+    (("compare-whiskit", "{tmp}/other", "{ds}", "--trial", 0), "are not in"),
+    (("compare-whiskit", "{tmp}/other", "{ds}", "--trial", 0, "--rate-hz", 0), "--rate-hz 0"),
 ])
 def test_bad_input_is_one_error_line(dataset, tmp_path, args, message):
     (tmp_path / "exists.nwb").write_text("")
-    bad = tmp_path / "bad"
-    (bad / "dynamics").mkdir(parents=True)
-    (bad / "whisker_ID.csv").write_text("RC1,\n")
-    for signal in SIGNALS:
-        (bad / f"dynamics/{signal}.csv").write_text("1,2,\n")
+    dynamics_only(tmp_path / "bad", ["RC1"], "1,2,\n")               # two columns for one whisker
+    dynamics_only(tmp_path / "other", ["LA0"], "0,\n1,\n")          # a whisker the dataset lacks
     result = run_pipeline(*(str(a).format(ds=dataset, tmp=tmp_path) for a in args))
     assert result.returncode == 2, result.stdout + result.stderr
     lines = result.stderr.strip().splitlines()

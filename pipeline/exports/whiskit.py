@@ -122,7 +122,7 @@ def read_whiskit_output(folder: str | Path, sample_rate_hz: float = 1000.0,
     if not (folder / NAMES_FILE).is_file():
         raise UserError(f"{folder}: not a WHISKiT output folder (no {NAMES_FILE})")
     if not sample_rate_hz > 0:
-        raise UserError(f"sample rate {sample_rate_hz} Hz: must be > 0")
+        raise UserError(f"--rate-hz {sample_rate_hz:g}: must be > 0")
     names = [line.strip().rstrip(",").strip() for line in (folder / NAMES_FILE).read_text().splitlines()]
     names = [name for name in names if name]
     dynamics = {}
@@ -169,6 +169,9 @@ def compare(original: WhiskitOutput, data: DatasetTrials, k: int, sample_rate_hz
         raise UserError("the WHISKiT output and the dataset trial share no sample time")
     names = data.whisker_names
     shared = [name for name in original.whiskers if name in names]
+    if not shared:
+        raise UserError(f"the WHISKiT output's whiskers ({', '.join(original.whiskers)}) are not in "
+                        f"{data.label} ({', '.join(names)})")
     quantities = [(signal, unit, lambda w, j=j: w[..., j]) for j, (signal, unit) in enumerate(zip(SIGNALS, SIGNAL_UNITS))]
     quantities += [("|F|", "N", lambda w: np.linalg.norm(w[..., :3], axis=-1)),
                    ("|M|", "N*m", lambda w: np.linalg.norm(w[..., 3:], axis=-1))]
