@@ -138,8 +138,11 @@ def test_compare_pairs_rows_by_time(dataset, tmp_path):
     data = read_trials(dataset, trials=[0])
     folder = tmp_path / "orig"
     write_whiskit_output(data, 0, folder)
-    for path in (folder / "dynamics").iterdir():                  # prepend the pre-step row the original writes
-        path.write_text("0,0,\n" + path.read_text())
+    for path in folder.glob("*/**/*.csv"):                       # prepend the pre-step row the original writes:
+        text = path.read_text()                                  # no force or contact yet (positions: any row)
+        first = text.splitlines()[0]
+        pre = first if path.parent.name in "xyz" else ",".join("0" for _ in first.split(",")[:-1]) + ","
+        path.write_text(pre + "\n" + text)
     same = compare(read_whiskit_output(folder), data, 0, RATE_HZ)
     assert same["samples_compared"] == int(data.samples[0])
     assert all(row["rms_difference"] == 0.0 for row in same["rows"])
@@ -180,12 +183,16 @@ def dynamics_only(folder: Path, names: list[str], rows: str) -> None:
     (("compare-whiskit", "{tmp}", "{ds}", "--trial", 0), "no whisker_ID.csv"),
     (("compare-whiskit", "{tmp}/bad", "{ds}", "--trial", 0), "2 columns for 1 whiskers"),
     (("compare-whiskit", "{tmp}/other", "{ds}", "--trial", 0), "are not in"),
+    (("compare-whiskit", "{tmp}/short", "{ds}", "--trial", 0), "kinematics/c: files differ"),
     (("compare-whiskit", "{tmp}/other", "{ds}", "--trial", 0, "--rate-hz", 0), "--rate-hz 0"),
 ])
 def test_bad_input_is_one_error_line(dataset, tmp_path, args, message):
     (tmp_path / "exists.nwb").write_text("")
     dynamics_only(tmp_path / "bad", ["RC1"], "1,2,\n")               # two columns for one whisker
     dynamics_only(tmp_path / "other", ["LA0"], "0,\n1,\n")          # a whisker the dataset lacks
+    dynamics_only(tmp_path / "short", ["RC1"], "0,\n1,\n")
+    (tmp_path / "short/kinematics/c").mkdir(parents=True)
+    (tmp_path / "short/kinematics/c/RC1.csv").write_text("0,0,\n")  # one contact row for two dynamics rows
     result = run_pipeline(*(str(a).format(ds=dataset, tmp=tmp_path) for a in args))
     assert result.returncode == 2, result.stdout + result.stderr
     lines = result.stderr.strip().splitlines()

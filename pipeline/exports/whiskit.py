@@ -142,7 +142,11 @@ def read_whiskit_output(folder: str | Path, sample_rate_hz: float = 1000.0,
         paths = [folder / "kinematics" / sub / f"{name}.csv" for name in names]
         if not all(path.is_file() for path in paths):
             return None
-        return np.stack([_read_rows(path) for path in paths], axis=1)
+        tables = [_read_rows(path) for path in paths]
+        if {table.shape for table in tables} != {(wrench.shape[0], tables[0].shape[1])}:
+            raise UserError(f"{folder}/kinematics/{sub}: files differ in shape or from the "
+                            f"{wrench.shape[0]} rows of dynamics/")
+        return np.stack(tables, axis=1)
 
     contact = per_whisker("c")
     xyz = [per_whisker(axis) for axis in AXES]
