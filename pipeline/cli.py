@@ -343,6 +343,76 @@ def datasets_join(name: str = typer.Argument(..., help="Dataset name whose shard
     typer.echo(join_shards(root, name, run))
 # --- end simulate and datasets ---
 
+# --- exports: `pipeline export nwb|whiskit`, `pipeline compare-whiskit` (issue 18 §2) ---
+export_app = typer.Typer(help="Export a dataset to NWB or to the original WHISKiT CSV layout (docs/export.md).",
+                         no_args_is_help=True)
+app.add_typer(export_app, name="export")
+
+
+@export_app.command("nwb")
+def export_nwb(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a version folder or a data file."),
+               out: Optional[Path] = typer.Option(None, "--out", help="NWB file to write (default "
+                                                                      "outputs/exports/<name>_v<k>.nwb)."),
+               trials: Optional[str] = typer.Option(None, "--trials", help="Trials to export, e.g. 0,2,5-7 "
+                                                                           "(default: every ok trial)."),
+               root: Path = _ROOT_OPTION,
+               json_output: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
+    """One NWB file: base signals, contacts and drive as time series, whisker and trial tables, provenance."""
+    from pipeline.exports.nwb import export_nwb as run_export
+
+    _writable_out(out)
+    _print_summary(run_export(target, root, trials, out), json_output)
+
+
+@export_app.command("whiskit")
+def export_whiskit(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a version folder or a data "
+                                                          "file."),
+                   trial: int = typer.Option(..., "--trial", help="Trial index in the dataset."),
+                   out: Path = typer.Option(..., "--out", help="New (or empty) folder to write."),
+                   root: Path = _ROOT_OPTION,
+                   json_output: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
+    """One trial as the original WHISKiT C++ writes its output: CSV files in mm, mN, µN·m."""
+    from pipeline.exports.whiskit import export_whiskit as run_export
+
+    _writable_out(out)
+    _print_summary(run_export(target, trial, out, root), json_output)
+
+
+@app.command("compare-whiskit")
+def compare_whiskit(folder: Path = typer.Argument(..., help="WHISKiT output folder (whisker_ID.csv, dynamics/)."),
+                    target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a version folder or a data "
+                                                           "file."),
+                    trial: int = typer.Option(..., "--trial", help="Trial index in the dataset."),
+                    rate_hz: float = typer.Option(1000.0, "--rate-hz", help="Rows per second of the WHISKiT "
+                                                                            "output (1 / its TIME_STEP)."),
+                    first_row_s: float = typer.Option(0.0, "--first-row-s", help="Time of its first row, s (0 "
+                                                                                 "for WHISKiT; 1/rate for a "
+                                                                                 "`pipeline export whiskit` "
+                                                                                 "folder)."),
+                    root: Path = _ROOT_OPTION,
+                    json_output: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
+    """Per whisker and base signal: RMS difference and correlation of WHISKiT output vs a dataset trial."""
+    from pipeline.exports.whiskit import compare_whiskit as run_compare
+
+    result = run_compare(folder, target, trial, root, rate_hz, first_row_s)
+    if json_output:
+        _print_json(result)
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table("whisker", "signal", "RMS difference", "RMS dataset", "correlation",
+                  title=f"{result['whiskit']} vs {result['dataset']} trial {result['trial']} "
+                        f"({result['samples_compared']} samples)")
+    for row in result["rows"]:
+        table.add_row(row["whisker"], row["signal"], f"{row['rms_difference']:.3g} {row['unit']}",
+                      f"{row['rms_dataset']:.3g} {row['unit']}", f"{row['correlation']:.4f}")
+    Console().print(table)
+    for key in ("only_in_whiskit", "only_in_dataset"):
+        if result[key]:
+            typer.echo(f"{key.replace('_', ' ')}: {', '.join(result[key])}")
+# --- end exports ---
+
 # --- reports: `pipeline stats`, `pipeline validate` (issue 7) ---
 @app.command()
 def stats(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a version folder or a data file."),
