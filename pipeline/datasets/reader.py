@@ -155,6 +155,16 @@ class DatasetFile:
         return table_frame(self._whiskers, WHISKER_COLUMNS, "whisker_index")
 
     @property
+    def trial_columns(self) -> dict[str, np.ndarray]:
+        """The trial table as stored: column name → numpy array (rows = trials), text as str."""
+        return dict(self._trials)
+
+    @property
+    def whisker_columns(self) -> dict[str, np.ndarray]:
+        """The whisker table as stored: column name → numpy array (rows = whiskers), text as str."""
+        return dict(self._whiskers)
+
+    @property
     def provenance(self) -> dict[str, Any]:
         return self.attrs.get("provenance", {})
 

@@ -110,6 +110,6 @@ def read_trials(target: str | Path, root: str | Path = DEFAULT_ROOT,
             protraction_rad=np.stack([t["protraction_rad"] for t in picked]),
             node_positions_m=np.stack([t["node_positions_m"] for t in picked]) if node_every else None,
             node_every=node_every,
-            trials=_in_schema_order({name: column[rows] for name, column in ds.trials.items()}, TRIAL_COLUMNS),
-            whiskers=_in_schema_order(dict(ds.whiskers), WHISKER_COLUMNS), column_docs=_column_docs(), attrs=dict(ds.attrs),
+            trials=_in_schema_order({name: column[rows] for name, column in ds.trial_columns.items()}, TRIAL_COLUMNS),
+            whiskers=_in_schema_order(ds.whisker_columns, WHISKER_COLUMNS), column_docs=_column_docs(), attrs=dict(ds.attrs),
             provenance=dict(ds.provenance))
