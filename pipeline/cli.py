@@ -36,6 +36,10 @@ def _root(debug: bool = typer.Option(False, "--debug", help="Show tracebacks of 
     """Stages: build-meshes → simulate; see each command's --help."""
 
 
+_ROOT_OPTION = typer.Option(None, "--root", help="Datasets folder (default: <project>/outputs/datasets, the "
+                                                  "project being $PIPELINE_HOME or the folder holding configs/).")
+
+
 def _print_json(data: object) -> None:
     typer.echo(json.dumps(data, indent=2, default=str))
 
@@ -81,11 +85,12 @@ def view(target: str = typer.Argument(..., help="An .rrd file, or a dataset NAME
          web: bool = typer.Option(False, "--web", help="Serve a web viewer on 127.0.0.1 and print its URL."),
          port: Optional[int] = typer.Option(None, "--port", help="Web page port (default 9090; data on "
                                                                   "port+1) or the native viewer's server port.",
-                                      min=1, max=65534)) -> None:
+                                      min=1, max=65534),
+         root: Optional[Path] = _ROOT_OPTION) -> None:
     """Open a trial's rerun recording in the viewer; stops the viewer on exit."""
     from pipeline.recordings.viewer import resolve_target, view as open_viewer
 
-    code = open_viewer(resolve_target(target, trial), web=web, port=port, echo=typer.echo)
+    code = open_viewer(resolve_target(target, trial, root), web=web, port=port, echo=typer.echo)
     if code:
         raise typer.Exit(code)
 # --- end recordings ---
@@ -277,6 +282,7 @@ def simulate(
                                                         "version (same config)."),
     shard: Optional[str] = typer.Option(None, "--shard", help="Run block i of N (i/N, 1-based) without a "
                                                               "scheduler; join with `pipeline datasets join`."),
+    root: Optional[Path] = _ROOT_OPTION,
     engine: Optional[str] = typer.Option(None, "--engine", help="Physics engine (bullet or mujoco; config: "
                                                                 "model.engine.name)."),
     model_file: Optional[Path] = typer.Option(None, "--model", help="Fitted model file (docs/model_file.md)."),
@@ -289,7 +295,7 @@ def simulate(
     if workers is not None and scheduler is not None:
         raise UserError("give --workers or --scheduler, not both")
     settings = load_simulate_config(config, {
-        "trials": n, "scenes": {"folder": scenes}, "dataset": {"name": name},
+        "trials": n, "scenes": {"folder": _model_path(scenes)}, "dataset": {"name": name, "root": _model_path(root)},
         "model": {"engine": {"name": engine}, "file": _model_path(model_file)},
         "cluster": {"workers": workers, "scheduler": scheduler, "record_every": record_every}})
     _print_summary(run_simulation(settings, resume=resume, shard=shard, progress=not json_output), json_output)
@@ -298,15 +304,16 @@ def simulate(
 datasets_app = typer.Typer(help="List, inspect and join simulated datasets (outputs/datasets/).",
                            no_args_is_help=True)
 app.add_typer(datasets_app, name="datasets")
-_ROOT_OPTION = typer.Option(Path("outputs/datasets"), "--root", help="Datasets folder.")
 
 
 @datasets_app.command("list")
-def datasets_list(root: Path = _ROOT_OPTION,
+def datasets_list(root: Optional[Path] = _ROOT_OPTION,
                   json_output: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
     """Every version of every dataset: state, trials, size."""
+    from pipeline.config.project import datasets_root
     from pipeline.datasets.catalog import list_datasets
 
+    root = datasets_root(root)
     rows = list_datasets(root)
     if json_output:
         _print_json(rows)
@@ -315,15 +322,16 @@ def datasets_list(root: Path = _ROOT_OPTION,
     from rich.table import Table
 
     columns = ("dataset", "state", "trials", "ok", "failed", "size_mb", "created_utc")
-    table = Table(*columns, title=f"datasets in {root}/")
+    table = Table(*columns, "shards done", title=f"datasets in {root}/")
     for row in rows:
-        table.add_row(*(str(row.get(c, "")) for c in columns))
+        shards = f"{row['shards_done']}/{row['shards']}" if "shards" in row else ""
+        table.add_row(*(str(row.get(c, "")) for c in columns), shards)
     Console().print(table)
 
 
 @datasets_app.command("show")
 def datasets_show(target: str = typer.Argument(..., help="NAME, NAME/vK, a version folder or a data file."),
-                  root: Path = _ROOT_OPTION,
+                  root: Optional[Path] = _ROOT_OPTION,
                   verify: bool = typer.Option(False, "--verify", help="Re-hash files against the manifest."),
                   json_output: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
     """Summary of one dataset version (trials, scenes, arrays, provenance)."""
@@ -336,7 +344,7 @@ def datasets_show(target: str = typer.Argument(..., help="NAME, NAME/vK, a versi
 def datasets_join(name: str = typer.Argument(..., help="Dataset name whose shards to join."),
                   run: Optional[str] = typer.Option(None, "--run", help="Run id (prefix) if shards of "
                                                                         "several runs exist."),
-                  root: Path = _ROOT_OPTION) -> None:
+                  root: Optional[Path] = _ROOT_OPTION) -> None:
     """Join the complete shards of a --shard run into a new version (virtual datasets, no copy)."""
     from pipeline.datasets.join import join_shards
 
@@ -348,7 +356,7 @@ def datasets_join(name: str = typer.Argument(..., help="Dataset name whose shard
 def stats(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a version folder or a data file."),
           out: Optional[Path] = typer.Option(None, "--out", help="Report folder (default "
                                                                  "reports/stats/<name>_v<k>/)."),
-          root: Path = typer.Option(Path("outputs/datasets"), "--root", help="Datasets folder."),
+          root: Optional[Path] = _ROOT_OPTION,
           json_output: bool = typer.Option(False, "--json", help="Print the summary as JSON.")) -> None:
     """Natural tactile statistics of a dataset's ok trials (read one at a time): report.md, PNGs, stats.json."""
     from pipeline.reports.stats import stats_report

@@ -16,7 +16,7 @@ import re
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import AfterValidator, Field, field_validator, model_validator
+from pydantic import AfterValidator, Field, PrivateAttr, field_validator, model_validator
 
 from pipeline.config.physics import ModelConfig, StrictModel
 
@@ -182,17 +182,48 @@ class SimulateConfig(StrictModel):
     whisk: WhiskSamplingConfig = WhiskSamplingConfig()
     dataset: DatasetConfig = DatasetConfig()
     cluster: ClusterConfig = ClusterConfig()
+    # The config file a run was resolved from: {path, sha256} or, without one, {path: None, note}
+    # (set by load_simulate_config; not part of the config itself).
+    _config_file: dict | None = PrivateAttr(None)
+
+    @property
+    def config_file(self) -> dict | None:
+        return self._config_file
 
 
-DEFAULT_PATH = Path("configs/simulate.yaml")
+CONFIG_NAME = "simulate.yaml"
 ENV_PREFIX = "PIPELINE_SIMULATE_"
 
 
-def load_simulate_config(path: str | Path | None = None, overrides: dict | None = None) -> SimulateConfig:
-    """Resolve the run config: ``path`` (default configs/simulate.yaml if present) < environment
-    (``PIPELINE_SIMULATE_*``) < ``overrides`` (command-line flags; None = not given)."""
-    from pipeline.config.loader import load_config
+def built_in_defaults(config: SimulateConfig) -> str:
+    """The physics a run without a config file uses, in one line."""
+    model = config.model
+    material = model.material
+    return (f"engine {model.engine.name}, E = {material.youngs_modulus_gpa:g} GPa, ζ = {material.damping_ratio:g}, "
+            f"{material.links} links, morphology {model.morphology}, whiskers {model.whiskers}, "
+            f"{config.trials} trials")
 
-    if path is None and DEFAULT_PATH.is_file():
-        path = DEFAULT_PATH
-    return load_config(SimulateConfig, path, env_prefix=ENV_PREFIX, overrides=overrides)[0]
+
+def load_simulate_config(path: str | Path | None = None, overrides: dict | None = None) -> SimulateConfig:
+    """Resolve the run config: ``path`` (default ``<project root>/configs/simulate.yaml``, see
+    pipeline.config.project) < environment (``PIPELINE_SIMULATE_*``) < ``overrides`` (command-line
+    flags; None = not given; paths in them absolute). Relative paths of the file and environment
+    are taken against the project root. ``config.config_file`` records the file used."""
+    from pipeline.config.loader import load_config
+    from pipeline.config.project import find_config, in_project, project_root
+    from pipeline.provenance import file_sha256
+
+    path = Path(path) if path is not None else find_config(CONFIG_NAME)
+    config = load_config(SimulateConfig, path, env_prefix=ENV_PREFIX, overrides=overrides)[0]
+    root = project_root(path)
+    config = config.model_copy(update={
+        "dataset": config.dataset.model_copy(update={"root": in_project(config.dataset.root, root)}),
+        "scenes": config.scenes.model_copy(update={"folder": in_project(config.scenes.folder, root)}),
+        "whisk": config.whisk.model_copy(update={"table": in_project(config.whisk.table, root)})})
+    if path is None:
+        config._config_file = {"path": None, "sha256": None,
+                               "note": f"no {CONFIG_NAME} in {root / 'configs'}; built-in defaults: "
+                                       f"{built_in_defaults(config)}"}
+    else:
+        config._config_file = {"path": str(path.absolute()), "sha256": file_sha256(path)}
+    return config

@@ -32,7 +32,7 @@ from pipeline.datasets.schema import (CONFIG_FILE, DATA_FILE, FAILED, OK, PENDIN
 from pipeline.datasets.versions import VersionLock, new_version, unfinished_version
 from pipeline.datasets.writer import DatasetWriter, Layout, model_file_record, provenance, whisker_table
 from pipeline.errors import RunAborted, UserError
-from pipeline.runner.scenes import SceneEntry, scene_catalogue
+from pipeline.runner.scenes import SceneEntry, copy_meshes, scene_catalogue
 from pipeline.datasets.shards import Shard, plan_fields, run_id, shard_folder
 from pipeline.runner.trial import RunSpec, TrialResult, load_whisk_table
 from pipeline.storage import is_disk_full, write_text_durably
@@ -98,6 +98,8 @@ def _check(config: SimulateConfig, scenes: tuple[SceneEntry, ...], layout: Layou
 
 
 def _open_writer(folder: Path, spec: RunSpec, shard: Shard | None, indices: range) -> DatasetWriter:
+    """The writer of ``folder``'s data file (created, or resumed if its scenes are unchanged);
+    ``spec.scenes`` are the scenes as stored (mesh paths relative to ``folder``)."""
     config, scenes, label = spec.config, spec.scenes, spec.title
     data = folder / DATA_FILE
     if data.is_file():
@@ -113,7 +115,8 @@ def _open_writer(folder: Path, spec: RunSpec, shard: Shard | None, indices: rang
              "scenes": [vars(s) for s in scenes], "trial_range": [indices.start, indices.stop],
              "shard": [shard.number, shard.count] if shard else [1, 1], "run_id": run_id(config),
              "provenance": provenance(config.model_dump(mode="json"), engine=config.model.engine.name,
-                                      model_file=model_file_record(config.model))}
+                                      model_file=model_file_record(config.model),
+                                      config_file=config.config_file)}
     return DatasetWriter.create(data, spec.layout, attrs)
 
 
@@ -307,14 +310,20 @@ def simulate(config: SimulateConfig, *, resume: bool = False, shard: str | None 
     """Run (or resume, or run one shard of) a simulation; returns the summary of its dataset."""
     shard_spec = Shard.parse(shard) if shard else None
     spec = run_spec(config)
+    if config.config_file and config.config_file["path"] is None:
+        print(f"note: {config.config_file['note']}", file=sys.stderr)
     folder, label, indices = _target(config, resume, shard_spec)
     recordings = folder / RECORDINGS_DIR
-    spec = replace(spec, recordings=str(recordings.resolve()), title=label)
+    sources = spec.scenes
+    spec = replace(spec, scenes=tuple(s.in_dataset() for s in sources), recordings=str(recordings.resolve()),
+                   title=label)
     started, tally = time.perf_counter(), _Tally()
     again = "the same command plus --resume" + (" (shards always continue)" if shard_spec else "")
     with VersionLock(folder):
         try:
             with _open_writer(folder, spec, shard_spec, indices) as writer:
+                copy_meshes(sources, folder)
+                spec = replace(spec, scenes=tuple(s.under(folder) for s in spec.scenes))
                 todo = [int(i) for i in writer.pending() if i in indices]
                 try:
                     if todo:
@@ -339,7 +348,8 @@ def simulate(config: SimulateConfig, *, resume: bool = False, shard: str | None 
                              f"data are not in {DATA_FILE}; they are pending again: run {again}")
         wall = time.perf_counter() - started
         totals = summarize(folder / DATA_FILE, indices)
-        summary = {"dataset": str(folder), "recordings": str(recordings), "complete": totals["pending"] == 0,
+        summary = {"dataset": str(folder), "recordings": str(recordings), "config_file": config.config_file,
+                   "complete": totals["pending"] == 0,
                    **totals, "written_now": tally.written, "duplicates_skipped": tally.duplicates,
                    "wall_seconds": round(wall, 1), "write_seconds": round(tally.write_seconds, 3),
                    "trials_per_hour_now": round(tally.written / wall * 3600, 1) if tally.written else None}
