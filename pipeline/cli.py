@@ -297,7 +297,8 @@ def simulate(
     settings = load_simulate_config(config, {
         "trials": n, "scenes": {"folder": _model_path(scenes)}, "dataset": {"name": name, "root": _model_path(root)},
         "model": {"engine": {"name": engine}, "file": _model_path(model_file)},
-        "cluster": {"workers": workers, "scheduler": scheduler, "record_every": record_every}})
+        "cluster": {"kind": "scheduler" if scheduler else "local" if workers is not None else None,
+                    "workers": workers, "scheduler": scheduler, "record_every": record_every}})
     _print_summary(run_simulation(settings, resume=resume, shard=shard, progress=not json_output), json_output)
 
 

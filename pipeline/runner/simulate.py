@@ -15,11 +15,10 @@ import logging
 import sys
 import time
 import uuid
-from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from itertools import islice
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Iterator
 
 import numpy as np
 import yaml
@@ -34,6 +33,7 @@ from pipeline.datasets.writer import DatasetWriter, Layout, model_file_record, p
 from pipeline.errors import RunAborted, UserError
 from pipeline.runner.scenes import SceneEntry, copy_meshes, scene_catalogue
 from pipeline.datasets.shards import Shard, plan_fields, run_id, shard_folder
+from pipeline.runner.progress import progress as run_progress, trials_per_hour
 from pipeline.runner.trial import RunSpec, TrialResult, load_whisk_table
 from pipeline.storage import is_disk_full, write_text_durably
 
@@ -191,27 +191,8 @@ def _stream(client, plugin_name: str, todo: list[int], worker_wait_s: float) -> 
         in_flight |= {submit(i) for i in islice(pending, max(0, window() - len(in_flight)))}
 
 
-@contextmanager
-def _progress(total: int, label: str, enabled: bool) -> Iterator[Callable[[int], None]]:
-    """A rich progress bar (trials done, rate, ETA) on stderr; yields advance(failed_so_far)."""
-    if not enabled:
-        yield lambda failed: None
-        return
-    from rich.console import Console
-    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, ProgressColumn, TextColumn,
-                               TimeElapsedColumn, TimeRemainingColumn)
-    from rich.text import Text
-
-    class Rate(ProgressColumn):
-        def render(self, task) -> Text:
-            return Text(f"{task.speed * 3600:,.0f} trials/h" if task.speed else "… trials/h")
-
-    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), Rate(),
-                  TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
-                  console=Console(stderr=True)) as bar:
-        task = bar.add_task(label, total=total)
-        yield lambda failed: bar.update(task, advance=1, description=f"{label} ({failed} failed)"
-                                        if failed else label)
+def _rounded(rate: float | None) -> float | None:
+    return None if rate is None else round(rate, 1)
 
 
 def summarize(data_file: Path, indices: range) -> dict[str, Any]:
@@ -246,9 +227,11 @@ class _Tally:
     failed: int = 0
     duplicates: int = 0
     write_seconds: float = 0.0
+    last_written_at: float = 0.0       # time.perf_counter() when the last trial was written, s
 
 
-def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _Tally, progress: bool) -> None:
+def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _Tally, progress: bool,
+                started: float) -> None:
     """Run ``todo`` on the configured cluster, writing each result as it arrives.
 
     A full disk (here or on a worker) or a :class:`RunAborted` from a worker stops the run:
@@ -263,10 +246,10 @@ def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _T
     # Ctrl-C/SIGTERM while the cluster shuts down. Task errors reach the run through the futures.
     for logger in ("asyncio", "tornado.application"):
         logging.getLogger(logger).setLevel(logging.CRITICAL)
-    with dask_client(config.cluster.workers, config.cluster.scheduler, config.cluster.worker_wait_s) as client:
+    with dask_client(config.cluster) as client:
         name = f"whisker-simulator-{uuid.uuid4().hex[:8]}"
         client.register_plugin(SimulatorPlugin(spec, name), name=name)
-        with _progress(len(todo), spec.title, progress) as advance:
+        with run_progress(len(todo), spec.title, started, progress) as report:
             for index, result in _stream(client, name, todo, config.cluster.worker_wait_s):
                 if isinstance(result, TrialResult) and result.abort is not None:
                     raise result.abort
@@ -280,7 +263,9 @@ def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _T
                 tally.written += fresh
                 tally.failed += fresh and result.record.status == FAILED
                 tally.duplicates += not fresh
-                advance(tally.failed)
+                if fresh:
+                    tally.last_written_at = time.perf_counter()
+                    report(result.record.status == FAILED, tally.last_written_at)
         client.unregister_worker_plugin(name)
 
 
@@ -327,7 +312,7 @@ def simulate(config: SimulateConfig, *, resume: bool = False, shard: str | None 
                 todo = [int(i) for i in writer.pending() if i in indices]
                 try:
                     if todo:
-                        _run_trials(spec, todo, writer, tally, progress)
+                        _run_trials(spec, todo, writer, tally, progress, started)
                 except KeyboardInterrupt:
                     print(f"interrupted: {tally.written} trials written this run to {folder}; continue with "
                           f"{again}", file=sys.stderr)
@@ -352,7 +337,7 @@ def simulate(config: SimulateConfig, *, resume: bool = False, shard: str | None 
                    "complete": totals["pending"] == 0,
                    **totals, "written_now": tally.written, "duplicates_skipped": tally.duplicates,
                    "wall_seconds": round(wall, 1), "write_seconds": round(tally.write_seconds, 3),
-                   "trials_per_hour_now": round(tally.written / wall * 3600, 1) if tally.written else None}
+                   "trials_per_hour_now": _rounded(trials_per_hour(tally.written, tally.last_written_at - started))}
         if summary["complete"] and shard_spec is None:
             write_manifest(folder, summary)
     return summary
