@@ -225,7 +225,8 @@ class ClusterConfig(StrictModel):
             raise ValueError(f"'scheduler' is for kind 'scheduler', not '{self.kind}'")
         if self.kind != "local" and self.workers:
             raise ValueError(f"'workers' is for kind 'local', not '{self.kind}' (batch kinds: jobs × cores)")
-        given = [name for name in BATCH_OPTIONS + ("jobs",) if name in self.model_fields_set]
+        given = [name for name in BATCH_OPTIONS + ("jobs",)
+                 if getattr(self, name) != type(self).model_fields[name].default]
         if self.kind not in BATCH_KINDS and given:
             raise ValueError(f"'{given[0]}' is an option of the batch kinds ({', '.join(BATCH_KINDS)}), "
                              f"not of '{self.kind}'")

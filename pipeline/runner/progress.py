@@ -90,8 +90,8 @@ def _bar(counts: Counts, label: str) -> Iterator[Callable[[bool, float], None]]:
 def progress(total: int, label: str, started: float, enabled: bool = True, stream: TextIO | None = None,
              interval_s: float = LINE_INTERVAL_S) -> Iterator[Callable[[bool, float], None]]:
     """Yields ``report(failed, now)``, called once per trial written (``now``: when, perf_counter
-    s). A bar if ``stream`` (default stderr) is a terminal, else a line every ``interval_s`` and at the last trial; nothing if
-    not ``enabled``. ``started``: the run's start (time.perf_counter(), s)."""
+    s). A bar if ``stream`` (default stderr) is a terminal, else a line every ``interval_s`` and
+    at the last trial; nothing if not ``enabled``. ``started``: the run's start (time.perf_counter(), s)."""
     stream = stream or sys.stderr
     counts = Counts(total, started)
     if not enabled:

@@ -48,7 +48,7 @@ class SceneEntry:
             raise RunAborted(f"mesh {self.path} changed during the run (sha256 {found[:12]}…, the run "
                              f"recorded {self.sha256[:12]}…); the run stopped, its remaining trials are "
                              "pending: restore the mesh and --resume, or start a new version")
-        return mesh_scene(self.path)
+        return replace(mesh_scene(self.path), name=self.name)      # the copy's file name is its hash
 
     def in_dataset(self) -> "SceneEntry":
         """This entry as a dataset stores it: its mesh as ``meshes/<sha256><suffix>``."""

@@ -293,10 +293,10 @@ def run_spec(config: SimulateConfig) -> RunSpec:
 def simulate(config: SimulateConfig, *, resume: bool = False, shard: str | None = None,
              progress: bool = True) -> dict[str, Any]:
     """Run (or resume, or run one shard of) a simulation; returns the summary of its dataset."""
-    shard_spec = Shard.parse(shard) if shard else None
-    spec = run_spec(config)
     if config.config_file and config.config_file["path"] is None:
         print(f"note: {config.config_file['note']}", file=sys.stderr)
+    shard_spec = Shard.parse(shard) if shard else None
+    spec = run_spec(config)
     folder, label, indices = _target(config, resume, shard_spec)
     recordings = folder / RECORDINGS_DIR
     sources = spec.scenes
