@@ -10,6 +10,7 @@ Every HTTP server a cluster of ours starts listens on 127.0.0.1: the dashboard w
 from __future__ import annotations
 
 import os
+import shutil
 import socket
 import sys
 from contextlib import contextmanager
@@ -28,7 +29,7 @@ def dashboard_address(config: ClusterConfig) -> str:
 
 
 def _batch_cluster(config: ClusterConfig):
-    """A dask-jobqueue cluster of ``config.kind`` with ``config.jobs`` jobs submitted."""
+    """A dask-jobqueue cluster of ``config.kind``, no job submitted yet."""
     import dask_jobqueue
 
     cls = {"slurm": dask_jobqueue.SLURMCluster, "pbs": dask_jobqueue.PBSCluster,
@@ -36,18 +37,29 @@ def _batch_cluster(config: ClusterConfig):
     options = config.batch_options()
     options.setdefault("python", sys.executable)
     try:
-        cluster = cls(**options, scheduler_options={"dashboard_address": dashboard_address(config),
-                                                    "dashboard": config.dashboard})
+        return cls(**options, scheduler_options={"dashboard_address": dashboard_address(config),
+                                                 "dashboard": config.dashboard})
     except ValueError as exc:
         raise UserError(f"cluster: {config.kind} options rejected by dask-jobqueue: {exc}") from None
+
+
+def _submitted(config: ClusterConfig):
+    """A batch cluster with ``config.jobs`` worker jobs submitted; UserError if the batch
+    system's submit command is not on PATH."""
+    cluster = _batch_cluster(config)
+    command = cluster.job_cls.submit_command.split()[0]
+    if shutil.which(command) is None:
+        cluster.close()
+        raise UserError(f"cluster kind '{config.kind}': `{command}` not found on PATH (run on a machine that "
+                        "submits jobs, e.g. the cluster's login node)")
     cluster.scale(jobs=config.jobs)
     return cluster
 
 
 def job_script(config: ClusterConfig) -> str:
-    """The batch script one worker job of a batch ``config`` runs (``pipeline simulate`` submits
-    ``config.jobs`` of them); for inspection, e.g. before a first run on a new cluster."""
-    cluster = _batch_cluster(config.model_copy(update={"jobs": 1}))
+    """The batch script each worker job of a batch ``config`` runs (``pipeline simulate``
+    submits ``config.jobs`` of them); for inspection, e.g. before a first run on a new cluster."""
+    cluster = _batch_cluster(config)
     try:
         return cluster.job_script()
     finally:
@@ -79,7 +91,7 @@ def dask_client(config: ClusterConfig) -> Iterator["distributed.Client"]:  # noq
         hint = f"start some with `dask worker {config.scheduler}`"
         where = f"the dask scheduler at {config.scheduler}"
     elif config.kind in BATCH_KINDS:
-        cluster = _batch_cluster(config)
+        cluster = _submitted(config)
         client = Client(cluster)
         hint = f"check the {config.kind} queue: the jobs may be waiting or may have failed to start"
         where = f"the {config.kind} cluster"
