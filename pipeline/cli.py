@@ -99,9 +99,9 @@ def view(target: str = typer.Argument(..., help="An .rrd file, or a dataset NAME
 def _model_config(config: Optional[Path], overrides: dict):
     from pipeline.config import load_config
     from pipeline.config.physics import ModelConfig
+    from pipeline.config.project import find_config
 
-    path = config if config is not None else (Path("configs/model.yaml")
-                                              if Path("configs/model.yaml").is_file() else None)
+    path = config if config is not None else find_config("model.yaml")
     return load_config(ModelConfig, path, env_prefix="PIPELINE_MODEL_", overrides=overrides)[0]
 
 

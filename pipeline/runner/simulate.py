@@ -346,8 +346,9 @@ def simulate(config: SimulateConfig, *, resume: bool = False, shard: str | None 
 def run_stage(config_path: str | Path | None, n: int | None = None, scenes: str | None = None,
               name: str | None = None, workers: int | None = None,
               record_every: int | None = None) -> dict[str, Any]:
-    """Workflow stage ``simulate``: a new version; summary with the dataset and recordings folders."""
+    """Workflow stage ``simulate``: a new version; summary with the dataset and recordings folders.
+    Progress on stderr (a bar on a terminal, plain lines in a log)."""
     config = load_simulate_config(config_path, {
         "trials": n, "scenes": {"folder": scenes}, "dataset": {"name": name},
         "cluster": {"workers": workers, "record_every": record_every}})
-    return simulate(config, progress=False)
+    return simulate(config)
