@@ -59,6 +59,7 @@ def test_slurm_job_script_carries_the_options():
     worker = script.splitlines()[-1]
     assert worker.startswith(f"{sys.executable} -m distributed.cli.dask_worker tcp://")
     assert "--nthreads 1" in worker and "--nworkers 3" in worker       # single-threaded workers
+    assert "--dashboard-address 127.0.0.1:0" in worker
 
 
 def _listening(pids: set[int]) -> set[str]:
@@ -78,7 +79,8 @@ def test_local_cluster_listens_on_loopback_only_and_never_warns_about_port_8787(
             with dask_client(ClusterConfig(workers=1)) as client:
                 me = psutil.Process()
                 ips = _listening({me.pid} | {p.pid for p in me.children(recursive=True)})
-                assert client.dashboard_link is None or "127.0.0.1" in client.dashboard_link
+                status_server = client.cluster.scheduler.http_server          # always on, dashboard or not
+                assert status_server.address == "127.0.0.1" and status_server.port != 8787
         assert not [w for w in caught if "already in use" in str(w.message)]
     assert ips and ips <= {"127.0.0.1"}, ips
     assert "dashboard" not in capsys.readouterr().err

@@ -4,7 +4,9 @@ LocalCluster of single-threaded worker processes (pybullet holds the GIL), an ex
 
 Every HTTP server a cluster of ours starts listens on 127.0.0.1: the dashboard when asked for
 (its address is printed), else the scheduler's always-on status server on a free port, so no
-"port 8787 is already in use" warning appears and nothing is served to the network.
+"port 8787 is already in use" warning appears and no web page is served to the network. (The
+dask comms of a batch cluster's scheduler and workers listen on the network: the jobs run on
+other machines; ``interface`` chooses the network.)
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import os
 import shutil
 import socket
 import sys
+import warnings
 from contextlib import contextmanager
 from typing import Iterator
 
@@ -36,8 +39,8 @@ def _batch_cluster(config: ClusterConfig):
            "sge": dask_jobqueue.SGECluster, "lsf": dask_jobqueue.LSFCluster}[config.kind]
     options = config.batch_options()
     options.setdefault("python", sys.executable)
-    try:
-        return cls(**options, scheduler_options={"dashboard_address": dashboard_address(config),
+    try:           # the workers' HTTP (status) servers on loopback too; their comms must face the network
+        return cls(**options, worker_extra_args=["--dashboard-address", f"{LOOPBACK}:0"], scheduler_options={"dashboard_address": dashboard_address(config),
                                                  "dashboard": config.dashboard})
     except ValueError as exc:
         raise UserError(f"cluster: {config.kind} options rejected by dask-jobqueue: {exc}") from None
@@ -67,13 +70,19 @@ def job_script(config: ClusterConfig) -> str:
 
 
 def _echo_dashboard(client, config: ClusterConfig) -> None:
-    """Print the dashboard's address (and how to reach it from another machine), if enabled."""
+    """Print the address of the dashboard of a cluster we started (and how to reach it from
+    another machine), or that of an existing scheduler, if enabled."""
     from urllib.parse import urlsplit
 
-    if config.dashboard:
-        port = urlsplit(client.dashboard_link).port
-        print(f"dask dashboard: {client.dashboard_link} (this machine only; from another: "
-              f"ssh -L {port}:127.0.0.1:{port} {socket.gethostname()})", file=sys.stderr)
+    if not config.dashboard:
+        return
+    if config.kind == "scheduler":
+        print(f"dask dashboard: {client.dashboard_link}", file=sys.stderr)
+        return
+    port = urlsplit(client.dashboard_link).port        # the link names the scheduler's host; it listens on loopback
+    taken = f"; port {config.dashboard_port} was in use" if config.dashboard_port not in (0, port) else ""
+    print(f"dask dashboard: http://{LOOPBACK}:{port}/status (this machine only{taken}; from another: "
+          f"ssh -L {port}:{LOOPBACK}:{port} {socket.gethostname()})", file=sys.stderr)
 
 
 @contextmanager
@@ -90,18 +99,19 @@ def dask_client(config: ClusterConfig) -> Iterator["distributed.Client"]:  # noq
         cluster = None
         hint = f"start some with `dask worker {config.scheduler}`"
         where = f"the dask scheduler at {config.scheduler}"
-    elif config.kind in BATCH_KINDS:
-        cluster = _submitted(config)
-        client = Client(cluster)
-        hint = f"check the {config.kind} queue: the jobs may be waiting or may have failed to start"
-        where = f"the {config.kind} cluster"
     else:
-        cluster = LocalCluster(n_workers=config.workers or os.cpu_count() or 1, threads_per_worker=1,
-                               processes=True, host=LOOPBACK, dashboard_address=dashboard_address(config),
-                               scheduler_kwargs={"dashboard": config.dashboard})
+        with warnings.catch_warnings():           # a taken dashboard port: the address printed says which
+            warnings.filterwarnings("ignore", message="Port .* is already in use")
+            if config.kind in BATCH_KINDS:
+                cluster = _submitted(config)
+                hint = f"check the {config.kind} queue: the jobs may be waiting or may have failed to start"
+            else:
+                cluster = LocalCluster(n_workers=config.workers or os.cpu_count() or 1, threads_per_worker=1,
+                                       processes=True, host=LOOPBACK, dashboard_address=dashboard_address(config),
+                                       scheduler_kwargs={"dashboard": config.dashboard})
+                hint = "the local workers did not start"
         client = Client(cluster)
-        hint = "the local workers did not start"
-        where = "the local cluster"
+        where = f"the {config.kind} cluster"
     try:
         _echo_dashboard(client, config)
         try:
