@@ -42,7 +42,6 @@ def test_batch_options_are_validated(tmp_path):
                              ({"kind": "slurm", "cores": 4, "memory": "lots"}, "amount of memory"),
                              ({"kind": "local", "queue": "short"}, "'queue' is an option of the batch kinds"),
                              ({"kind": "pbs", "cores": 1, "memory": "1GB", "walltime": "1 hour"}, "walltime"),
-                             ({"kind": "slurm", "cores": 1, "memory": "1GB", "workers": 2}, "'workers' is for kind"),
                              ({"kind": "lsf", "scheduler": "tcp://h:1"}, "'scheduler' is for kind 'scheduler'"),
                              ({"kind": "condor"}, "kind")):
         with pytest.raises(UserError, match=message):

@@ -179,7 +179,7 @@ class ClusterConfig(StrictModel):
 
     kind: Literal["local", "scheduler", "slurm", "pbs", "sge", "lsf"] = Field(
         "local", description="local | scheduler | slurm | pbs | sge | lsf (scheduler if only 'scheduler' is given)")
-    workers: int = Field(0, ge=0, le=1024, description="local worker processes; 0 = one per core")
+    workers: int = Field(0, ge=0, le=1024, description="kind local: worker processes; 0 = one per core")
     scheduler: str | None = Field(None, description="address of a running dask scheduler, tcp://HOST:PORT")
     record_every: int = Field(10, ge=0, le=10_000_000,
                               description="write a rerun recording of every k-th trial (0 = none)")
@@ -223,8 +223,6 @@ class ClusterConfig(StrictModel):
             raise ValueError("kind 'scheduler' needs 'scheduler: tcp://HOST:PORT'")
         if self.kind != "scheduler" and self.scheduler is not None:
             raise ValueError(f"'scheduler' is for kind 'scheduler', not '{self.kind}'")
-        if self.kind != "local" and self.workers:
-            raise ValueError(f"'workers' is for kind 'local', not '{self.kind}' (batch kinds: jobs × cores)")
         given = [name for name in BATCH_OPTIONS + ("jobs",)
                  if getattr(self, name) != type(self).model_fields[name].default]
         if self.kind not in BATCH_KINDS and given:
