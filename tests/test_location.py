@@ -129,3 +129,18 @@ def test_config_paths_are_taken_against_the_project_root(tmp_path, monkeypatch):
     monkeypatch.setenv("PIPELINE_HOME", str(tmp_path / "other"))      # PIPELINE_HOME wins
     found = load_simulate_config()
     assert found.config_file["path"] is None and found.dataset.root == tmp_path / "other" / "outputs" / "datasets"
+
+
+def test_simulate_with_config_and_root_from_another_directory(tmp_path):
+    """No PIPELINE_HOME: --config names the project (its relative paths are taken against it),
+    --root puts the dataset elsewhere; nothing lands in the working directory."""
+    home = make_project(tmp_path, trials=1)
+    elsewhere, store = tmp_path / "elsewhere", tmp_path / "store"
+    elsewhere.mkdir()
+    result = run_pipeline("simulate", "--config", home / "configs" / "simulate.yaml", "--root", store, "--json",
+                          cwd=elsewhere, env=user_env())
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["dataset"] == str(store / "ref" / "v1")
+    assert list(elsewhere.iterdir()) == [] and not (home / "outputs" / "datasets").exists()
+    listing = run_pipeline("datasets", "list", "--root", store, "--json", cwd=elsewhere, env=user_env())
+    assert [row["dataset"] for row in json.loads(listing.stdout)] == ["ref/v1"]

@@ -105,7 +105,8 @@ def _open_writer(folder: Path, spec: RunSpec, shard: Shard | None, indices: rang
     if data.is_file():
         writer = DatasetWriter.resume(data)
         stored = [SceneEntry(**s) for s in decode_attr(writer.file.attrs["scenes"])]
-        if tuple(stored) != scenes:
+        # by name and content (files started before meshes were stored in the dataset name their source)
+        if [(s.name, s.sha256) for s in stored] != [(s.name, s.sha256) for s in scenes]:
             writer.close()
             raise UserError(f"the scenes changed since {label} was started (a mesh was rebuilt or "
                             "removed); finish it with the same meshes or start a new version")
