@@ -106,7 +106,8 @@ def _model_config(config: Optional[Path], overrides: dict):
 
 
 def _model_path(path: Optional[Path]) -> Optional[str]:
-    """A ``--model`` path as the absolute path configs take (relative to the working directory)."""
+    """A path flag (``--model``, ``--scenes``, ``--root``) as the absolute path configs take
+    (relative to the working directory, where the user typed it)."""
     return None if path is None else str(path.resolve())
 
 
@@ -272,7 +273,8 @@ def simulate(
     n: Optional[int] = typer.Option(None, "--n", help="Trials in the run (config: trials)."),
     scenes: Optional[Path] = typer.Option(None, "--scenes", help="Folder of meshes from build-meshes "
                                                                  "(config: scenes.folder, default outputs/meshes)."),
-    config: Optional[Path] = typer.Option(None, "--config", help="Run config YAML (default configs/simulate.yaml)."),
+    config: Optional[Path] = typer.Option(None, "--config", help="Run config YAML (default: "
+                                                                 "<project>/configs/simulate.yaml)."),
     name: Optional[str] = typer.Option(None, "--name", help="Dataset name (config: dataset.name)."),
     workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (0: one per core)."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Existing dask scheduler, tcp://HOST:PORT."),
@@ -295,7 +297,8 @@ def simulate(
     if workers is not None and scheduler is not None:
         raise UserError("give --workers or --scheduler, not both")
     settings = load_simulate_config(config, {
-        "trials": n, "scenes": {"folder": _model_path(scenes)}, "dataset": {"name": name, "root": _model_path(root)},
+        "trials": n, "scenes": {"folder": _model_path(scenes)},
+        "dataset": {"name": name, "root": _model_path(root)},
         "model": {"engine": {"name": engine}, "file": _model_path(model_file)},
         "cluster": {"kind": "scheduler" if scheduler else "local" if workers is not None else None,
                     "workers": workers, "scheduler": scheduler, "record_every": record_every}})

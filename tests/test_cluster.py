@@ -61,6 +61,13 @@ def test_slurm_job_script_carries_the_options():
     assert "--dashboard-address 127.0.0.1:0" in worker
 
 
+def test_a_batch_kind_without_its_submit_command_is_one_error(tmp_path, monkeypatch):
+    monkeypatch.setenv("PATH", str(tmp_path))          # no sbatch here
+    with pytest.raises(UserError, match="cluster kind 'slurm': `sbatch` not found on PATH"):
+        with dask_client(ClusterConfig(kind="slurm", cores=1, memory="1GB")):
+            pass
+
+
 def _listening(pids: set[int]) -> set[str]:
     return {c.laddr.ip for c in psutil.net_connections("inet")
             if c.status == psutil.CONN_LISTEN and c.pid in pids}

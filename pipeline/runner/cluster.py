@@ -40,8 +40,8 @@ def _batch_cluster(config: ClusterConfig):
     options = config.batch_options()
     options.setdefault("python", sys.executable)
     try:           # the workers' HTTP (status) servers on loopback too; their comms must face the network
-        return cls(**options, worker_extra_args=["--dashboard-address", f"{LOOPBACK}:0"], scheduler_options={"dashboard_address": dashboard_address(config),
-                                                 "dashboard": config.dashboard})
+        return cls(**options, worker_extra_args=["--dashboard-address", f"{LOOPBACK}:0"],
+                   scheduler_options={"dashboard_address": dashboard_address(config), "dashboard": config.dashboard})
     except ValueError as exc:
         raise UserError(f"cluster: {config.kind} options rejected by dask-jobqueue: {exc}") from None
 

@@ -3,8 +3,9 @@
 The catalogue (names, mesh paths, sha256) is fixed when a run starts. Its meshes are copied into
 the dataset folder as ``meshes/<sha256><suffix>`` (content-addressed: a mesh used by several runs
 or shards is one file) and the dataset stores these relative paths, so a version is
-self-contained and can be moved. Workers load scenes from the copies lazily, checking each mesh's sha256 as they load it (a mesh
-changed during a run stops the run), and a resumed run checks that no mesh changed since.
+self-contained and can be moved. Workers load scenes from the copies lazily, checking each
+mesh's sha256 as they load it (a mesh changed during a run stops the run), and a resumed run
+checks that no mesh changed since.
 """
 
 from __future__ import annotations
