@@ -46,12 +46,15 @@ def _print_json(data: object) -> None:
 
 @app.command()
 def info(json_output: bool = typer.Option(False, "--json", help="Print JSON."),
-         configs: Path = typer.Option(Path("configs"), help="Folder of config files to resolve.")) -> None:
+         configs: Optional[Path] = typer.Option(None, help="Folder of config files to resolve "
+                                                           "(default: <project>/configs).")) -> None:
     """Print versions of the package and its key dependencies, and the resolved configuration."""
+    from pipeline.config.project import CONFIGS_DIR, project_root
     from pipeline.config.registry import resolved_configs
     from pipeline.provenance import describe_environment
 
-    data = {"versions": describe_environment(), "configs": resolved_configs(configs)}
+    data = {"versions": describe_environment(),
+            "configs": resolved_configs(configs if configs is not None else project_root() / CONFIGS_DIR)}
     if json_output:
         _print_json(data)
         return
