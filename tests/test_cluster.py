@@ -113,7 +113,6 @@ def _cancel_leftover_jobs(jobs: Path) -> None:
         subprocess.run([STANDIN_SLURM / "scancel", job.stem], env={**os.environ, "STANDIN_SLURM_DIR": str(jobs)})
 
 
-@pytest.mark.slow
 def test_slurm_cluster_completes_a_dataset_with_standin_commands(tmp_path):
     """`cluster: {kind: slurm}` submits a worker job with sbatch (here: run locally), runs the
     trials on it, and cancels it at the end; the batch log gets plain progress lines."""
