@@ -175,7 +175,7 @@ class ClusterConfig(StrictModel):
     """Where trials run (docs/cluster.md): ``kind`` local (a LocalCluster of ``workers``
     processes), scheduler (an existing dask scheduler) or a batch system (slurm, pbs, sge, lsf:
     ``jobs`` batch jobs of ``cores`` single-threaded workers each, started through
-    dask-jobqueue with the job options below)."""
+    dask-jobqueue with the job options below). Options of the other kinds are not used."""
 
     kind: Literal["local", "scheduler", "slurm", "pbs", "sge", "lsf"] = Field(
         "local", description="local | scheduler | slurm | pbs | sge | lsf (scheduler if only 'scheduler' is given)")
@@ -219,15 +219,10 @@ class ClusterConfig(StrictModel):
 
     @model_validator(mode="after")
     def _options_of_kind(self) -> "ClusterConfig":
+        """Each kind needs its own options; those of other kinds are left unused, so that
+        ``--workers`` or ``--scheduler`` can run a config written for a batch system elsewhere."""
         if self.kind == "scheduler" and self.scheduler is None:
             raise ValueError("kind 'scheduler' needs 'scheduler: tcp://HOST:PORT'")
-        if self.kind != "scheduler" and self.scheduler is not None:
-            raise ValueError(f"'scheduler' is for kind 'scheduler', not '{self.kind}'")
-        given = [name for name in BATCH_OPTIONS + ("jobs",)
-                 if getattr(self, name) != type(self).model_fields[name].default]
-        if self.kind not in BATCH_KINDS and given:
-            raise ValueError(f"'{given[0]}' is an option of the batch kinds ({', '.join(BATCH_KINDS)}), "
-                             f"not of '{self.kind}'")
         if self.kind in BATCH_KINDS and (self.cores is None or self.memory is None):
             raise ValueError(f"kind '{self.kind}' needs 'cores' and 'memory' per job (e.g. cores: 8, memory: 16GB)")
         return self
