@@ -36,18 +36,25 @@ def _root(debug: bool = typer.Option(False, "--debug", help="Show tracebacks of 
     """Stages: build-meshes → simulate; see each command's --help."""
 
 
+_ROOT_OPTION = typer.Option(None, "--root", help="Datasets folder (default: <project>/outputs/datasets, the "
+                                                  "project being $PIPELINE_HOME or the folder holding configs/).")
+
+
 def _print_json(data: object) -> None:
     typer.echo(json.dumps(data, indent=2, default=str))
 
 
 @app.command()
 def info(json_output: bool = typer.Option(False, "--json", help="Print JSON."),
-         configs: Path = typer.Option(Path("configs"), help="Folder of config files to resolve.")) -> None:
+         configs: Optional[Path] = typer.Option(None, help="Folder of config files to resolve "
+                                                           "(default: <project>/configs).")) -> None:
     """Print versions of the package and its key dependencies, and the resolved configuration."""
+    from pipeline.config.project import CONFIGS_DIR, project_root
     from pipeline.config.registry import resolved_configs
     from pipeline.provenance import describe_environment
 
-    data = {"versions": describe_environment(), "configs": resolved_configs(configs)}
+    data = {"versions": describe_environment(),
+            "configs": resolved_configs(configs if configs is not None else project_root() / CONFIGS_DIR)}
     if json_output:
         _print_json(data)
         return
@@ -81,11 +88,12 @@ def view(target: str = typer.Argument(..., help="An .rrd file, or a dataset NAME
          web: bool = typer.Option(False, "--web", help="Serve a web viewer on 127.0.0.1 and print its URL."),
          port: Optional[int] = typer.Option(None, "--port", help="Web page port (default 9090; data on "
                                                                   "port+1) or the native viewer's server port.",
-                                      min=1, max=65534)) -> None:
+                                      min=1, max=65534),
+         root: Optional[Path] = _ROOT_OPTION) -> None:
     """Open a trial's rerun recording in the viewer; stops the viewer on exit."""
     from pipeline.recordings.viewer import resolve_target, view as open_viewer
 
-    code = open_viewer(resolve_target(target, trial), web=web, port=port, echo=typer.echo)
+    code = open_viewer(resolve_target(target, trial, root), web=web, port=port, echo=typer.echo)
     if code:
         raise typer.Exit(code)
 # --- end recordings ---
@@ -94,14 +102,15 @@ def view(target: str = typer.Argument(..., help="An .rrd file, or a dataset NAME
 def _model_config(config: Optional[Path], overrides: dict):
     from pipeline.config import load_config
     from pipeline.config.physics import ModelConfig
+    from pipeline.config.project import find_config
 
-    path = config if config is not None else (Path("configs/model.yaml")
-                                              if Path("configs/model.yaml").is_file() else None)
+    path = config if config is not None else find_config("model.yaml")
     return load_config(ModelConfig, path, env_prefix="PIPELINE_MODEL_", overrides=overrides)[0]
 
 
 def _model_path(path: Optional[Path]) -> Optional[str]:
-    """A ``--model`` path as the absolute path configs take (relative to the working directory)."""
+    """A path flag (``--model``, ``--scenes``, ``--root``) as the absolute path configs take
+    (relative to the working directory, where the user typed it)."""
     return None if path is None else str(path.resolve())
 
 
@@ -267,7 +276,8 @@ def simulate(
     n: Optional[int] = typer.Option(None, "--n", help="Trials in the run (config: trials)."),
     scenes: Optional[Path] = typer.Option(None, "--scenes", help="Folder of meshes from build-meshes "
                                                                  "(config: scenes.folder, default outputs/meshes)."),
-    config: Optional[Path] = typer.Option(None, "--config", help="Run config YAML (default configs/simulate.yaml)."),
+    config: Optional[Path] = typer.Option(None, "--config", help="Run config YAML (default: "
+                                                                 "<project>/configs/simulate.yaml)."),
     name: Optional[str] = typer.Option(None, "--name", help="Dataset name (config: dataset.name)."),
     workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (0: one per core)."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Existing dask scheduler, tcp://HOST:PORT."),
@@ -277,6 +287,7 @@ def simulate(
                                                         "version (same config)."),
     shard: Optional[str] = typer.Option(None, "--shard", help="Run block i of N (i/N, 1-based) without a "
                                                               "scheduler; join with `pipeline datasets join`."),
+    root: Optional[Path] = _ROOT_OPTION,
     engine: Optional[str] = typer.Option(None, "--engine", help="Physics engine (bullet or mujoco; config: "
                                                                 "model.engine.name)."),
     model_file: Optional[Path] = typer.Option(None, "--model", help="Fitted model file (docs/model_file.md)."),
@@ -289,24 +300,27 @@ def simulate(
     if workers is not None and scheduler is not None:
         raise UserError("give --workers or --scheduler, not both")
     settings = load_simulate_config(config, {
-        "trials": n, "scenes": {"folder": scenes}, "dataset": {"name": name},
+        "trials": n, "scenes": {"folder": _model_path(scenes)},
+        "dataset": {"name": name, "root": _model_path(root)},
         "model": {"engine": {"name": engine}, "file": _model_path(model_file)},
-        "cluster": {"workers": workers, "scheduler": scheduler, "record_every": record_every}})
+        "cluster": {"kind": "scheduler" if scheduler else "local" if workers is not None else None,
+                    "workers": workers, "scheduler": scheduler, "record_every": record_every}})
     _print_summary(run_simulation(settings, resume=resume, shard=shard, progress=not json_output), json_output)
 
 
 datasets_app = typer.Typer(help="List, inspect and join simulated datasets (outputs/datasets/).",
                            no_args_is_help=True)
 app.add_typer(datasets_app, name="datasets")
-_ROOT_OPTION = typer.Option(Path("outputs/datasets"), "--root", help="Datasets folder.")
 
 
 @datasets_app.command("list")
-def datasets_list(root: Path = _ROOT_OPTION,
+def datasets_list(root: Optional[Path] = _ROOT_OPTION,
                   json_output: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
     """Every version of every dataset: state, trials, size."""
+    from pipeline.config.project import datasets_root
     from pipeline.datasets.catalog import list_datasets
 
+    root = datasets_root(root)
     rows = list_datasets(root)
     if json_output:
         _print_json(rows)
@@ -315,15 +329,16 @@ def datasets_list(root: Path = _ROOT_OPTION,
     from rich.table import Table
 
     columns = ("dataset", "state", "trials", "ok", "failed", "size_mb", "created_utc")
-    table = Table(*columns, title=f"datasets in {root}/")
+    table = Table(*columns, "shards done", title=f"datasets in {root}/")
     for row in rows:
-        table.add_row(*(str(row.get(c, "")) for c in columns))
+        shards = f"{row['shards_done']}/{row['shards']}" if "shards" in row else ""
+        table.add_row(*(str(row.get(c, "")) for c in columns), shards)
     Console().print(table)
 
 
 @datasets_app.command("show")
 def datasets_show(target: str = typer.Argument(..., help="NAME, NAME/vK, a version folder or a data file."),
-                  root: Path = _ROOT_OPTION,
+                  root: Optional[Path] = _ROOT_OPTION,
                   verify: bool = typer.Option(False, "--verify", help="Re-hash files against the manifest."),
                   json_output: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
     """Summary of one dataset version (trials, scenes, arrays, provenance)."""
@@ -336,7 +351,7 @@ def datasets_show(target: str = typer.Argument(..., help="NAME, NAME/vK, a versi
 def datasets_join(name: str = typer.Argument(..., help="Dataset name whose shards to join."),
                   run: Optional[str] = typer.Option(None, "--run", help="Run id (prefix) if shards of "
                                                                         "several runs exist."),
-                  root: Path = _ROOT_OPTION) -> None:
+                  root: Optional[Path] = _ROOT_OPTION) -> None:
     """Join the complete shards of a --shard run into a new version (virtual datasets, no copy)."""
     from pipeline.datasets.join import join_shards
 
@@ -352,7 +367,7 @@ app.add_typer(export_app, name="export")
 @export_app.command("nwb")
 def export_nwb(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a version folder or a data file."),
                out: Optional[Path] = typer.Option(None, "--out", help="NWB file to write (default "
-                                                                      "outputs/exports/<name>_v<k>.nwb)."),
+                                                                      "<project>/outputs/exports/<name>_v<k>.nwb)."),
                trials: Optional[str] = typer.Option(None, "--trials", help="Trials to export, e.g. 0,2,5-7 "
                                                                            "(default: every ok trial)."),
                root: Path = _ROOT_OPTION,
@@ -418,7 +433,7 @@ def compare_whiskit(folder: Path = typer.Argument(..., help="WHISKiT output fold
 def stats(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a version folder or a data file."),
           out: Optional[Path] = typer.Option(None, "--out", help="Report folder (default "
                                                                  "reports/stats/<name>_v<k>/)."),
-          root: Path = typer.Option(Path("outputs/datasets"), "--root", help="Datasets folder."),
+          root: Optional[Path] = _ROOT_OPTION,
           json_output: bool = typer.Option(False, "--json", help="Print the summary as JSON.")) -> None:
     """Natural tactile statistics of a dataset's ok trials (read one at a time): report.md, PNGs, stats.json."""
     from pipeline.reports.stats import stats_report

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import inspect
 import json
+import time
 from pathlib import Path
 from typing import Any, Callable
 
@@ -91,7 +92,8 @@ def run_workflow(path: Path, *, force: bool = False, echo: Callable[[str], None]
                                           else "inputs, config or args changed" if state
                                           else "first run")
         echo(f"[{stage.stage}] running ({reason})")
+        started = time.perf_counter()
         summary = functions[stage.stage](stage.config, **stage.args)
         state_file.parent.mkdir(parents=True, exist_ok=True)
         write_text_durably(state_file, json.dumps({"key": key, "summary": summary}, indent=2, default=str))
-        echo(f"[{stage.stage}] done: {json.dumps(summary, default=str)}")
+        echo(f"[{stage.stage}] done in {time.perf_counter() - started:.1f} s: {json.dumps(summary, default=str)}")

@@ -16,7 +16,7 @@ import re
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import AfterValidator, Field, field_validator, model_validator
+from pydantic import AfterValidator, Field, PrivateAttr, field_validator, model_validator
 
 from pipeline.config.physics import ModelConfig, StrictModel
 
@@ -153,15 +153,62 @@ class DatasetConfig(StrictModel):
         return name
 
 
-class ClusterConfig(StrictModel):
-    """Where trials run: a local cluster of ``workers`` processes or an existing scheduler."""
+BATCH_KINDS = ("slurm", "pbs", "sge", "lsf")
+# Options of a batch system's jobs, passed to dask-jobqueue's <KIND>Cluster as they are.
+BATCH_OPTIONS = ("cores", "memory", "processes", "walltime", "queue", "account", "job_extra_directives",
+                 "job_script_prologue", "interface", "local_directory", "log_directory", "python")
 
-    workers: int = Field(0, ge=0, le=1024, description="local worker processes; 0 = one per core")
+
+def _memory(text: str | None) -> str | None:
+    from dask.utils import parse_bytes
+
+    if text is not None:
+        try:
+            if parse_bytes(text) <= 0:
+                raise ValueError
+        except ValueError:
+            raise ValueError("must be an amount of memory such as '4GB' or '500 MiB'") from None
+    return text
+
+
+class ClusterConfig(StrictModel):
+    """Where trials run (docs/cluster.md): ``kind`` local (a LocalCluster of ``workers``
+    processes), scheduler (an existing dask scheduler) or a batch system (slurm, pbs, sge, lsf:
+    ``jobs`` batch jobs of ``cores`` single-threaded workers each, started through
+    dask-jobqueue with the job options below). Options of the other kinds are not used."""
+
+    kind: Literal["local", "scheduler", "slurm", "pbs", "sge", "lsf"] = Field(
+        "local", description="local | scheduler | slurm | pbs | sge | lsf (scheduler if only 'scheduler' is given)")
+    workers: int = Field(0, ge=0, le=1024, description="kind local: worker processes; 0 = one per core")
     scheduler: str | None = Field(None, description="address of a running dask scheduler, tcp://HOST:PORT")
     record_every: int = Field(10, ge=0, le=10_000_000,
                               description="write a rerun recording of every k-th trial (0 = none)")
     worker_wait_s: float = Field(120.0, ge=1.0, le=86_400.0,
                                  description="a run stops (trials pending) after this long without any worker, s")
+    dashboard: bool = Field(False, description="serve the dask dashboard on 127.0.0.1 and print its address")
+    dashboard_port: int = Field(8787, ge=0, le=65535, description="its port (0: any free port)")
+    # batch kinds
+    jobs: int = Field(1, ge=1, le=10_000, description="batch jobs to submit")
+    cores: int | None = Field(None, ge=1, le=1024, description="cores per job (one single-threaded worker each)")
+    memory: Annotated[str | None, AfterValidator(_memory)] = Field(None, description="memory per job, e.g. '8GB'")
+    processes: int | None = Field(None, ge=1, le=1024, description="worker processes per job (default: cores)")
+    walltime: str | None = Field(None, pattern=r"^(\d+-)?\d{1,3}(:\d{2}){0,2}$",
+                                 description="job time limit, [D-]HH:MM:SS")
+    queue: str | None = Field(None, description="queue or partition")
+    account: str | None = Field(None, description="account or project charged")
+    job_extra_directives: list[str] = Field([], description="more batch directives, e.g. ['--qos=long']")
+    job_script_prologue: list[str] = Field([], description="shell lines run before the worker, e.g. module load")
+    interface: str | None = Field(None, description="network interface of workers and scheduler, e.g. ib0")
+    local_directory: str | None = Field(None, description="workers' scratch folder on the compute node")
+    log_directory: str | None = Field(None, description="folder for the jobs' output files")
+    python: str | None = Field(None, description="Python of the jobs (default: this one)")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _scheduler_kind(cls, data):
+        if isinstance(data, dict) and data.get("scheduler") is not None and "kind" not in data:
+            return {**data, "kind": "scheduler"}
+        return data
 
     @field_validator("scheduler")
     @classmethod
@@ -169,6 +216,24 @@ class ClusterConfig(StrictModel):
         if address is not None and not re.fullmatch(r"(tcp|tls)://[^\s/:]+:\d{1,5}", address):
             raise ValueError("must be a dask scheduler address tcp://HOST:PORT (or tls://HOST:PORT)")
         return address
+
+    @model_validator(mode="after")
+    def _options_of_kind(self) -> "ClusterConfig":
+        """Each kind needs its own options; those of other kinds are left unused, so that
+        ``--workers`` or ``--scheduler`` can run a config written for a batch system elsewhere."""
+        if self.kind == "scheduler" and self.scheduler is None:
+            raise ValueError("kind 'scheduler' needs 'scheduler: tcp://HOST:PORT'")
+        if self.kind in BATCH_KINDS and (self.cores is None or self.memory is None):
+            raise ValueError(f"kind '{self.kind}' needs 'cores' and 'memory' per job (e.g. cores: 8, memory: 16GB)")
+        return self
+
+    def batch_options(self) -> dict:
+        """The dask-jobqueue keyword arguments of a batch kind (options not given left out)."""
+        options = {name: getattr(self, name) for name in BATCH_OPTIONS if getattr(self, name) not in (None, [])}
+        options.setdefault("processes", self.cores)
+        if self.kind in ("sge", "lsf") and "account" in options:        # their name for it
+            options["project"] = options.pop("account")
+        return options
 
 
 class SimulateConfig(StrictModel):
@@ -182,17 +247,48 @@ class SimulateConfig(StrictModel):
     whisk: WhiskSamplingConfig = WhiskSamplingConfig()
     dataset: DatasetConfig = DatasetConfig()
     cluster: ClusterConfig = ClusterConfig()
+    # The config file a run was resolved from: {path, sha256} or, without one, {path: None, note}
+    # (set by load_simulate_config; not part of the config itself).
+    _config_file: dict | None = PrivateAttr(None)
+
+    @property
+    def config_file(self) -> dict | None:
+        return self._config_file
 
 
-DEFAULT_PATH = Path("configs/simulate.yaml")
+CONFIG_NAME = "simulate.yaml"
 ENV_PREFIX = "PIPELINE_SIMULATE_"
 
 
-def load_simulate_config(path: str | Path | None = None, overrides: dict | None = None) -> SimulateConfig:
-    """Resolve the run config: ``path`` (default configs/simulate.yaml if present) < environment
-    (``PIPELINE_SIMULATE_*``) < ``overrides`` (command-line flags; None = not given)."""
-    from pipeline.config.loader import load_config
+def built_in_defaults(config: SimulateConfig) -> str:
+    """The physics a run without a config file uses, in one line."""
+    model = config.model
+    material = model.material
+    return (f"engine {model.engine.name}, E = {material.youngs_modulus_gpa:g} GPa, ζ = {material.damping_ratio:g}, "
+            f"{material.links} links, morphology {model.morphology}, whiskers {model.whiskers}, "
+            f"{config.trials} trials")
 
-    if path is None and DEFAULT_PATH.is_file():
-        path = DEFAULT_PATH
-    return load_config(SimulateConfig, path, env_prefix=ENV_PREFIX, overrides=overrides)[0]
+
+def load_simulate_config(path: str | Path | None = None, overrides: dict | None = None) -> SimulateConfig:
+    """Resolve the run config: ``path`` (default ``<project root>/configs/simulate.yaml``, see
+    pipeline.config.project) < environment (``PIPELINE_SIMULATE_*``) < ``overrides`` (command-line
+    flags; None = not given; paths in them absolute). Relative paths of the file and environment
+    are taken against the project root. ``config.config_file`` records the file used."""
+    from pipeline.config.loader import load_config
+    from pipeline.config.project import find_config, in_project, project_root
+    from pipeline.provenance import file_sha256
+
+    path = Path(path) if path is not None else find_config(CONFIG_NAME)
+    config = load_config(SimulateConfig, path, env_prefix=ENV_PREFIX, overrides=overrides)[0]
+    root = project_root(path)
+    config = config.model_copy(update={
+        "dataset": config.dataset.model_copy(update={"root": in_project(config.dataset.root, root)}),
+        "scenes": config.scenes.model_copy(update={"folder": in_project(config.scenes.folder, root)}),
+        "whisk": config.whisk.model_copy(update={"table": in_project(config.whisk.table, root)})})
+    if path is None:
+        config._config_file = {"path": None, "sha256": None,
+                               "note": f"no {CONFIG_NAME} in {root / 'configs'}; built-in defaults: "
+                                       f"{built_in_defaults(config)}"}
+    else:
+        config._config_file = {"path": str(path.absolute()), "sha256": file_sha256(path)}
+    return config

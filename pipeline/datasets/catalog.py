@@ -9,7 +9,9 @@ from typing import Any
 from pipeline.datasets.manifest import read_manifest, verify
 from pipeline.datasets.reader import DatasetFile
 from pipeline.datasets.schema import ARRAYS, DATA_FILE
-from pipeline.datasets.versions import dataset_names, is_complete, is_locked, resolve, versions
+from pipeline.config.project import datasets_root
+from pipeline.datasets.shards import shard_counts
+from pipeline.datasets.versions import SHARDS_DIR, dataset_names, is_complete, is_locked, resolve, versions
 from pipeline.errors import UserError
 
 
@@ -27,7 +29,7 @@ def _size_mb(folder: Path) -> float:
     return round(sum(p.stat().st_size for p in folder.rglob("*") if p.is_file()) / 1e6, 2)
 
 
-def describe(target: str | Path, root: Path, check: bool = False) -> dict[str, Any]:
+def describe(target: str | Path, root: Path | None = None, check: bool = False) -> dict[str, Any]:
     """What a dataset version (or a one-trial file of ``pipeline trial --out``) holds; ``check``
     also re-hashes a version's files against its manifest."""
     data_file = resolve(target, root)
@@ -59,8 +61,10 @@ def describe(target: str | Path, root: Path, check: bool = False) -> dict[str, A
     return info
 
 
-def list_datasets(root: Path) -> list[dict[str, Any]]:
-    """One row per version of every dataset under ``root``."""
+def list_datasets(root: Path | None = None) -> list[dict[str, Any]]:
+    """One row per version of every dataset under ``root`` (default: the project's datasets
+    folder), then one per run of shards waiting to be joined."""
+    root = datasets_root(root)
     rows = []
     for name in dataset_names(root):
         for k, folder in versions(root, name).items():
@@ -73,4 +77,27 @@ def list_datasets(root: Path) -> list[dict[str, Any]]:
                 except UserError as exc:           # one unreadable version does not hide the others
                     row.update(state="unreadable", error=str(exc))
             rows.append(row)
+    return rows + [row for name in _names_with_shards(root) for row in shard_runs(root, name)]
+
+
+def _names_with_shards(root: Path) -> list[str]:
+    return sorted(p.parent.name for p in Path(root).glob(f"*/{SHARDS_DIR}") if p.is_dir())
+
+
+def shard_runs(root: Path, name: str) -> list[dict[str, Any]]:
+    """One row per run of ``--shard`` jobs of dataset ``name`` not joined yet: its shards done
+    (written, no trial pending) of its shard count, trials, and state: *ready to join* once every
+    shard is done, else *shards running* (some being written) or *shards unfinished*."""
+    rows = []
+    for run in sorted(p for p in (Path(root) / name / SHARDS_DIR).iterdir() if p.is_dir()):
+        folders = sorted(run.glob("shard_*_of_*"))
+        counts = [shard_counts(folder) for folder in folders]
+        count = max((c["count"] for c in counts), default=0)
+        done = sum(1 for c in counts if c["trials"] and not c["pending"])
+        state = ("ready to join" if count and done == count else
+                 "shards running" if any(is_locked(folder) for folder in folders) else "shards unfinished")
+        rows.append({"dataset": f"{name}/{SHARDS_DIR}/{run.name}", "state": state, "shards_done": done,
+                     "shards": count, "trials": sum(c["trials"] for c in counts),
+                     "ok": sum(c["ok"] for c in counts), "failed": sum(c["failed"] for c in counts),
+                     "pending": sum(c["pending"] for c in counts), "size_mb": _size_mb(run)})
     return rows

@@ -2,7 +2,8 @@
 
 The shard files move into ``v<k>/shards/`` (hard links, or copies across file systems) and
 ``v<k>/data.h5`` maps their blocks of trials through HDF5 virtual datasets, so nothing is
-copied; the small trial table is merged for real. Recordings move to ``v<k>/recordings/``.
+copied; the small trial table is merged for real. Recordings move to ``v<k>/recordings/``, the
+shards' meshes (content-addressed, pipeline.runner.scenes) to ``v<k>/meshes/``.
 """
 
 from __future__ import annotations
@@ -12,11 +13,12 @@ import os
 import shutil
 from pathlib import Path
 
+from pipeline.config.project import datasets_root
 from pipeline.datasets.dimensions import SCALE_ATTRIBUTES, attach_dimensions
 from pipeline.datasets.manifest import write_manifest
 from pipeline.datasets.reader import decode_attr
 from pipeline.datasets.schema import ARRAYS, CONFIG_FILE, DATA_FILE, OK, FAILED, PENDING
-from pipeline.datasets.versions import SHARDS_DIR, VersionLock, is_locked, new_version
+from pipeline.datasets.versions import MESHES_DIR, SHARDS_DIR, VersionLock, is_locked, new_version
 from pipeline.datasets.writer import recover
 from pipeline.errors import UserError
 
@@ -115,10 +117,12 @@ def _write_joined(path: Path, label: str, shards: list[tuple[Path, range]]) -> N
     os.replace(partial, path)
 
 
-def join_shards(root: Path, name: str, run: str | None = None) -> Path:
-    """Make a new version of ``name`` from the complete shards of one run; returns its folder."""
+def join_shards(root: Path | None, name: str, run: str | None = None) -> Path:
+    """Make a new version of ``name`` (under ``root``, default the project's datasets folder) from
+    the complete shards of one run; returns its folder."""
     import h5py
 
+    root = datasets_root(root)
     run_folder = _run_folder(root, name, run)
     shards = _shards(run_folder)
     version = new_version(root, name)
@@ -130,6 +134,9 @@ def join_shards(root: Path, name: str, run: str | None = None) -> Path:
             placed.append((target, block))
             for recording in sorted((data.parent / "recordings").glob("*.rrd")):
                 _place(recording, version / "recordings" / recording.name)
+            for mesh in sorted((data.parent / MESHES_DIR).glob("*")):      # content-addressed: once each
+                if not (version / MESHES_DIR / mesh.name).exists():
+                    _place(mesh, version / MESHES_DIR / mesh.name)
         _place(shards[0][0].parent / CONFIG_FILE, version / CONFIG_FILE)
         _write_joined(version / DATA_FILE, f"{name}/{version.name}", placed)
         with h5py.File(version / DATA_FILE, "r") as f:

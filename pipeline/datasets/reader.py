@@ -29,7 +29,7 @@ import numpy as np
 
 from pipeline.datasets.schema import (ARRAYS, COORDINATES, FAILED, OK, PENDING, SIGNAL_UNITS_VARIABLE,
                                       TRIAL_COLUMNS, WHISKER_COLUMNS)
-from pipeline.datasets.versions import DEFAULT_ROOT, resolve
+from pipeline.datasets.versions import resolve
 from pipeline.errors import UserError
 from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS
 
@@ -269,6 +269,7 @@ class DatasetFile:
                 f"{len(self._whiskers['name'])} whiskers>")
 
 
-def open_dataset(target: str | Path, root: str | Path = DEFAULT_ROOT) -> DatasetFile:
-    """Open a dataset: a data file, a version folder, ``NAME/vK`` or ``NAME`` (newest) under ``root``."""
-    return DatasetFile(resolve(target, Path(root)))
+def open_dataset(target: str | Path, root: str | Path | None = None) -> DatasetFile:
+    """Open a dataset: a data file, a version folder, ``NAME/vK`` or ``NAME`` (newest) under ``root``
+    (default: the project's datasets folder, pipeline.config.project)."""
+    return DatasetFile(resolve(target, root))

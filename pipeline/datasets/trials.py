@@ -18,20 +18,20 @@ from typing import Any
 import numpy as np
 
 from pipeline.datasets.schema import ARRAYS, OK
-from pipeline.datasets.versions import DEFAULT_ROOT, resolve
+from pipeline.datasets.versions import resolve
 
 
 class TrialDataset:
     """Items = trials whose status is ``status`` (default 'ok'), in trial order."""
 
     def __init__(self, target: str | Path, arrays: tuple[str, ...] = ("base_wrench", "contact"),
-                 root: str | Path = DEFAULT_ROOT, status: str = OK):
+                 root: str | Path | None = None, status: str = OK):
         import h5py
 
         unknown = [a for a in arrays if a not in ARRAYS]
         if unknown:
             raise KeyError(f"unknown arrays {unknown} (known: {', '.join(ARRAYS)})")
-        self.path = resolve(target, Path(root))
+        self.path = resolve(target, root)
         self.arrays = tuple(arrays)
         with h5py.File(self.path, "r", swmr=True) as f:
             table = f["trials"]

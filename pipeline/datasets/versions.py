@@ -12,11 +12,12 @@ import os
 import re
 from pathlib import Path
 
+from pipeline.config.project import datasets_root
 from pipeline.datasets.schema import DATA_FILE, MANIFEST_FILE
 from pipeline.errors import UserError
 
-DEFAULT_ROOT = Path("outputs/datasets")
 LOCK_FILE = ".lock"
+MESHES_DIR = "meshes"          # <version>/meshes/<sha256>.obj: the run's meshes (pipeline.runner.scenes)
 SHARDS_DIR = "shards"          # <root>/<name>/shards/<run>/shard_<i>_of_<N>/ (pipeline.datasets.shards)
 _VERSION = re.compile(r"^v(\d+)$")
 
@@ -65,8 +66,10 @@ def unfinished_version(root: Path, name: str) -> Path:
     return latest
 
 
-def version_folder(target: str, root: Path = DEFAULT_ROOT) -> Path:
-    """The folder of ``NAME/vK`` or of ``NAME``'s newest version; UserError naming what exists."""
+def version_folder(target: str, root: str | Path | None = None) -> Path:
+    """The folder of ``NAME/vK`` or of ``NAME``'s newest version under ``root`` (default: the
+    project's datasets folder, pipeline.config.project); UserError naming what exists."""
+    root = datasets_root(root)
     name, _, version = str(target).strip("/").partition("/")
     found = versions(root, name) if name else {}
     if not found:
@@ -82,8 +85,9 @@ def version_folder(target: str, root: Path = DEFAULT_ROOT) -> Path:
     return found[int(match.group(1))]
 
 
-def resolve(target: str | Path, root: Path = DEFAULT_ROOT) -> Path:
-    """The data file of a target: a file, a version folder, ``NAME/vK`` or ``NAME`` (its newest)."""
+def resolve(target: str | Path, root: str | Path | None = None) -> Path:
+    """The data file of a target: a file, a version folder, ``NAME/vK`` or ``NAME`` (its newest)
+    under ``root`` (default: the project's datasets folder)."""
     path = Path(target)
     if path.is_file():
         return path

@@ -21,7 +21,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-from pipeline.datasets.versions import DEFAULT_ROOT
+from pipeline.config.project import project_root
 from pipeline.errors import UserError
 from pipeline.exports.source import DatasetTrials, read_trials
 from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS
@@ -136,7 +136,7 @@ def build_nwbfile(data: DatasetTrials):
     return nwbfile
 
 
-DEFAULT_FOLDER = Path("outputs/exports")
+EXPORTS_DIR = Path("outputs/exports")
 
 
 def write_nwb(data: DatasetTrials, path: str | Path) -> dict[str, Any]:
@@ -154,9 +154,9 @@ def write_nwb(data: DatasetTrials, path: str | Path) -> dict[str, Any]:
             "series": [*SIGNALS, "contact", "protraction"], "size_mb": round(path.stat().st_size / 1e6, 3)}
 
 
-def export_nwb(target: str | Path, root: str | Path = DEFAULT_ROOT, trials: Optional[str] = None,
+def export_nwb(target: str | Path, root: str | Path | None = None, trials: Optional[str] = None,
                out: Optional[str | Path] = None) -> dict[str, Any]:
     """``pipeline export nwb``: ``trials`` (``"0,2,5-7"``, default every ok trial) of a dataset into
-    ``out`` (default outputs/exports/<name>_v<k>.nwb)."""
+    ``out`` (default <project>/outputs/exports/<name>_v<k>.nwb, pipeline.config.project)."""
     data = read_trials(target, root, trials)
-    return write_nwb(data, out or DEFAULT_FOLDER / f"{data.label.replace('/', '_')}.nwb")
+    return write_nwb(data, out or project_root() / EXPORTS_DIR / f"{data.label.replace('/', '_')}.nwb")

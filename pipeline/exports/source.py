@@ -16,7 +16,6 @@ import numpy as np
 import pipeline.datasets as datasets
 from pipeline.config.simulate import POSE_REJECTION_REASONS
 from pipeline.datasets.schema import OK, PENDING, TRIAL_COLUMNS, WHISKER_COLUMNS
-from pipeline.datasets.versions import DEFAULT_ROOT
 from pipeline.errors import UserError
 
 _RANGE = re.compile(r"^(\d+)(?:-(\d+))?$")
@@ -83,7 +82,7 @@ def parse_trials(text: str, count: int, option: str = "--trials") -> list[int]:
     return sorted(set(chosen))
 
 
-def read_trials(target: str | Path, root: str | Path = DEFAULT_ROOT,
+def read_trials(target: str | Path, root: str | Path | None = None,
                 trials: Optional[str | Sequence[int]] = None, option: str = "--trials") -> DatasetTrials:
     """Read ``trials`` (indices, or text like ``"0,2,5-7"``; default: every ok trial) of a dataset.
     An unknown or pending trial is a UserError naming ``option``."""

@@ -37,7 +37,6 @@ from typing import Any, Optional
 import numpy as np
 
 from pipeline.errors import UserError
-from pipeline.datasets.versions import DEFAULT_ROOT
 from pipeline.exports.source import DatasetTrials, read_trials
 from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS
 
@@ -194,12 +193,12 @@ def compare(original: WhiskitOutput, data: DatasetTrials, k: int, sample_rate_hz
             "only_in_dataset": [n for n in names if n not in original.whiskers], "rows": table}
 
 
-def export_whiskit(target: str | Path, trial: int, out: str | Path, root: str | Path = DEFAULT_ROOT) -> dict[str, Any]:
+def export_whiskit(target: str | Path, trial: int, out: str | Path, root: str | Path | None = None) -> dict[str, Any]:
     """``pipeline export whiskit``: dataset trial ``trial`` into the folder ``out``."""
     return write_whiskit_output(read_trials(target, root, [trial], option="--trial"), 0, out)
 
 
-def compare_whiskit(folder: str | Path, target: str | Path, trial: int, root: str | Path = DEFAULT_ROOT,
+def compare_whiskit(folder: str | Path, target: str | Path, trial: int, root: str | Path | None = None,
                     sample_rate_hz: float = 1000.0, first_row_s: float = 0.0) -> dict[str, Any]:
     """``pipeline compare-whiskit``: a WHISKiT output folder against dataset trial ``trial``."""
     original = read_whiskit_output(folder, sample_rate_hz, first_row_s)

@@ -24,7 +24,6 @@ from typing import Callable
 
 from pipeline.errors import UserError
 
-DATASETS_ROOT = Path("outputs/datasets")
 RECORDINGS_DIR = "recordings"
 HOST = "127.0.0.1"
 DEFAULT_WEB_PORT = 9090
@@ -55,7 +54,7 @@ def _ranges(indices: list[int]) -> str:
     return ", ".join(parts)
 
 
-def resolve_target(target: str, trial: int | None = None, root: Path = DATASETS_ROOT) -> Path:
+def resolve_target(target: str, trial: int | None = None, root: Path | None = None) -> Path:
     """The ``.rrd`` file a ``pipeline view`` target names; UserError if it does not exist."""
     if target.endswith(".rrd") or Path(target).is_file():
         path = Path(target)

@@ -291,7 +291,7 @@ def statistics(tallies: dict[str, Tally], whiskers: dict, rate_hz: float) -> dic
     }
 
 
-def stats_report(target: str | Path, root: str | Path, out: str | Path | None = None) -> dict:
+def stats_report(target: str | Path, root: str | Path | None, out: str | Path | None = None) -> dict:
     """Write report.md, the figures and stats.json of a dataset's ok trials into ``out``
     (default ``reports/stats/<name>_v<k>/``); returns a summary with their paths."""
     from pipeline.datasets.reader import DatasetFile
@@ -300,7 +300,7 @@ def stats_report(target: str | Path, root: str | Path, out: str | Path | None = 
     from pipeline.reports.stats_figures import write_figures, write_report
 
     start = time.perf_counter()
-    path = resolve(target, Path(root))
+    path = resolve(target, root)
     with DatasetFile(path) as ds:
         label = str(ds.attrs.get("label") or ds.attrs.get("name") or path.stem)
         counts = {"trials": len(ds.status), "trials_ok": len(ds.ok), "trials_failed": len(ds.failed),

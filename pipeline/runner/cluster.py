@@ -1,39 +1,125 @@
-"""Start or connect to a dask cluster: a LocalCluster of single-threaded worker processes
-(pybullet holds the GIL) or an existing scheduler (``tcp://HOST:PORT``)."""
+"""Start or connect to the dask cluster a run's ``cluster:`` config names (docs/cluster.md): a
+LocalCluster of single-threaded worker processes (pybullet holds the GIL), an existing scheduler
+(``tcp://HOST:PORT``), or workers started as batch jobs (SLURM, PBS, SGE, LSF) by dask-jobqueue.
+
+Every HTTP server a cluster of ours starts listens on 127.0.0.1: the dashboard when asked for
+(its address is printed), else the scheduler's always-on status server on a free port, so no
+"port 8787 is already in use" warning appears and no web page is served to the network. (The
+dask comms of a batch cluster's scheduler and workers listen on the network: the jobs run on
+other machines; ``interface`` chooses the network.)
+"""
 
 from __future__ import annotations
 
 import os
+import shutil
+import socket
+import sys
+import warnings
 from contextlib import contextmanager
 from typing import Iterator
 
+from pipeline.config.simulate import BATCH_KINDS, ClusterConfig
 from pipeline.errors import UserError
 
 CONNECT_TIMEOUT_S = 20
-WORKER_WAIT_S = 120
+LOOPBACK = "127.0.0.1"
+
+
+def dashboard_address(config: ClusterConfig) -> str:
+    """Where the scheduler's HTTP server listens: the dashboard's port, or any free port."""
+    return f"{LOOPBACK}:{config.dashboard_port if config.dashboard else 0}"
+
+
+def _batch_cluster(config: ClusterConfig):
+    """A dask-jobqueue cluster of ``config.kind``, no job submitted yet."""
+    import dask_jobqueue
+
+    cls = {"slurm": dask_jobqueue.SLURMCluster, "pbs": dask_jobqueue.PBSCluster,
+           "sge": dask_jobqueue.SGECluster, "lsf": dask_jobqueue.LSFCluster}[config.kind]
+    options = config.batch_options()
+    options.setdefault("python", sys.executable)
+    try:           # the workers' HTTP (status) servers on loopback too; their comms must face the network
+        return cls(**options, worker_extra_args=["--dashboard-address", f"{LOOPBACK}:0"],
+                   scheduler_options={"dashboard_address": dashboard_address(config), "dashboard": config.dashboard})
+    except ValueError as exc:
+        raise UserError(f"cluster: {config.kind} options rejected by dask-jobqueue: {exc}") from None
+
+
+def _submitted(config: ClusterConfig):
+    """A batch cluster with ``config.jobs`` worker jobs submitted; UserError if the batch
+    system's submit command is not on PATH."""
+    cluster = _batch_cluster(config)
+    command = cluster.job_cls.submit_command.split()[0]
+    if shutil.which(command) is None:
+        cluster.close()
+        raise UserError(f"cluster kind '{config.kind}': `{command}` not found on PATH (run on a machine that "
+                        "submits jobs, e.g. the cluster's login node)")
+    cluster.scale(jobs=config.jobs)
+    return cluster
+
+
+def job_script(config: ClusterConfig) -> str:
+    """The batch script each worker job of a batch ``config`` runs (``pipeline simulate``
+    submits ``config.jobs`` of them); for inspection, e.g. before a first run on a new cluster."""
+    cluster = _batch_cluster(config)
+    try:
+        return cluster.job_script()
+    finally:
+        cluster.close()
+
+
+def _echo_dashboard(client, config: ClusterConfig) -> None:
+    """Print the address of the dashboard of a cluster we started (and how to reach it from
+    another machine), or that of an existing scheduler, if enabled."""
+    from urllib.parse import urlsplit
+
+    if not config.dashboard:
+        return
+    if config.kind == "scheduler":
+        print(f"dask dashboard: {client.dashboard_link}", file=sys.stderr)
+        return
+    port = urlsplit(client.dashboard_link).port        # the link names the scheduler's host; it listens on loopback
+    taken = f"; port {config.dashboard_port} was in use" if config.dashboard_port not in (0, port) else ""
+    print(f"dask dashboard: http://{LOOPBACK}:{port}/status (this machine only{taken}; from another: "
+          f"ssh -L {port}:{LOOPBACK}:{port} {socket.gethostname()})", file=sys.stderr)
 
 
 @contextmanager
-def dask_client(workers: int = 0, scheduler: str | None = None,
-                worker_wait_s: float = WORKER_WAIT_S) -> Iterator["distributed.Client"]:  # noqa: F821
-    """A client of a new LocalCluster with ``workers`` processes (0: one per core), or of
-    the scheduler at ``scheduler`` once it has a worker (UserError after ``worker_wait_s``)."""
+def dask_client(config: ClusterConfig) -> Iterator["distributed.Client"]:  # noqa: F821
+    """A client of the cluster ``config`` names, once it has a worker (UserError after
+    ``config.worker_wait_s``)."""
     from distributed import Client, LocalCluster
 
-    if scheduler:
+    if config.kind == "scheduler":
         try:
-            client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
+            client = Client(config.scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
         except (OSError, TimeoutError) as exc:
-            raise UserError(f"cannot reach the dask scheduler at {scheduler}: {exc}") from None
+            raise UserError(f"cannot reach the dask scheduler at {config.scheduler}: {exc}") from None
+        cluster = None
+        hint = f"start some with `dask worker {config.scheduler}`"
+        where = f"the dask scheduler at {config.scheduler}"
+    else:
+        with warnings.catch_warnings():           # a taken dashboard port: the address printed says which
+            warnings.filterwarnings("ignore", message="Port .* is already in use")
+            if config.kind in BATCH_KINDS:
+                cluster = _submitted(config)
+                hint = f"check the {config.kind} queue: the jobs may be waiting or may have failed to start"
+            else:
+                cluster = LocalCluster(n_workers=config.workers or os.cpu_count() or 1, threads_per_worker=1,
+                                       processes=True, host=LOOPBACK, dashboard_address=dashboard_address(config),
+                                       scheduler_kwargs={"dashboard": config.dashboard})
+                hint = "the local workers did not start"
+        client = Client(cluster)
+        where = f"the {config.kind} cluster"
+    try:
+        _echo_dashboard(client, config)
         try:
-            client.wait_for_workers(1, timeout=worker_wait_s)
+            client.wait_for_workers(1, timeout=config.worker_wait_s)
         except TimeoutError:
-            client.close()
-            raise UserError(f"the dask scheduler at {scheduler} has had no worker for "
-                            f"{worker_wait_s:g} s (start some with `dask worker {scheduler}`)") from None
-        with client:
-            yield client
-        return
-    with LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster, Client(cluster) as client:
+            raise UserError(f"{where} has had no worker for {config.worker_wait_s:g} s ({hint})") from None
         yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()

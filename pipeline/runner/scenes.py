@@ -1,16 +1,21 @@
 """The scenes of a run: meshes from a ``build-meshes`` folder and the fixed protocol scenes.
 
-The catalogue (names, mesh paths, sha256) is fixed when a run starts and stored in the dataset;
-workers load scenes from it lazily, checking each mesh's sha256 as they load it (a mesh
-changed during a run stops the run), and a resumed run checks that no mesh changed since.
+The catalogue (names, mesh paths, sha256) is fixed when a run starts. Its meshes are copied into
+the dataset folder as ``meshes/<sha256><suffix>`` (content-addressed: a mesh used by several runs
+or shards is one file) and the dataset stores these relative paths, so a version is
+self-contained and can be moved. Workers load scenes from the copies lazily, checking each
+mesh's sha256 as they load it (a mesh changed during a run stops the run), and a resumed run
+checks that no mesh changed since.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import shutil
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from pipeline.config.simulate import ScenesConfig
+from pipeline.datasets.versions import MESHES_DIR
 from pipeline.errors import RunAborted, UserError
 from pipeline.provenance import file_sha256
 from pipeline.scenes.obstacles import Scene
@@ -44,7 +49,33 @@ class SceneEntry:
             raise RunAborted(f"mesh {self.path} changed during the run (sha256 {found[:12]}…, the run "
                              f"recorded {self.sha256[:12]}…); the run stopped, its remaining trials are "
                              "pending: restore the mesh and --resume, or start a new version")
-        return mesh_scene(self.path)
+        return replace(mesh_scene(self.path), name=self.name)      # the copy's file name is its hash
+
+    def in_dataset(self) -> "SceneEntry":
+        """This entry as a dataset stores it: its mesh as ``meshes/<sha256><suffix>``."""
+        if not self.is_mesh:
+            return self
+        return replace(self, path=f"{MESHES_DIR}/{self.sha256}{Path(self.path).suffix}")
+
+    def under(self, folder: Path) -> "SceneEntry":
+        """A stored entry with its mesh path taken against the dataset ``folder`` (absolute)."""
+        return replace(self, path=str(Path(folder).resolve() / self.path)) if self.is_mesh else self
+
+
+
+def copy_meshes(scenes: tuple[SceneEntry, ...], folder: Path) -> None:
+    """Copy the meshes of ``scenes`` (source paths) into ``folder/meshes/`` under their sha256
+    names, unless already there; a copy is written beside and renamed, so it is whole or absent."""
+    for entry in scenes:
+        if not entry.is_mesh:
+            continue
+        target = Path(folder) / entry.in_dataset().path
+        if target.is_file():
+            continue
+        target.parent.mkdir(parents=True, exist_ok=True)
+        partial = target.with_name(target.name + ".partial")
+        shutil.copyfile(entry.path, partial)
+        partial.replace(target)
 
 
 def mesh_files(folder: Path) -> list[Path]:

@@ -15,11 +15,10 @@ import logging
 import sys
 import time
 import uuid
-from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from itertools import islice
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Iterator
 
 import numpy as np
 import yaml
@@ -32,8 +31,9 @@ from pipeline.datasets.schema import (CONFIG_FILE, DATA_FILE, FAILED, OK, PENDIN
 from pipeline.datasets.versions import VersionLock, new_version, unfinished_version
 from pipeline.datasets.writer import DatasetWriter, Layout, model_file_record, provenance, whisker_table
 from pipeline.errors import RunAborted, UserError
-from pipeline.runner.scenes import SceneEntry, scene_catalogue
+from pipeline.runner.scenes import SceneEntry, copy_meshes, scene_catalogue
 from pipeline.datasets.shards import Shard, plan_fields, run_id, shard_folder
+from pipeline.runner.progress import progress as run_progress, trials_per_hour
 from pipeline.runner.trial import RunSpec, TrialResult, load_whisk_table
 from pipeline.storage import is_disk_full, write_text_durably
 
@@ -98,12 +98,15 @@ def _check(config: SimulateConfig, scenes: tuple[SceneEntry, ...], layout: Layou
 
 
 def _open_writer(folder: Path, spec: RunSpec, shard: Shard | None, indices: range) -> DatasetWriter:
+    """The writer of ``folder``'s data file (created, or resumed if its scenes are unchanged);
+    ``spec.scenes`` are the scenes as stored (mesh paths relative to ``folder``)."""
     config, scenes, label = spec.config, spec.scenes, spec.title
     data = folder / DATA_FILE
     if data.is_file():
         writer = DatasetWriter.resume(data)
         stored = [SceneEntry(**s) for s in decode_attr(writer.file.attrs["scenes"])]
-        if tuple(stored) != scenes:
+        # by name and content (files started before meshes were stored in the dataset name their source)
+        if [(s.name, s.sha256) for s in stored] != [(s.name, s.sha256) for s in scenes]:
             writer.close()
             raise UserError(f"the scenes changed since {label} was started (a mesh was rebuilt or "
                             "removed); finish it with the same meshes or start a new version")
@@ -113,7 +116,8 @@ def _open_writer(folder: Path, spec: RunSpec, shard: Shard | None, indices: rang
              "scenes": [vars(s) for s in scenes], "trial_range": [indices.start, indices.stop],
              "shard": [shard.number, shard.count] if shard else [1, 1], "run_id": run_id(config),
              "provenance": provenance(config.model_dump(mode="json"), engine=config.model.engine.name,
-                                      model_file=model_file_record(config.model))}
+                                      model_file=model_file_record(config.model),
+                                      config_file=config.config_file)}
     return DatasetWriter.create(data, spec.layout, attrs)
 
 
@@ -188,27 +192,8 @@ def _stream(client, plugin_name: str, todo: list[int], worker_wait_s: float) -> 
         in_flight |= {submit(i) for i in islice(pending, max(0, window() - len(in_flight)))}
 
 
-@contextmanager
-def _progress(total: int, label: str, enabled: bool) -> Iterator[Callable[[int], None]]:
-    """A rich progress bar (trials done, rate, ETA) on stderr; yields advance(failed_so_far)."""
-    if not enabled:
-        yield lambda failed: None
-        return
-    from rich.console import Console
-    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, ProgressColumn, TextColumn,
-                               TimeElapsedColumn, TimeRemainingColumn)
-    from rich.text import Text
-
-    class Rate(ProgressColumn):
-        def render(self, task) -> Text:
-            return Text(f"{task.speed * 3600:,.0f} trials/h" if task.speed else "… trials/h")
-
-    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), Rate(),
-                  TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
-                  console=Console(stderr=True)) as bar:
-        task = bar.add_task(label, total=total)
-        yield lambda failed: bar.update(task, advance=1, description=f"{label} ({failed} failed)"
-                                        if failed else label)
+def _rounded(rate: float | None) -> float | None:
+    return None if rate is None else round(rate, 1)
 
 
 def summarize(data_file: Path, indices: range) -> dict[str, Any]:
@@ -244,9 +229,11 @@ class _Tally:
     failed: int = 0
     duplicates: int = 0
     write_seconds: float = 0.0
+    last_written_at: float = 0.0       # time.perf_counter() when the last trial was written, s
 
 
-def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _Tally, progress: bool) -> None:
+def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _Tally, progress: bool,
+                started: float) -> None:
     """Run ``todo`` on the configured cluster, writing each result as it arrives.
 
     A full disk (here or on a worker) or a :class:`RunAborted` from a worker stops the run:
@@ -261,10 +248,10 @@ def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _T
     # Ctrl-C/SIGTERM while the cluster shuts down. Task errors reach the run through the futures.
     for logger in ("asyncio", "tornado.application"):
         logging.getLogger(logger).setLevel(logging.CRITICAL)
-    with dask_client(config.cluster.workers, config.cluster.scheduler, config.cluster.worker_wait_s) as client:
+    with dask_client(config.cluster) as client:
         name = f"whisker-simulator-{uuid.uuid4().hex[:8]}"
         client.register_plugin(SimulatorPlugin(spec, name), name=name)
-        with _progress(len(todo), spec.title, progress) as advance:
+        with run_progress(len(todo), spec.title, started, progress) as report:
             for index, result in _stream(client, name, todo, config.cluster.worker_wait_s):
                 if isinstance(result, TrialResult) and result.abort is not None:
                     raise result.abort
@@ -278,7 +265,9 @@ def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _T
                 tally.written += fresh
                 tally.failed += fresh and result.record.status == FAILED
                 tally.duplicates += not fresh
-                advance(tally.failed)
+                if fresh:
+                    tally.last_written_at = time.perf_counter()
+                    report(result.record.status == FAILED, tally.last_written_at)
         client.unregister_worker_plugin(name)
 
 
@@ -306,20 +295,26 @@ def run_spec(config: SimulateConfig) -> RunSpec:
 def simulate(config: SimulateConfig, *, resume: bool = False, shard: str | None = None,
              progress: bool = True) -> dict[str, Any]:
     """Run (or resume, or run one shard of) a simulation; returns the summary of its dataset."""
+    if config.config_file and config.config_file["path"] is None:
+        print(f"note: {config.config_file['note']}", file=sys.stderr)
     shard_spec = Shard.parse(shard) if shard else None
     spec = run_spec(config)
     folder, label, indices = _target(config, resume, shard_spec)
     recordings = folder / RECORDINGS_DIR
-    spec = replace(spec, recordings=str(recordings.resolve()), title=label)
+    sources = spec.scenes
+    spec = replace(spec, scenes=tuple(s.in_dataset() for s in sources), recordings=str(recordings.resolve()),
+                   title=label)
     started, tally = time.perf_counter(), _Tally()
     again = "the same command plus --resume" + (" (shards always continue)" if shard_spec else "")
     with VersionLock(folder):
         try:
             with _open_writer(folder, spec, shard_spec, indices) as writer:
+                copy_meshes(sources, folder)
+                spec = replace(spec, scenes=tuple(s.under(folder) for s in spec.scenes))
                 todo = [int(i) for i in writer.pending() if i in indices]
                 try:
                     if todo:
-                        _run_trials(spec, todo, writer, tally, progress)
+                        _run_trials(spec, todo, writer, tally, progress, started)
                 except KeyboardInterrupt:
                     print(f"interrupted: {tally.written} trials written this run to {folder}; continue with "
                           f"{again}", file=sys.stderr)
@@ -340,10 +335,11 @@ def simulate(config: SimulateConfig, *, resume: bool = False, shard: str | None 
                              f"data are not in {DATA_FILE}; they are pending again: run {again}")
         wall = time.perf_counter() - started
         totals = summarize(folder / DATA_FILE, indices)
-        summary = {"dataset": str(folder), "recordings": str(recordings), "complete": totals["pending"] == 0,
+        summary = {"dataset": str(folder), "recordings": str(recordings), "config_file": config.config_file,
+                   "complete": totals["pending"] == 0,
                    **totals, "written_now": tally.written, "duplicates_skipped": tally.duplicates,
                    "wall_seconds": round(wall, 1), "write_seconds": round(tally.write_seconds, 3),
-                   "trials_per_hour_now": round(tally.written / wall * 3600, 1) if tally.written else None}
+                   "trials_per_hour_now": _rounded(trials_per_hour(tally.written, tally.last_written_at - started))}
         if summary["complete"] and shard_spec is None:
             write_manifest(folder, summary)
     return summary
@@ -352,8 +348,9 @@ def simulate(config: SimulateConfig, *, resume: bool = False, shard: str | None 
 def run_stage(config_path: str | Path | None, n: int | None = None, scenes: str | None = None,
               name: str | None = None, workers: int | None = None,
               record_every: int | None = None) -> dict[str, Any]:
-    """Workflow stage ``simulate``: a new version; summary with the dataset and recordings folders."""
+    """Workflow stage ``simulate``: a new version; summary with the dataset and recordings folders.
+    Progress on stderr (a bar on a terminal, plain lines in a log)."""
     config = load_simulate_config(config_path, {
         "trials": n, "scenes": {"folder": scenes}, "dataset": {"name": name},
         "cluster": {"workers": workers, "record_every": record_every}})
-    return simulate(config, progress=False)
+    return simulate(config)

@@ -1,0 +1,59 @@
+"""The project a command works in: its root folder, its config files and its datasets folder.
+
+The project root is, in order: ``$PIPELINE_HOME``; the project of the config file in use (the
+folder above its ``configs/`` folder, or the file's own folder); the nearest folder at or above
+the working directory that holds ``configs/``; the working directory. Relative paths in a config
+file (datasets, meshes, whisk tables) are taken against the project root, so a command gives the
+same result from any directory. A config file is found as ``<root>/configs/<name>`` only: no
+other file is ever used in its place.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+HOME_ENV = "PIPELINE_HOME"
+CONFIGS_DIR = "configs"
+DATASETS_DIR = Path("outputs/datasets")
+
+
+def _home_from_env() -> Path | None:
+    value = os.environ.get(HOME_ENV, "").strip()
+    return Path(value).expanduser().absolute() if value else None
+
+
+def _enclosing_project(start: Path) -> Path | None:
+    """The nearest folder at or above ``start`` holding a ``configs/`` folder."""
+    for folder in (start, *start.parents):
+        if (folder / CONFIGS_DIR).is_dir():
+            return folder
+    return None
+
+
+def project_root(config_file: Path | None = None) -> Path:
+    """The project root (see the module docstring), absolute."""
+    home = _home_from_env()
+    if home is not None:
+        return home
+    if config_file is not None:
+        folder = Path(config_file).absolute().parent
+        return folder.parent if folder.name == CONFIGS_DIR else folder
+    cwd = Path.cwd()
+    return _enclosing_project(cwd) or cwd
+
+
+def find_config(name: str) -> Path | None:
+    """``<project root>/configs/<name>`` if that file exists."""
+    path = project_root() / CONFIGS_DIR / name
+    return path if path.is_file() else None
+
+
+def datasets_root(root: Path | None = None) -> Path:
+    """``root`` (``--root``) if given, else the project's ``outputs/datasets``."""
+    return Path(root) if root is not None else project_root() / DATASETS_DIR
+
+
+def in_project(path: Path | None, root: Path) -> Path | None:
+    """``path`` taken against the project ``root`` if relative."""
+    return None if path is None else path if path.is_absolute() else root / path
