@@ -72,12 +72,13 @@ def test_linear_fit_matches_scipy():
 
 def test_first_negative_peak_is_the_shock_not_the_largest_lobe():
     """The paper's Ṁz,max: the first negative dip after contact, even when a later positive lobe
-    is larger; a dip before contact does not count."""
-    t = np.arange(-5, 30) * 1e-3
-    dmz = (-3.0 * np.exp(-((t + 2e-3) / 1e-3) ** 2) - 1.0 * np.exp(-((t - 3e-3) / 1e-3) ** 2)
+    is larger; a dip further before contact than the smoothing reaches does not count."""
+    t = np.arange(-10, 30) * 1e-3
+    dmz = (-3.0 * np.exp(-((t + 7e-3) / 1e-3) ** 2) - 1.0 * np.exp(-((t - 3e-3) / 1e-3) ** 2)
            + 5.0 * np.exp(-((t - 8e-3) / 1.5e-3) ** 2))
     time_ms, value = first_negative_peak(t, dmz)
     assert time_ms == pytest.approx(3.0) and value == pytest.approx(-1.0, rel=0.05)
+    assert first_negative_peak(t, np.roll(dmz, -5))[0] == pytest.approx(-2.0)     # smoothed ahead of contact
     assert np.isnan(first_negative_peak(t, np.abs(dmz) + 0.1)[0])
 
 
