@@ -102,9 +102,11 @@ def test_straight_vs_curved_keeps_the_curved_level_and_can_fail():
     and equal slopes are not called different; a curved slope half the straight one is."""
     weaker = straight_vs_curved(_shock_rows(0.35, 0.7e-3))
     assert weaker["ratio"] == pytest.approx(0.7, rel=0.03) and weaker["pairs_smaller"] == weaker["pairs"] == 24
+    assert weaker["smaller_p"] < 1e-4
     assert weaker["fits"]["curved"]["slope"] == pytest.approx(0.7 * weaker["fits"]["straight"]["slope"], rel=0.1)
     same = straight_vs_curved(_shock_rows(0.5, 1e-3))
     assert same["slopes_differ_p"] > 0.01 and same["ratio"] == pytest.approx(1.0, abs=0.02)
+    assert same["smaller_p"] > 0.05
     flatter = straight_vs_curved(_shock_rows(0.75, 0.5e-3))
     assert flatter["slopes_differ_p"] < 1e-3
 
