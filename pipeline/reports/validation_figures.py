@@ -123,8 +123,8 @@ def fig3_shock(section: Section, plt):
     ax.set_xlabel("curvature A (1/mm)")
     ax.set_ylabel("M_b, mean of 30 ms (N·m)")
     twin.set_ylabel("F_t, mean of 30 ms (N)")
-    ax.legend(loc="upper left", fontsize=7)
-    twin.legend(loc="upper right", fontsize=7)
+    ax.legend(loc="lower left", fontsize=6)
+    twin.legend(loc="center right", fontsize=6)
     return fig
 
 
