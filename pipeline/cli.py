@@ -478,7 +478,8 @@ def validate(
     for check in result["checks"]:
         verdict = {True: "agrees", False: "DIFFERS", None: ""}[check["agrees"]]
         typer.echo(f"{check['name']:>45}: published {number(check['published'])}, "
-                   f"ours {number(check['simulated'])}  {verdict}")
+                   f"ours {number(check['simulated'])}"
+                   f"{' (' + check['detail'] + ')' if check.get('detail') else ''}  {verdict}")
     typer.echo(f"{result['agree']} of {result['judged']} checks agree; {result['seconds']:.0f} s → "
                f"{result['report']}")
 # --- end reports ---

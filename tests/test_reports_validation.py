@@ -20,7 +20,8 @@ from pipeline.model.whisker import WhiskerGeometry, planar_modes
 from pipeline.reports import published as P
 from pipeline.reports.array_checks import slip_off
 from pipeline.reports.checks import Check, Section, linear_fit
-from pipeline.reports.collision_checks import front_arrival, front_points, front_speed
+from pipeline.reports.collision_checks import (first_negative_peak, front_arrival, front_points, front_speed,
+                                               normalised_peaks, straight_vs_curved, trend)
 from pipeline.reports.resonance_checks import array_resonance, table_1
 from pipeline.reports.validation import write_validation_report
 
@@ -67,6 +68,57 @@ def test_linear_fit_matches_scipy():
     assert fit["slope"] == pytest.approx(reference.slope) and fit["r2"] == pytest.approx(reference.rvalue ** 2)
     n = len(x)
     assert fit["adj_r2"] == pytest.approx(1 - (1 - reference.rvalue ** 2) * (n - 1) / (n - 2))
+
+
+def test_first_negative_peak_is_the_shock_not_the_largest_lobe():
+    """The paper's Ṁz,max: the first negative dip after contact, even when a later positive lobe
+    is larger; a dip further before contact than the smoothing reaches does not count."""
+    t = np.arange(-10, 30) * 1e-3
+    dmz = (-3.0 * np.exp(-((t + 7e-3) / 1e-3) ** 2) - 1.0 * np.exp(-((t - 3e-3) / 1e-3) ** 2)
+           + 5.0 * np.exp(-((t - 8e-3) / 1.5e-3) ** 2))
+    time_ms, value = first_negative_peak(t, dmz)
+    assert time_ms == pytest.approx(3.0) and value == pytest.approx(-1.0, rel=0.05)
+    assert first_negative_peak(t, np.roll(dmz, -5))[0] == pytest.approx(-2.0)     # smoothed ahead of contact
+    assert np.isnan(first_negative_peak(t, np.abs(dmz) + 0.1)[0])
+
+
+def _shock_rows(curved_level: float, curved_slope: float, noise: float = 0.01, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    rows = []
+    for whisker, scale in (("RC1", 1e-4), ("RD1", 3e-4)):
+        for speed in np.repeat([90.0, 180, 270, 360, 450, 540], 2):
+            straight = scale * (0.5 + 1e-3 * speed) * (1 + noise * rng.normal())
+            curved = scale * (curved_level + curved_slope * speed) * (1 + noise * rng.normal())
+            rows += [{"whisker": whisker, "shape": "straight", "speed_deg_s": speed, "shock_dmz_dt": -straight},
+                     {"whisker": whisker, "shape": "curved", "speed_deg_s": speed, "shock_dmz_dt": -curved}]
+    for row, value in zip(rows, normalised_peaks(rows)):
+        row["peak_normalised"] = value
+    return rows
+
+
+def test_straight_vs_curved_keeps_the_curved_level_and_can_fail():
+    """Both shapes are scaled by the straight mean: a curved whisker 30 % weaker with the same
+    relative slope shows its lower level (ratio 0.7, curved slope 0.7× straight) — no shared point —
+    and equal slopes are not called different; a curved slope half the straight one is."""
+    weaker = straight_vs_curved(_shock_rows(0.35, 0.7e-3))
+    assert weaker["ratio"] == pytest.approx(0.7, rel=0.03) and weaker["pairs_smaller"] == weaker["pairs"] == 24
+    assert weaker["smaller_p"] < 1e-4
+    assert weaker["fits"]["curved"]["slope"] == pytest.approx(0.7 * weaker["fits"]["straight"]["slope"], rel=0.1)
+    same = straight_vs_curved(_shock_rows(0.5, 1e-3))
+    assert same["slopes_differ_p"] > 0.01 and same["ratio"] == pytest.approx(1.0, abs=0.02)
+    assert same["smaller_p"] > 0.05
+    flatter = straight_vs_curved(_shock_rows(0.75, 0.5e-3))
+    assert flatter["slopes_differ_p"] < 1e-3
+
+
+def test_trend_check_needs_a_significant_negative_slope():
+    rng = np.random.default_rng(3)
+    x = np.linspace(0, 0.1, 24)
+    falling, fit = trend(x, 1.0 - 5 * x + rng.normal(0, 0.05, x.size), P.QS_BENDING_MOMENT_R2, "m", "M_b")
+    assert falling.agrees and falling.simulated == pytest.approx(fit["r2"]) and "p " in falling.detail
+    flat, fit = trend(x, 1.0 - 0.01 * x + rng.normal(0, 0.05, x.size), P.QS_BENDING_MOMENT_R2, "m", "M_b")
+    assert fit["p_value"] > 0.05 and flat.agrees is False
+    assert f"ours {flat.ours()}" in flat.line() and "slope" in flat.line()
 
 
 def test_slip_off_sees_the_poc_rise_at_the_end_of_a_contact():

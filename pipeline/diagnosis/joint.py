@@ -58,8 +58,9 @@ def held_out_errors(table, spec: ModelSpec) -> dict:
 
 
 def calibrate_sets(tables, names=("E", "zeta"), material: MaterialConfig | None = None,
-                   hold_out: bool = True) -> dict:
-    """Fit ``names`` jointly to ``tables`` (records in ``HELD_OUT`` kept out when ``hold_out``)."""
+                   hold_out: bool = True, extensions=()) -> dict:
+    """Fit ``names`` jointly to ``tables`` (records in ``HELD_OUT`` kept out when ``hold_out``);
+    ``extensions``: model extensions present at their given values (fixed unless named)."""
     from pipeline.diagnosis.threads import single_threaded_blas
 
     material = material or MaterialConfig()
@@ -67,7 +68,7 @@ def calibrate_sets(tables, names=("E", "zeta"), material: MaterialConfig | None 
     with single_threaded_blas():
         objective = TableObjective(fitted)
         sd, assumed = log_sd_with_defaults(objective)
-        start = matched_start(objective, ModelSpec(material), names=names)
+        start = matched_start(objective, ModelSpec(material, tuple(extensions)), names=names)
         result = fit(objective, start, tuple(names), sigma=sd, max_iterations=MAX_ITERATIONS)
         sets = _per_set(objective, result.spec, sd)
         chi2 = float(np.sum(result.residuals ** 2))

@@ -27,18 +27,22 @@ class Check:
     published_sd: float | None = None
     also_published: dict | None = None
     source: str = ""
+    detail: str = ""          # what stands beside ours (e.g. slope and p of a sign check)
+
+    def ours(self) -> str:
+        return number(self.simulated) + (f" ({self.detail})" if self.detail else "")
 
     def line(self) -> str:
         published = number(self.published)
         if self.published_sd is not None:
             published += f" ± {number(self.published_sd)}"
-        return f"{self.label}: published {published}, ours {number(self.simulated)}"
+        return f"{self.label}: published {published}, ours {self.ours()}"
 
     def as_dict(self) -> dict:
         return jsonable({"name": self.name, "label": self.label, "published": self.published,
                          "published_sd": self.published_sd, "also_published": self.also_published,
-                         "simulated": self.simulated, "agrees": self.agrees, "criterion": self.criterion,
-                         "source": self.source})
+                         "simulated": self.simulated, "detail": self.detail, "agrees": self.agrees,
+                         "criterion": self.criterion, "source": self.source})
 
 
 @dataclass

@@ -6,6 +6,13 @@ paper's Fig. 4C: F_z and M_y) by PROBE_DISPLACEMENT_M; the trial starts from tha
 deflection (the chain's exact statics with a point force at the probe, gravity included when
 on, :func:`pipeline.diagnosis.fastsim.release_state`) and the whisker is let go at t = 0.
 The displacement is small (0.5 mm at the probe, ≈ 3 % of the length there): linear regime.
+
+The probe sets the start, whatever the follicle: a compliant follicle lets the whisker turn
+instead of bend, and even a follicle without stiffness starts the tip at ≈ the probe's
+displacement / PROBE_FRACTION, so the rigid / compliant tip ratio of this protocol is bounded by
+the rigid whisker's static tip over that (``tip_ratio_bound`` in the summary, ≈ 1.4 for RB1).
+The paper's ≈ 10 compares its rigid model with tracked in-vivo tips after manual deflections,
+which no shipped data reproduce.
 """
 
 from __future__ import annotations
@@ -22,6 +29,7 @@ from pipeline.model.morphology import load_morphology
 from pipeline.model.whisker import WhiskerGeometry
 from pipeline.reports import published as P
 from pipeline.reports.checks import Section, check, with_follicle
+from pipeline.reports.document import number
 from pipeline.scenes import empty
 
 WHISKER = "RB1"
@@ -81,11 +89,13 @@ def follicle_section(config: ModelConfig, progress: Callable[[str], None] = lamb
                 for kind, r in runs.items()}
     ratio = {key: measures["rigid"][key] / measures["compliant"][key]
              for key in ("tip_rms_m", "fz_peak_n", "my_peak_nm")}
+    bound = measures["rigid"]["static_tip_z_m"] / (PROBE_DISPLACEMENT_M / PROBE_FRACTION)
     reduce = P.COMPLIANT_REDUCES_BASE.value
     checks = [
         check("tip_rms_rigid_over_compliant", "tip deflection RMS, rigid / compliant", P.RIGID_OVER_IN_VIVO_TIP,
               ratio["tip_rms_m"], ratio["tip_rms_m"] >= P.RIGID_OVER_IN_VIVO_TIP.value / 2,
-              "≥ 5 (the compliant fit matches in vivo)"),
+              "≥ 5 (the compliant fit matches in vivo)",
+              detail=f"at most ≈ {number(bound, 2)} when the probe sets the start"),
         check("fz_peak_rigid_over_compliant", "peak |F_z|, rigid / compliant", P.COMPLIANT_REDUCES_BASE,
               ratio["fz_peak_n"], ratio["fz_peak_n"] >= reduce, f"≥ {reduce:g}"),
         check("my_peak_rigid_over_compliant", "peak |M_y|, rigid / compliant", P.COMPLIANT_REDUCES_BASE,
@@ -94,7 +104,7 @@ def follicle_section(config: ModelConfig, progress: Callable[[str], None] = lamb
               "needs in-vivo release recordings (none shipped)"),
     ]
     summary = {"whisker": WHISKER, "probe_fraction": PROBE_FRACTION, "probe_displacement_m": PROBE_DISPLACEMENT_M,
-               "after_release_s": AFTER_RELEASE_S,
+               "after_release_s": AFTER_RELEASE_S, "tip_ratio_bound": bound,
                "compliant_follicle": compliant.model_dump(), "measures": measures, "rigid_over_compliant": ratio}
     caption = (f"Fig. 4: the {WHISKER} whisker released from a probe at {PROBE_FRACTION:.0%} of its length "
                f"displaced {PROBE_DISPLACEMENT_M * 1e3:g} mm vertically (static tip deflection "
@@ -102,5 +112,8 @@ def follicle_section(config: ModelConfig, progress: Callable[[str], None] = lamb
                f"{measures['compliant']['static_tip_z_m'] * 1e3:.2f} mm compliant), rigid vs compliant follicle "
                f"(k_f = {compliant.stiffness_nm_per_rad:g} N·m/rad, c_f = {compliant.damping_nms_per_rad:g} N·m·s/rad): "
                f"tip deflection and base F_z, M_y over the first {AFTER_RELEASE_S * 1e3:g} ms. "
+               "The probe sets where the tip starts: a whisker turning freely in its follicle starts it at "
+               f"≈ {PROBE_DISPLACEMENT_M / PROBE_FRACTION * 1e3:.2f} mm, so this protocol's tip ratio is at most "
+               f"≈ {bound:.2f}; the paper's ≈ 10 compares tracked in-vivo tips. "
                "The paper's fitted k_f, c_f are not published.")
     return Section("fig4", "Fig. 4: rigid vs compliant follicle", checks, summary, {"runs": runs}, caption)

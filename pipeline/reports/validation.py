@@ -130,7 +130,7 @@ def write_validation_report(sections: list[Section], config: ModelConfig, out: s
                   f"({len(checks) - len(judged)} reported without a verdict).")
     doc.table(["section", "check", "published", "ours", "agrees", "criterion"],
               [[s.name, c.label, number(c.published) + (f" ± {number(c.published_sd)}" if c.published_sd else ""),
-                number(c.simulated), {True: "yes", False: "**no**", None: "–"}[c.agrees], c.criterion]
+                c.ours(), {True: "yes", False: "**no**", None: "–"}[c.agrees], c.criterion]
                for s, c in checks])
     for section in sections:
         doc.heading(section.title)

@@ -72,7 +72,8 @@ def fig2(section: Section, plt):
     axes[0].legend(fontsize=7)
     axes[1].axhline(0, color="k")
     for edge in (-s["band"], s["band"]):
-        axes[1].axhline(edge, color="k", ls="--", lw=0.7, label=f"±{s['band']:.0%} band" if edge > 0 else None)
+        axes[1].axhline(edge, color="k", ls="--", lw=0.7,
+                        label=f"±{s['band']:.0%} band: outside = off the published fit by more" if edge > 0 else None)
     axes[1].axvline(15, color="grey", ls=":", label="15 mm: shorter whiskers may fall outside")
     axes[1].legend(fontsize=7)
     axes[1].set_xlabel("arc length S (mm)")
@@ -89,7 +90,11 @@ def fig3_shock(section: Section, plt):
     for ax, shape in zip(axes[:2], ("straight", "curved")):
         for j, speed in enumerate(speeds):
             t, dmz = section.series["traces"][(shape, speed)]
-            ax.plot(t * 1e3, dmz, color=cmap(j / max(len(speeds) - 1, 1)), label=f"{speed:g} °/s")
+            colour = cmap(j / max(len(speeds) - 1, 1))
+            ax.plot(t * 1e3, dmz, color=colour, label=f"{speed:g} °/s")
+            run = next(r for r in s["runs"] if (r["whisker"], r["shape"], r["speed_deg_s"]) ==
+                       (s["trace_whisker"], shape, speed))
+            ax.plot(run["shock_ms"], run["shock_dmz_dt"], "v", color=colour, ms=6)
         ax.axvline(0, color="k", lw=0.8)
         ax.set_xlabel("time from contact (ms)")
         ax.set_ylabel("dMz/dt (N·m/s)")
@@ -103,19 +108,23 @@ def fig3_shock(section: Section, plt):
         x = np.array([min(speeds), max(speeds)])
         axes[2].plot(x, fit["slope"] * x + fit["intercept"], color=colour)
     axes[2].set_xlabel("speed (°/s)")
-    axes[2].set_ylabel("normalised |dMz/dt| peak")
+    axes[2].set_ylabel("|Ṁz,max| / straight mean")
     axes[2].legend(fontsize=7)
     ax = axes[3]
     curvature = [r["curvature_per_mm"] for r in s["runs"]]
-    ax.scatter(curvature, [r["bending_moment_qs"] for r in s["runs"]], s=14, label="M_b (N·m)")
     twin = ax.twinx()
-    twin.scatter(curvature, [r["transverse_force_qs"] for r in s["runs"]], s=14, color="tab:orange",
-                 marker="^", label="F_t (N)")
+    x = np.array([min(curvature), max(curvature)])
+    for axis, key, colour, marker, name in ((ax, "bending_moment_qs", "tab:blue", "o", "M_b (N·m)"),
+                                            (twin, "transverse_force_qs", "tab:orange", "^", "F_t (N)")):
+        fit = s["quasi_static_vs_curvature"][key]
+        axis.scatter(curvature, [r[key] for r in s["runs"]], s=14, color=colour, marker=marker,
+                     label=f"{name}: r² {fit['r2']:.3f}, p {fit['p_value']:.2g}")
+        axis.plot(x, fit["slope"] * x + fit["intercept"], color=colour, lw=0.8)
     ax.set_xlabel("curvature A (1/mm)")
     ax.set_ylabel("M_b, mean of 30 ms (N·m)")
     twin.set_ylabel("F_t, mean of 30 ms (N)")
-    ax.legend(loc="upper left", fontsize=7)
-    twin.legend(loc="upper right", fontsize=7)
+    ax.legend(loc="lower left", fontsize=6)
+    twin.legend(loc="center right", fontsize=6)
     return fig
 
 
