@@ -97,10 +97,13 @@ class MaterialConfig(StrictModel):
     _preset = model_validator(mode="before")(_apply_preset)
 
 
+EngineName = Literal["bullet", "mujoco"]     # the physics engines (pipeline/engines)
+
+
 class EngineConfig(StrictModel):
     """Which engine and how it steps. Outputs are always sampled at ``output_rate_hz``."""
 
-    name: Literal["bullet", "mujoco"] = "bullet"
+    name: EngineName = "bullet"
     dt_s: float = Field(1e-4, gt=1e-7, le=1e-3,
                         description="integration step of the longest whiskers (the coarsest step), s")
     f1_tolerance: float = Field(0.01, ge=0, le=0.2,

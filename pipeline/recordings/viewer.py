@@ -219,19 +219,19 @@ def wait_listening(viewer: ViewerProcess, port: int, timeout_s: float = 15.0) ->
 
 
 def view(path: Path, web: bool = False, port: int | None = None,
-         echo: Callable[[str], None] = print) -> int:
-    """Show ``path`` until the viewer is closed or Ctrl-C / SIGTERM; always stops the viewer."""
+         announce: Callable[[dict], None] = print) -> int:
+    """Show ``path`` until the viewer is closed or Ctrl-C / SIGTERM; always stops the viewer.
+    ``announce`` gets {file, url (web only, else None), host, ports} once the viewer is up."""
     check_recording(path)
     viewer = start_viewer(path, web=web, port=port)
     previous = signal.signal(signal.SIGTERM, _raise_interrupt)
     try:
+        where = {"file": str(path), "url": None, "host": HOST, "ports": []}
         if web:
-            wait_listening(viewer, DEFAULT_WEB_PORT if port is None else port)
             web_port = DEFAULT_WEB_PORT if port is None else port
-            echo(f"web viewer: {viewer.url}\n(serving on {HOST} ports {web_port} and {web_port + 1}; "
-                 "Ctrl-C to stop)")
-        else:
-            echo(f"viewing {path}  (close the window or Ctrl-C to stop)")
+            wait_listening(viewer, web_port)
+            where.update(url=viewer.url, ports=[web_port, web_port + 1])
+        announce(where)
         return viewer.process.wait()
     finally:
         viewer.stop()
