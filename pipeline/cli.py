@@ -43,13 +43,13 @@ def _root(debug: bool = typer.Option(False, "--debug", help="Show tracebacks of 
 _JSON = typer.Option(False, "--json", help="Print the result as JSON (numbers in SI units, as the key "
                                            "names say; no progress output).")
 _ENGINE = typer.Option(None, "--engine", show_default=False,
-                       help="Physics engine. [default: config model.engine.name, else bullet]")
+                       help="Physics engine. \\[default: config model.engine.name, else bullet]")
 _CONFIG = typer.Option(None, "--config", show_default=False,
-                       help="Model config YAML. [default: configs/model.yaml if present]")
+                       help="Model config YAML. \\[default: configs/model.yaml if present]")
 _MODEL_FILE = typer.Option(None, "--model", show_default=False,
                            help="Fitted model file (docs/model_file.md), e.g. from calibrate --save-model.")
 _PRESET = typer.Option(None, "--preset", show_default=False,
-                       help="Material preset to start from (untrimmed or trimmed). [default: config]")
+                       help="Material preset to start from (untrimmed or trimmed). \\[default: config]")
 
 
 @app.command()
@@ -99,7 +99,7 @@ def view(target: str = typer.Argument(..., help="An .rrd file, or a dataset NAME
          web: bool = typer.Option(False, "--web", help="Serve a web viewer on 127.0.0.1 and print its URL."),
          port: Optional[int] = typer.Option(None, "--port", show_default=False, min=1, max=65534,
                                             help="Web page port (data on port+1) or the native viewer's "
-                                                 "server port. [default: 9090]"),
+                                                 "server port. \\[default: 9090]"),
          json_output: bool = _JSON) -> None:
     """Open a trial's rerun recording in the viewer; stops the viewer on exit."""
     from pipeline.recordings.viewer import resolve_target, view as open_viewer
@@ -207,7 +207,7 @@ def trial(
     duration_s: float = typer.Option(0.25, "--duration-s", help="Duration, s."),
     pose: Optional[str] = typer.Option(None, "--pose", show_default=False,
                                        help="Head pose x,y,z (mm),yaw,pitch,roll (deg; docs/frames.md). "
-                                            "[default: 0,0,0,0,0,0]"),
+                                            "\\[default: 0,0,0,0,0,0]"),
     out: Optional[Path] = typer.Option(None, "--out", help="Write the trial as a one-trial dataset (HDF5)."),
     engine: Optional[EngineName] = _ENGINE,
     config: Optional[Path] = _CONFIG,
@@ -249,7 +249,8 @@ def trial(
 def build_meshes(
     scans: Path = typer.Option(Path("scans"), "--scans", help="Folder of .ply .pcd .xyz .pts scans."),
     out: Path = typer.Option(Path("outputs/meshes"), "--out", help="Folder for <name>.obj and manifest.json."),
-    config: Optional[Path] = typer.Option(None, "--config", help="Mesh config YAML (default configs/meshes.yaml)."),
+    config: Optional[Path] = typer.Option(None, "--config", show_default=False,
+                                          help="Mesh config YAML. \\[default: configs/meshes.yaml]"),
     force: bool = typer.Option(False, "--force", help="Rebuild scans even if unchanged."),
     json_output: bool = _JSON,
 ) -> None:
@@ -286,15 +287,22 @@ def _next_for_dataset(target: str) -> list[str]:
 
 @app.command()
 def simulate(
-    n: Optional[int] = typer.Option(None, "--n", help="Trials in the run (config: trials)."),
-    scenes: Optional[Path] = typer.Option(None, "--scenes", help="Folder of meshes from build-meshes "
-                                                                 "(config: scenes.folder, default outputs/meshes)."),
-    config: Optional[Path] = typer.Option(None, "--config", help="Run config YAML (default configs/simulate.yaml)."),
-    name: Optional[str] = typer.Option(None, "--name", help="Dataset name (config: dataset.name)."),
-    workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (0: one per core)."),
+    n: Optional[int] = typer.Option(None, "--n", show_default=False,
+                                    help="Trials in the run. \\[default: config trials]"),
+    scenes: Optional[Path] = typer.Option(None, "--scenes", show_default=False,
+                                          help="Folder of meshes from build-meshes. \\[default: config "
+                                               "scenes.folder, else outputs/meshes]"),
+    config: Optional[Path] = typer.Option(None, "--config", show_default=False,
+                                          help="Run config YAML. \\[default: configs/simulate.yaml]"),
+    name: Optional[str] = typer.Option(None, "--name", show_default=False,
+                                       help="Dataset name. \\[default: config dataset.name]"),
+    workers: Optional[int] = typer.Option(None, "--workers", show_default=False,
+                                          help="Local worker processes (0: one per core). \\[default: config "
+                                               "cluster.workers]"),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Existing dask scheduler, tcp://HOST:PORT."),
-    record_every: Optional[int] = typer.Option(None, "--record-every", help="Rerun recording of every K-th trial "
-                                                                            "(0: none)."),
+    record_every: Optional[int] = typer.Option(None, "--record-every", show_default=False,
+                                               help="Rerun recording of every K-th trial (0: none). "
+                                                    "\\[default: config cluster.record_every]"),
     resume: bool = typer.Option(False, "--resume", help="Write the missing trials of the unfinished newest "
                                                         "version (same config)."),
     shard: Optional[str] = typer.Option(None, "--shard", help="Run block i of N (i/N, 1-based) without a "
@@ -380,8 +388,8 @@ def datasets_join(name: str = typer.Argument(..., help="Dataset name whose shard
 # --- reports: `pipeline stats`, `pipeline validate` (issue 7) ---
 @app.command()
 def stats(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a version folder or a data file."),
-          out: Optional[Path] = typer.Option(None, "--out", help="Report folder (default "
-                                                                 "reports/stats/<name>_v<k>/)."),
+          out: Optional[Path] = typer.Option(None, "--out", show_default=False,
+                                             help="Report folder. \\[default: reports/stats/<name>_v<k>/]"),
           root: Path = typer.Option(Path("outputs/datasets"), "--root", help="Datasets folder."),
           json_output: bool = _JSON) -> None:
     """Natural tactile statistics of a dataset's ok trials (read one at a time): report.md, PNGs, stats.json."""
@@ -405,9 +413,10 @@ def validate(
     refit: bool = typer.Option(False, "--refit", help="Refit E and ζ on Table 1 first (~100 s more)."),
     follicle: Optional[str] = typer.Option(None, "--follicle", help="The model's follicle, 'rigid' or 'K,C' "
                                                                     "(N·m/rad, N·m·s/rad); Fig. 4 compares rigid "
-                                                                    "with K,C (default constants if rigid)."),
-    mesh: Optional[Path] = typer.Option(None, "--mesh", help="Natural scene of Fig. 5 (mesh in metres; default "
-                                                             "outputs/meshes/drainpipe.obj)."),
+                                                                    "with K,C (the default K,C if rigid)."),
+    mesh: Optional[Path] = typer.Option(None, "--mesh", show_default=False,
+                                        help="Natural scene of Fig. 5 (mesh in metres). "
+                                             "\\[default: outputs/meshes/drainpipe.obj]"),
     config: Optional[Path] = _CONFIG,
     model_file: Optional[Path] = _MODEL_FILE,
     json_output: bool = _JSON,
@@ -445,7 +454,7 @@ def calibrate(
     grid_points: Optional[int] = typer.Option(None, "--grid-points", min=2, help="Grid values per parameter."),
     bootstrap: int = typer.Option(0, "--bootstrap", min=0, help="Bootstrap refits over trials for the sd."),
     engine: Optional[EngineName] = typer.Option(None, "--engine", show_default=False,
-                                                help="Check and refine the fit on this engine. [default: none]"),
+                                                help="Check and refine the fit on this engine. \\[default: none]"),
     config: Optional[Path] = _CONFIG,
     save_model: Optional[Path] = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md)."),
     preset: Optional[str] = _PRESET,
@@ -480,7 +489,7 @@ def diagnose(
     library: bool = typer.Option(False, "--library", help="Diagnose the shipped measurement library's resonance tables combined."),
     report: Optional[Path] = typer.Option(None, "--report", help="Write report.md and PNG figures here."),
     engine: Optional[EngineName] = typer.Option(None, "--engine", show_default=False,
-                                                help="Check and refine the result on this engine. [default: none]"),
+                                                help="Check and refine the result on this engine. \\[default: none]"),
     candidates: Optional[str] = typer.Option(None, "--candidates", help="Only these extensions (comma-separated)."),
     config: Optional[Path] = _CONFIG,
     save_model: Optional[Path] = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md)."),

@@ -5,7 +5,8 @@ A target is an ``.rrd`` file or a dataset ``NAME[/vK]`` whose version folder hol
 
 The ``rerun`` command is a Python wrapper that starts the viewer binary as a child; killing the
 wrapper alone leaves the viewer running, so it is started in its own process group and the
-whole group is stopped on exit.
+whole group is stopped on exit (rerun's own ``rr.spawn`` returns no handle to stop the viewer it
+starts); psutil tells when no live process of the group is left.
 """
 
 from __future__ import annotations
@@ -148,26 +149,16 @@ class ViewerProcess:
 
 
 def _group_has_live_process(pgid: int) -> bool:
-    proc = Path("/proc")
-    if not proc.is_dir():                         # not Linux: ask the kernel (counts zombies)
+    """Any process of group ``pgid`` that is not a zombie (psutil's process table)."""
+    import psutil
+
+    for proc in psutil.process_iter(["status"]):
         try:
-            os.killpg(pgid, 0)
-        except ProcessLookupError:
-            return False
-        except PermissionError:
-            pass
-        return True
-    for entry in proc.iterdir():
-        if not entry.name.isdigit():
+            if os.getpgid(proc.pid) == pgid and proc.info["status"] not in (psutil.STATUS_ZOMBIE,
+                                                                            psutil.STATUS_DEAD):
+                return True
+        except (ProcessLookupError, PermissionError):         # gone, or not ours to look at
             continue
-        try:
-            stat = (entry / "stat").read_text()
-        except OSError:
-            continue
-        # pid (comm) state ppid pgrp ...; comm may contain spaces and parentheses
-        fields = stat[stat.rindex(")") + 2:].split()
-        if int(fields[2]) == pgid and fields[0] not in "ZX":
-            return True
     return False
 
 
