@@ -22,7 +22,7 @@ UNIT_SUFFIXES: dict[str, tuple[str, bool]] = {
     "_rad": ("rad", False), "_deg": ("°", False), "_per_hour": ("/h", False),
 }
 _PREFIXES = ((1e9, "G"), (1e6, "M"), (1e3, "k"), (1.0, ""), (1e-3, "m"), (1e-6, "µ"), (1e-9, "n"), (1e-12, "p"))
-# unit suffixes dropped from a label; "seconds" stays part of e.g. "cpu seconds per trial"
+# unit suffixes dropped from a label ("seconds" becomes "time")
 _LABEL_SUFFIXES = tuple(s for s in UNIT_SUFFIXES if s.startswith("_") and s != "_per_hour")
 
 
@@ -66,13 +66,17 @@ def quantity(value: float, unit: str, prefixed: bool = True) -> str:
 
 
 def unit_of(key: str) -> tuple[str, bool] | None:
-    """(unit symbol, SI prefixes apply) of a summary key, from its suffix; None if unitless."""
+    """(unit symbol, SI prefixes apply) of a summary key, from its suffix (or "seconds" within
+    it, as in ``cpu_seconds_per_trial``); None if unitless."""
+    if "_seconds_" in key:
+        return UNIT_SUFFIXES["seconds"]
     matches = [s for s in UNIT_SUFFIXES if key.endswith(s)]
     return UNIT_SUFFIXES[max(matches, key=len)] if matches else None
 
 
 def label(key: str) -> str:
-    """A summary key as a label: ``cpu_seconds_per_trial`` → "cpu seconds per trial"."""
+    """A summary key as a label: ``cpu_seconds_per_trial`` → "cpu time per trial"."""
+    key = key.replace("seconds", "time")
     for suffix in sorted(_LABEL_SUFFIXES, key=len, reverse=True):
         if key.endswith(suffix):
             key = key[: -len(suffix)]
@@ -103,7 +107,9 @@ def summary_table(summary: Mapping[str, Any], title: str, *, skip: Iterable[str]
     from rich.table import Table
 
     skipped = set(skip)
-    table = Table("quantity", "value", title=title, title_justify="left")
+    table = Table(title=title, title_justify="left")
+    table.add_column("quantity")
+    table.add_column("value", overflow="fold")
     for key, value in summary.items():
         if key not in skipped:
             table.add_row(label(key), value_text(key, value))
@@ -111,17 +117,22 @@ def summary_table(summary: Mapping[str, Any], title: str, *, skip: Iterable[str]
 
 
 def rows_table(rows: list[Mapping[str, Any]], columns: Iterable[str], title: str, no_wrap: Iterable[str] = ()):
-    """A rich table with one row per dict; headers are labels with the unit in brackets."""
+    """A rich table with one row per dict; headers are labels with the unit in brackets. Columns
+    in ``no_wrap`` (and every column whose cells are short) keep their full width, even beyond a
+    narrow terminal: a timestamp or a name is never cut."""
     from rich.table import Table
 
     columns, keep = list(columns), set(no_wrap)
+    cells = [[_cell(key, row.get(key)) for key in columns] for row in rows]
     table = Table(title=title, title_justify="left")
-    for key in columns:
+    for i, key in enumerate(columns):
         unit = unit_of(key)
-        table.add_column(label(key) + (f" [{unit[0]}]" if unit and not unit[1] else ""),
-                         no_wrap=key in keep, overflow="fold" if key not in keep else "ignore")
-    for row in rows:
-        table.add_row(*(_cell(key, row.get(key)) for key in columns))
+        header = label(key) + (f" [{unit[0]}]" if unit and not unit[1] else "")
+        width = max([len(header)] + [len(row[i]) for row in cells])
+        whole = key in keep or width <= 12
+        table.add_column(header, no_wrap=whole, min_width=width if whole else None, overflow="fold")
+    for row in cells:
+        table.add_row(*row)
     return table
 
 
@@ -139,6 +150,10 @@ def show(*renderables: Any, next_steps: Iterable[str] = ()) -> None:
 
     console = Console()
     for item in renderables:
-        console.print(item, markup=False, highlight=False) if isinstance(item, str) else console.print(item)
+        if isinstance(item, str):
+            console.print(item, markup=False, highlight=False)
+            continue
+        needed = console.measure(item, options=console.options.update_width(10_000)).minimum
+        (console if needed <= console.width else Console(width=needed)).print(item)   # never cut a cell
     for step in next_steps:
         console.print(f"[bold]next:[/bold] {escape(step)}", highlight=False, soft_wrap=True)
