@@ -69,10 +69,8 @@ def info(json_output: bool = _JSON,
     versions = Table("package", "version", title="whisker-pipeline environment", title_justify="left")
     for name, version in data["versions"].items():
         versions.add_row(name, str(version))
-    configs_table = Table("config", "resolved values", title=f"configuration ({configs}/)", title_justify="left")
-    for name, config in data["configs"].items():
-        configs_table.add_row(name, Pretty(config))
-    console.show(versions, configs_table, next_steps=["pipeline run workflows/natural.yaml  (what `make demo` runs)"])
+    resolved = [part for name, config in data["configs"].items() for part in (f"{configs}/{name}:", Pretty(config))]
+    console.show(versions, *resolved, next_steps=["pipeline run workflows/natural.yaml  (what `make demo` runs)"])
 
 
 @app.command()
@@ -88,7 +86,9 @@ def run(workflow: Path = typer.Argument(..., help="Workflow YAML, e.g. workflows
         return
     tables = [console.summary_table(stage["summary"] or {}, f"{stage['stage']}: {stage['status']}")
               for stage in stages]
-    console.show(*tables, next_steps=["pipeline datasets list", "pipeline stats NAME  (statistics of a dataset)"])
+    datasets = [stage["summary"]["dataset"] for stage in stages if "dataset" in (stage["summary"] or {})]
+    console.show(*tables, next_steps=_next_for_dataset(_dataset_label(datasets[-1])) if datasets
+                 else ["pipeline datasets list"])
 
 
 # --- recordings: `pipeline view` (issue 5) ---

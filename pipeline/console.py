@@ -107,7 +107,7 @@ def summary_table(summary: Mapping[str, Any], title: str, *, skip: Iterable[str]
     from rich.table import Table
 
     skipped = set(skip)
-    table = Table(title=title, title_justify="left")
+    table = Table(title=title, title_justify="left", min_width=len(title))
     table.add_column("quantity")
     table.add_column("value", overflow="fold")
     for key, value in summary.items():
@@ -124,13 +124,15 @@ def rows_table(rows: list[Mapping[str, Any]], columns: Iterable[str], title: str
 
     columns, keep = list(columns), set(no_wrap)
     cells = [[_cell(key, row.get(key)) for key in columns] for row in rows]
-    table = Table(title=title, title_justify="left")
+    table = Table(title=title, title_justify="left", min_width=1)
     for i, key in enumerate(columns):
         unit = unit_of(key)
         header = label(key) + (f" [{unit[0]}]" if unit and not unit[1] else "")
         width = max([len(header)] + [len(row[i]) for row in cells])
         whole = key in keep or width <= 12
         table.add_column(header, no_wrap=whole, min_width=width if whole else None, overflow="fold")
+        table.min_width += (width if whole else 8) + 3               # cell and its padding and rule
+    table.min_width = max(table.min_width, len(title))
     for row in cells:
         table.add_row(*row)
     return table
@@ -153,7 +155,7 @@ def show(*renderables: Any, next_steps: Iterable[str] = ()) -> None:
         if isinstance(item, str):
             console.print(item, markup=False, highlight=False)
             continue
-        needed = console.measure(item, options=console.options.update_width(10_000)).minimum
-        (console if needed <= console.width else Console(width=needed)).print(item)   # never cut a cell
+        needed = getattr(item, "min_width", None) or 0           # rows_table: what no cell is cut at
+        (console if needed <= console.width else Console(width=needed)).print(item)
     for step in next_steps:
         console.print(f"[bold]next:[/bold] {escape(step)}", highlight=False, soft_wrap=True)
