@@ -73,6 +73,13 @@ def test_head_angles_are_anatomical():
     assert pitch_up.rotation[:, 1][2] > 0.3                           # nose (+y) tilts up (+z)
     roll = Pose.anatomical(roll_rad=np.radians(20))
     assert np.allclose(roll.rotation[:, 1], [0, 1, 0])                # rolling keeps the nose direction
+    assert roll.rotation[:, 0][2] < -0.3                              # and lowers the right side (docs/frames.md)
+    yaw = Pose.anatomical(yaw_rad=np.radians(20))
+    assert yaw.rotation[:, 1][0] < -0.3 and np.allclose(yaw.rotation[:, 2], [0, 0, 1])   # nose to the left
+    # the CLI's --pose x,y,z,yaw,pitch,roll means the same angles
+    assert np.allclose(Pose.parse("0,0,0,0,20,0").rotation, pitch_up.rotation)
+    assert np.allclose(Pose.parse("0,0,0,0,0,20").rotation, roll.rotation)
+    assert np.allclose(Pose.parse("0,0,0,20,0,0").rotation, yaw.rotation)
 
 
 def test_no_acceptable_pose_reports_the_reasons():
