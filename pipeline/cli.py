@@ -527,12 +527,13 @@ def synth(
     from pipeline.diagnosis.commands import run_synth
 
     _writable_out(out, new_file=True)
-    data, lines = run_synth(config, out, seed, _model_path(model_file))
+    data = run_synth(config, out, seed, _model_path(model_file))
     if json_output:
         console.print_json(data)
         return
-    console.show("\n".join(lines), next_steps=[f"pipeline diagnose {out}  (does the diagnosis find the hidden "
-                                               "extensions?)", f"pipeline calibrate {out}"])
+    console.show(console.summary_table(data, "synthetic measurement"),
+                 next_steps=[f"pipeline diagnose {out}  (does the diagnosis find the hidden extensions?)",
+                             f"pipeline calibrate {out}"])
 # --- end measured data ---
 
 

@@ -1,6 +1,6 @@
 """One library function per command (``pipeline calibrate``, ``diagnose``, ``synth``): load the
-inputs, run, and return (JSON-ready result, human-readable lines). Non-finite numbers become
-``null`` in the JSON-ready result."""
+inputs, run, and return (JSON-ready result, human-readable lines; synth: its summary alone).
+Non-finite numbers become ``null`` in the JSON-ready result."""
 
 from __future__ import annotations
 
@@ -213,12 +213,11 @@ def _check_on_engine(data: dict, lines: list[str], model, objective, engine: str
     lines.append(f"  engine check: {data['engine']}")
 
 
-def run_synth(config: Path, out: Path, seed: int | None, model_file: str | None = None) -> tuple[dict, list[str]]:
+def run_synth(config: Path, out: Path, seed: int | None, model_file: str | None = None) -> dict:
+    """The summary of the synthetic measurement written to ``out`` (file, whisker, trials, samples, engine)."""
     from pipeline.diagnosis.synth import load_synth_config, synth
     from pipeline.diagnosis.threads import single_threaded_blas
 
     settings = load_synth_config(config, {"seed": seed, "model_file": model_file})
     with single_threaded_blas():
-        summary = synth(settings, out)
-    return summary, [f"{summary['file']}: {summary['trials']} trials, {summary['samples']} samples "
-                     f"({summary['engine']} engine)"]
+        return synth(settings, out)
