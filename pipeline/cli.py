@@ -19,7 +19,7 @@ import click
 import typer
 
 from pipeline import console
-from pipeline.config.physics import EngineName
+from pipeline.config.physics import EngineName, PresetName
 from pipeline.errors import SimulationError, UserError
 
 MAX_TRIAL_DURATION_S = 10.0      # as the model config's whisk.duration_s
@@ -49,7 +49,7 @@ _CONFIG = typer.Option(None, "--config", show_default=False,
 _MODEL_FILE = typer.Option(None, "--model", show_default=False,
                            help="Fitted model file (docs/model_file.md), e.g. from calibrate --save-model.")
 _PRESET = typer.Option(None, "--preset", show_default=False,
-                       help="Material preset to start from (untrimmed or trimmed). \\[default: config]")
+                       help="Material preset to start from. \\[default: config material.preset]")
 
 
 @app.command()
@@ -171,7 +171,7 @@ def resonance(
     engine: Optional[EngineName] = _ENGINE,
     dt_s: Optional[float] = typer.Option(None, "--dt-s", help="Integration step, s."),
     modes: int = typer.Option(1, "--modes", min=1, max=8, help="Report f1..fK and ζ1..ζK of this many modes."),
-    preset: Optional[str] = _PRESET,
+    preset: Optional[PresetName] = _PRESET,
     config: Optional[Path] = _CONFIG,
     model_file: Optional[Path] = _MODEL_FILE,
     json_output: bool = _JSON,
@@ -422,6 +422,7 @@ def validate(
     json_output: bool = _JSON,
 ) -> None:
     """Reproduce the paper's validation (Table 1, figures 2–5): report.md, PNGs, validation.json."""
+    from pipeline.reports.document import number
     from pipeline.reports.validation import validate as run_validation
 
     _writable_out(out)
@@ -433,8 +434,8 @@ def validate(
     if json_output:
         console.print_json(result)
         return
-    rows = [{**check, "verdict": {True: "agrees", False: "DIFFERS", None: ""}[check["agrees"]]}
-            for check in result["checks"]]
+    rows = [{**check, "published": number(check["published"]), "simulated": number(check["simulated"]),
+             "verdict": {True: "agrees", False: "DIFFERS", None: ""}[check["agrees"]]} for check in result["checks"]]
     console.show(console.rows_table(rows, ("name", "published", "simulated", "verdict"),
                                     f"validation against the paper: {result['agree']} of {result['judged']} "
                                     f"checks agree ({result['seconds']:.0f} s)"),
@@ -457,7 +458,7 @@ def calibrate(
                                                 help="Check and refine the fit on this engine. \\[default: none]"),
     config: Optional[Path] = _CONFIG,
     save_model: Optional[Path] = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md)."),
-    preset: Optional[str] = _PRESET,
+    preset: Optional[PresetName] = _PRESET,
     json_output: bool = _JSON,
 ) -> None:
     """Fit model parameters to measured data (median symmetric accuracy), with uncertainties;
@@ -493,7 +494,7 @@ def diagnose(
     candidates: Optional[str] = typer.Option(None, "--candidates", help="Only these extensions (comma-separated)."),
     config: Optional[Path] = _CONFIG,
     save_model: Optional[Path] = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md)."),
-    preset: Optional[str] = _PRESET,
+    preset: Optional[PresetName] = _PRESET,
     json_output: bool = _JSON,
 ) -> None:
     """What the model gets wrong on measured data, and which model extension explains it."""

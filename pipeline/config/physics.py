@@ -56,6 +56,9 @@ MATERIAL_PRESETS = {
 }
 
 
+PresetName = Literal["trimmed", "untrimmed"]     # the keys of MATERIAL_PRESETS
+
+
 def _apply_preset(data):
     """Fill the material fields a config leaves unset from its named preset."""
     if not isinstance(data, dict) or data.get("preset") is None:
@@ -74,7 +77,7 @@ def _apply_preset(data):
 class MaterialConfig(StrictModel):
     """Material and discretisation of every whisker (docs/model.md §2)."""
 
-    preset: Optional[Literal["trimmed", "untrimmed"]] = Field(
+    preset: Optional[PresetName] = Field(
         None, description="named defaults (MATERIAL_PRESETS) for the fields not set explicitly")
 
     # Defaults: the 'untrimmed' preset (MATERIAL_PRESETS), fitted on the measured untrimmed
