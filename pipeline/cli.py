@@ -480,8 +480,9 @@ def calibrate(
     if json_output:
         console.print_json(data)
         return
-    console.show("\n".join(lines), next_steps=[f"pipeline trial --model {save_model}" if save_model else
-                                               "add --save-model M.yaml to use the fit (pipeline trial --model M.yaml)"])
+    console.show(lines[0], console.parameters_table(data["params"], "fitted parameters"), "\n".join(lines[1:]),
+                 next_steps=[f"pipeline trial --model {save_model}" if save_model else
+                             "add --save-model M.yaml to use the fit (pipeline trial --model M.yaml)"])
 
 
 @app.command()
@@ -512,7 +513,8 @@ def diagnose(
         console.print_json(data)
         return
     steps = [f"pipeline trial --model {save_model}"] if save_model else []
-    console.show("\n".join(lines), next_steps=steps + ([] if report else ["add --report DIR for report.md and figures"]))
+    console.show(lines[0], console.parameters_table(data["params"], "parameters of the diagnosed model"),
+                 "\n".join(lines[1:]), next_steps=steps + ([] if report else ["add --report DIR for report.md and figures"]))
 
 
 @app.command()

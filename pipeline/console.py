@@ -53,16 +53,21 @@ def number(value: float, digits: int = 3) -> str:
     return f"{value:.{digits - 1}e}"
 
 
+def _prefix(value: float) -> tuple[float, str]:
+    """(factor, SI prefix) that puts ``value`` in [1, 1000); (1, "") for 0 or beyond the table."""
+    if math.isfinite(value) and value != 0:
+        for factor, prefix in _PREFIXES:
+            if abs(value) >= factor * 0.9995:
+                return factor, prefix
+    return 1.0, ""
+
+
 def quantity(value: float, unit: str, prefixed: bool = True) -> str:
     """``value`` (in ``unit``) rounded, with an SI prefix when ``prefixed``: 8.13e-6, "N·m" → "8.13 µN·m"."""
     if not math.isfinite(value):
         return "—"
-    if prefixed and value != 0:
-        for factor, prefix in _PREFIXES:
-            if abs(value) >= factor * 0.9995:
-                return f"{number(value / factor)} {prefix}{unit}"
-        return f"{number(value)} {unit}"
-    return f"{number(value)} {unit}"
+    factor, prefix = _prefix(value) if prefixed else (1.0, "")
+    return f"{number(value / factor)} {prefix}{unit}"
 
 
 def unit_of(key: str) -> tuple[str, bool] | None:
@@ -113,6 +118,21 @@ def summary_table(summary: Mapping[str, Any], title: str, *, skip: Iterable[str]
     for key, value in summary.items():
         if key not in skipped:
             table.add_row(label(key), value_text(key, value))
+    return table
+
+
+def parameters_table(params: Mapping[str, Mapping[str, Any]], title: str):
+    """A rich table of fitted parameters ``{name: {value, sd, unit}}`` (SI, unit "1" for none):
+    value and standard deviation rounded, with one SI prefix for both."""
+    from rich.table import Table
+
+    table = Table("parameter", "value", "± sd", "unit", title=title, title_justify="left")
+    for name, p in params.items():
+        value = p["value"]
+        sd = p["sd"] if p["sd"] is not None else math.nan
+        unit = "" if p["unit"] == "1" else p["unit"].replace("*", "·")
+        factor, prefix = _prefix(value) if unit else (1.0, "")
+        table.add_row(name, number(value / factor), number(sd / factor, 2), prefix + unit)
     return table
 
 
