@@ -2,17 +2,18 @@
 
 A workflow YAML names stages; each stage has a ``config`` file, ``inputs`` (files or
 folders whose content is hashed), ``outputs`` (what the stage writes) and ``args`` passed to
-the stage function. The hash of config, inputs, args and the code that runs the stage (the
-package version and a hash of the source of the stage's package, see :func:`code_sha256`) is
-stored in ``outputs/.workflow/<name>/<stage>.json`` after the stage succeeds; a later run with
-the same hash skips the stage, unless one of its outputs has gone missing.
+the stage function. The hash of config, inputs and args (plus the package version), and the
+sha256 of every module of the package the stage's process had loaded when it finished (the
+code it ran), are stored in ``outputs/.workflow/<name>/<stage>.json`` after the stage
+succeeds; a later run skips the stage while the hash and every one of those modules are
+unchanged, unless one of its outputs has gone missing.
 """
 
 from __future__ import annotations
 
-import hashlib
 import inspect
 import json
+import sys
 from pathlib import Path
 from typing import Any, Callable
 
@@ -21,7 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 import pipeline
 from pipeline.errors import UserError
-from pipeline.provenance import json_sha256, paths_sha256
+from pipeline.provenance import file_sha256, json_sha256, paths_sha256
 from pipeline.storage import write_text_durably
 
 STATE_DIR = Path("outputs/.workflow")
@@ -69,20 +70,23 @@ def _check_args(path: Path, stage: StageSpec, function: Callable[..., Any]) -> N
                         f"(arguments: {', '.join(accepted) or 'none'})")
 
 
-def code_sha256(function: Callable[..., Any], root: Path = Path(pipeline.__file__).parent) -> str:
-    """SHA-256 of the Python source a stage runs: every module of the package its function
-    delegates to (``pipeline.meshes`` for ``build-meshes``), the model, config and engines it
-    builds on, and the stage table. An edited module (an installed copy or a git checkout alike)
-    changes the hash; unlike a git commit it ignores edits to unrelated files. ``root``: the
-    package folder."""
-    used = {name.split(".")[1] for name in function.__code__.co_names + function.__code__.co_consts
-            if isinstance(name, str) and name.startswith("pipeline.")}
-    folders = sorted(used | {"model", "config", "engines", "datasets", "scenes", "protocols"})
-    files = [root / "stages.py"] + sorted(f for folder in folders for f in (root / folder).rglob("*.py"))
-    digest = hashlib.sha256()
-    for file in files:
-        digest.update(str(file.relative_to(root)).encode() + b"\0" + file.read_bytes())
-    return digest.hexdigest()
+PACKAGE_ROOT = Path(pipeline.__file__).parent
+
+
+def loaded_code() -> dict[str, str]:
+    """sha256 of the source of every module of this package loaded in this process, by path
+    relative to the package: after a stage ran, the code it ran (and some more)."""
+    files = {Path(module.__file__) for module in list(sys.modules.values())
+             if getattr(module, "__name__", "").startswith("pipeline") and getattr(module, "__file__", None)}
+    return {str(f.relative_to(PACKAGE_ROOT)): file_sha256(f) for f in sorted(files)
+            if f.is_relative_to(PACKAGE_ROOT) and f.is_file()}
+
+
+def changed_code(recorded: dict[str, str]) -> list[str]:
+    """The modules of ``recorded`` (path → sha256, from :func:`loaded_code`) whose source is now
+    different or gone."""
+    return [name for name, sha in recorded.items()
+            if not (PACKAGE_ROOT / name).is_file() or file_sha256(PACKAGE_ROOT / name) != sha]
 
 
 def run_workflow(path: Path, *, force: bool = False, echo: Callable[[str], None] = print) -> list[dict[str, Any]]:
@@ -98,24 +102,25 @@ def run_workflow(path: Path, *, force: bool = False, echo: Callable[[str], None]
     results = []
     for stage in spec.stages:
         hashed = list(stage.inputs) + ([stage.config] if stage.config else [])
-        key = json_sha256({"inputs": paths_sha256(hashed), "args": stage.args, "version": pipeline.__version__,
-                           "code": code_sha256(functions[stage.stage])})
+        key = json_sha256({"inputs": paths_sha256(hashed), "args": stage.args, "version": pipeline.__version__})
         state_file = STATE_DIR / spec.name / f"{stage.stage}.json"
         missing = [str(out) for out in stage.outputs if not out.exists()]
         state = json.loads(state_file.read_text()) if state_file.is_file() else {}
-        unchanged = state.get("key") == key
-        if not force and unchanged and not missing:
+        edited = changed_code(state.get("code", {}))
+        unchanged = state.get("key") == key and "code" in state
+        if not force and unchanged and not missing and not edited:
             echo(f"[{stage.stage}] unchanged, skipped; last run: {json.dumps(state.get('summary'))}")
             results.append({"stage": stage.stage, "status": "skipped", "reason": "unchanged",
                             "summary": state.get("summary")})
             continue
-        reason = "forced" if force else ("outputs missing: " + ", ".join(missing) if unchanged
-                                          else "inputs, config, args or code changed" if state
-                                          else "first run")
+        reason = ("forced" if force else "inputs, config or args changed" if state and not unchanged
+                  else "code changed: " + ", ".join(edited[:3]) + (" …" if len(edited) > 3 else "") if edited
+                  else "outputs missing: " + ", ".join(missing) if state else "first run")
         echo(f"[{stage.stage}] running ({reason})")
         summary = functions[stage.stage](stage.config, **stage.args)
         state_file.parent.mkdir(parents=True, exist_ok=True)
-        write_text_durably(state_file, json.dumps({"key": key, "summary": summary}, indent=2, default=str))
+        write_text_durably(state_file, json.dumps({"key": key, "code": loaded_code(), "summary": summary},
+                                                  indent=2, default=str))
         echo(f"[{stage.stage}] done")
         results.append({"stage": stage.stage, "status": "ran", "reason": reason, "summary": summary})
     return results

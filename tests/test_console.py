@@ -34,6 +34,19 @@ def test_labels_drop_the_unit_suffix():
     assert console.label("sampling_rate_hz") == "sampling rate"
 
 
+def test_fitted_parameters_share_one_prefix(capsys):
+    from rich.console import Console
+
+    table = console.parameters_table({"E": {"value": 7.4136e9, "sd": 9e7, "unit": "Pa"},
+                                      "follicle.k_f": {"value": 5e-7, "sd": None, "unit": "N*m/rad"},
+                                      "zeta": {"value": 0.024242, "sd": 0.013, "unit": "1"}}, "fit")
+    Console(width=100).print(table)
+    rows = {line.split("│")[1].strip(): [c.strip() for c in line.split("│")[2:5]]
+            for line in capsys.readouterr().out.splitlines() if line.startswith("│")}
+    assert rows == {"E": ["7.41", "0.090", "GPa"], "follicle.k_f": ["500", "—", "nN·m/rad"],
+                    "zeta": ["0.0242", "0.013", ""]}
+
+
 def test_json_has_no_nan(capsys):
     console.print_json({"f1_hz": float("nan"), "modes": [1.0, float("inf")]})
     assert json.loads(capsys.readouterr().out) == {"f1_hz": None, "modes": [1.0, None]}
