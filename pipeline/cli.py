@@ -12,6 +12,7 @@ import math
 import signal
 import sys
 import traceback
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Optional
 
@@ -20,6 +21,7 @@ import typer
 
 from pipeline import console
 from pipeline.config.physics import EngineName, PresetName
+from pipeline.console import print_json as _print_json
 from pipeline.errors import SimulationError, UserError
 
 MAX_TRIAL_DURATION_S = 10.0      # as the model config's whisk.duration_s
@@ -52,6 +54,14 @@ _PRESET = typer.Option(None, "--preset", show_default=False,
                        help="Material preset to start from. \\[default: config material.preset]")
 
 
+def _print_summary(summary: dict, json_output: bool, title: str = "", next_steps: Iterable[str] = ()) -> None:
+    """``summary`` as JSON, or as a table of rounded values with units and the next steps."""
+    if json_output:
+        _print_json(summary)
+    else:
+        console.show(console.summary_table(summary, title), next_steps=next_steps)
+
+
 @app.command()
 def info(json_output: bool = _JSON,
          configs: Path = typer.Option(Path("configs"), "--configs", help="Folder of config files to resolve.")) -> None:
@@ -61,7 +71,7 @@ def info(json_output: bool = _JSON,
 
     data = {"versions": describe_environment(), "configs": resolved_configs(configs)}
     if json_output:
-        console.print_json(data)
+        _print_json(data)
         return
     from rich.pretty import Pretty
     from rich.table import Table
@@ -82,7 +92,7 @@ def run(workflow: Path = typer.Argument(..., help="Workflow YAML, e.g. workflows
 
     stages = run_workflow(workflow, force=force, echo=lambda text: typer.echo(text, err=json_output))
     if json_output:
-        console.print_json(stages)
+        _print_json(stages)
         return
     tables = [console.summary_table(stage["summary"] or {}, f"{stage['stage']}: {stage['status']}")
               for stage in stages]
@@ -189,7 +199,7 @@ def resonance(
                                curvature_per_mm * 1e3)
     result = run_resonance(geometry, model, max(modes, 3)).as_dict(modes)
     if json_output:
-        console.print_json({k: v for k, v in result.items() if k != "f1_fft_bin_hz"})
+        _print_json({k: v for k, v in result.items() if k != "f1_fft_bin_hz"})
         return
     rows = [{"mode": i, "frequency_hz": result[f"f{i}_hz"], "damping_ratio": result[f"zeta{i}"]}
             for i in range(1, modes + 1)]
@@ -235,13 +245,10 @@ def trial(
         from pipeline.datasets import write_single_trial
 
         summary["file"] = str(write_single_trial(out, output, model, world, head, drive))
-    if json_output:
-        console.print_json(summary)
-        return
-    console.show(console.summary_table(summary, "trial: base signals of every whisker"),
-                 next_steps=[f"pipeline datasets show {summary['file']}" if out is not None else
-                             "add --out trial.h5 to keep the signals (docs/dataset.md)",
-                             "pipeline simulate --n 200  (many trials into a dataset)"])
+    _print_summary(summary, json_output, "trial: base signals of every whisker",
+                   [f"pipeline datasets show {summary['file']}" if out is not None else
+                    "add --out trial.h5 to keep the signals (docs/dataset.md)",
+                    "pipeline simulate --n 200  (many trials into a dataset)"])
 
 
 # --- meshes: `pipeline build-meshes` (issue 4) ---
@@ -260,7 +267,7 @@ def build_meshes(
     _writable_out(out)
     report = build(scans, out, load_mesh_config(config), force=force, progress=not json_output)
     if json_output:
-        console.print_json(report.to_dict())
+        _print_json(report.to_dict())
     else:
         rows = [{"scan": scan.name, "status": scan.status, **scan.metrics, "build_seconds": scan.seconds or None}
                 for scan in report.scans]
@@ -322,13 +329,10 @@ def simulate(
         "model": {"engine": {"name": engine}, "file": _model_path(model_file)},
         "cluster": {"workers": workers, "scheduler": scheduler, "record_every": record_every}})
     summary = run_simulation(settings, resume=resume, shard=shard, progress=not json_output)
-    if json_output:
-        console.print_json(summary)
-        return
     target = _dataset_label(summary["dataset"])
     steps = ([f"pipeline datasets join {settings.dataset.name}  (once every shard is complete)"] if shard else
              _next_for_dataset(target) if summary["complete"] else ["the same command plus --resume"])
-    console.show(console.summary_table(summary, f"simulate → {target}"), next_steps=steps)
+    _print_summary(summary, json_output, f"simulate → {target}", steps)
 
 
 datasets_app = typer.Typer(help="List, inspect and join simulated datasets (outputs/datasets/).",
@@ -345,7 +349,7 @@ def datasets_list(root: Path = _ROOT_OPTION,
 
     rows = list_datasets(root)
     if json_output:
-        console.print_json(rows)
+        _print_json(rows)
         return
     columns = ("dataset", "state", "trials", "ok", "failed", "size_mb", "created_utc")
     steps = [f"pipeline datasets show {rows[-1]['dataset']}"] if rows else ["pipeline simulate --n 20"]
@@ -362,11 +366,7 @@ def datasets_show(target: str = typer.Argument(..., help="NAME, NAME/vK, a versi
     from pipeline.datasets.catalog import describe
 
     info = describe(target, root, check=verify)
-    if json_output:
-        console.print_json(info)
-        return
-    console.show(console.summary_table(info, f"dataset {info['label']}"),
-                 next_steps=_next_for_dataset(_dataset_label(info["path"])))
+    _print_summary(info, json_output, f"dataset {info['label']}", _next_for_dataset(_dataset_label(info["path"])))
 
 
 @datasets_app.command("join")
@@ -379,7 +379,7 @@ def datasets_join(name: str = typer.Argument(..., help="Dataset name whose shard
 
     version = join_shards(root, name, run)
     if json_output:
-        console.print_json({"dataset": str(version)})
+        _print_json({"dataset": str(version)})
         return
     console.show(f"joined the shards of {name} → {version}",
                  next_steps=[f"pipeline datasets show {_dataset_label(str(version))} --verify"])
@@ -398,11 +398,10 @@ def stats(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a versi
     _writable_out(out)
     summary = stats_report(target, root, out)
     if json_output:
-        console.print_json(summary)
+        _print_json(summary)
         return
-    console.show(console.summary_table({k: summary[k] for k in ("dataset", "trials_used", "seconds", "report")},
-                                       f"statistics of {summary['dataset']}"),
-                 next_steps=[f"open {summary['report']}"])
+    _print_summary({k: summary[k] for k in ("dataset", "trials_used", "seconds", "report")}, False,
+                   f"statistics of {summary['dataset']}", [f"open {summary['report']}"])
 
 
 @app.command()
@@ -432,7 +431,7 @@ def validate(
     progress = (lambda _: None) if json_output else (lambda text: typer.echo(text, err=True))
     result = run_validation(model, out, quick=quick, refit=refit, mesh=mesh, progress=progress)
     if json_output:
-        console.print_json(result)
+        _print_json(result)
         return
     rows = [{**check, "published": number(check["published"]), "simulated": number(check["simulated"]),
              "verdict": {True: "agrees", False: "DIFFERS", None: ""}[check["agrees"]]} for check in result["checks"]]
@@ -478,7 +477,7 @@ def calibrate(
     else:
         raise UserError("calibrate needs a measurement FILE or --library")
     if json_output:
-        console.print_json(data)
+        _print_json(data)
         return
     console.show(lines[0], console.parameters_table(data["params"], "fitted parameters"), "\n".join(lines[1:]),
                  next_steps=[f"pipeline trial --model {save_model}" if save_model else
@@ -510,7 +509,7 @@ def diagnose(
     data, lines = run_diagnose(file, _model_config(config, {"material": {"preset": preset}}).material, report, engine,
                                candidates, library, save_model)
     if json_output:
-        console.print_json(data)
+        _print_json(data)
         return
     steps = [f"pipeline trial --model {save_model}"] if save_model else []
     console.show(lines[0], console.parameters_table(data["params"], "parameters of the diagnosed model"),
@@ -531,12 +530,9 @@ def synth(
 
     _writable_out(out, new_file=True)
     data = run_synth(config, out, seed, _model_path(model_file))
-    if json_output:
-        console.print_json(data)
-        return
-    console.show(console.summary_table(data, "synthetic measurement"),
-                 next_steps=[f"pipeline diagnose {out}  (does the diagnosis find the hidden extensions?)",
-                             f"pipeline calibrate {out}"])
+    _print_summary(data, json_output, "synthetic measurement",
+                   [f"pipeline diagnose {out}  (does the diagnosis find the hidden extensions?)",
+                    f"pipeline calibrate {out}"])
 # --- end measured data ---
 
 
