@@ -107,17 +107,15 @@ def value_text(key: str, value: Any) -> str:
     return str(value)
 
 
-def summary_table(summary: Mapping[str, Any], title: str, *, skip: Iterable[str] = ()):
+def summary_table(summary: Mapping[str, Any], title: str):
     """A two-column rich table (quantity, value) of ``summary``."""
     from rich.table import Table
 
-    skipped = set(skip)
     table = Table(title=title, title_justify="left", min_width=len(title))
     table.add_column("quantity")
     table.add_column("value", overflow="fold")
     for key, value in summary.items():
-        if key not in skipped:
-            table.add_row(label(key), value_text(key, value))
+        table.add_row(label(key), value_text(key, value))
     return table
 
 
