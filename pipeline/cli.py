@@ -12,12 +12,16 @@ import math
 import signal
 import sys
 import traceback
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Optional
 
 import click
 import typer
 
+from pipeline import console
+from pipeline.config.physics import EngineName, PresetName
+from pipeline.console import print_json as _print_json
 from pipeline.errors import SimulationError, UserError
 
 MAX_TRIAL_DURATION_S = 10.0      # as the model config's whisk.duration_s
@@ -36,18 +40,36 @@ def _root(debug: bool = typer.Option(False, "--debug", help="Show tracebacks of 
     """Stages: build-meshes → simulate; see each command's --help."""
 
 
-_ROOT_OPTION = typer.Option(None, "--root", help="Datasets folder (default: <project>/outputs/datasets, the "
-                                                  "project being $PIPELINE_HOME or the folder holding configs/).")
+_ROOT_OPTION = typer.Option(None, "--root", show_default=False,
+                            help="Datasets folder. \\[default: <project>/outputs/datasets, the project being "
+                                 "$PIPELINE_HOME or the folder holding configs/]")
+# Options that mean the same on every command. Defaults: typer shows "[default: X]" for a fixed
+# default; an option whose default comes from a config says "[default: config KEY]" in its help.
+_JSON = typer.Option(False, "--json", help="Print the result as JSON (numbers in SI units, as the key "
+                                           "names say; no progress output).")
+_ENGINE = typer.Option(None, "--engine", show_default=False,
+                       help="Physics engine. \\[default: config model.engine.name, else bullet]")
+_CONFIG = typer.Option(None, "--config", show_default=False,
+                       help="Model config YAML. \\[default: <project>/configs/model.yaml if present]")
+_MODEL_FILE = typer.Option(None, "--model", show_default=False,
+                           help="Fitted model file (docs/model_file.md), e.g. from calibrate --save-model.")
+_PRESET = typer.Option(None, "--preset", show_default=False,
+                       help="Material preset to start from. \\[default: config material.preset]")
 
 
-def _print_json(data: object) -> None:
-    typer.echo(json.dumps(data, indent=2, default=str))
+def _print_summary(summary: dict, json_output: bool, title: str = "", next_steps: Iterable[str] = ()) -> None:
+    """``summary`` as JSON, or as a table of rounded values with units and the next steps."""
+    if json_output:
+        _print_json(summary)
+    else:
+        console.show(console.summary_table(summary, title), next_steps=next_steps)
 
 
 @app.command()
-def info(json_output: bool = typer.Option(False, "--json", help="Print JSON."),
-         configs: Optional[Path] = typer.Option(None, help="Folder of config files to resolve "
-                                                           "(default: <project>/configs).")) -> None:
+def info(json_output: bool = _JSON,
+         configs: Optional[Path] = typer.Option(None, "--configs", show_default=False,
+                                                help="Folder of config files to resolve. "
+                                                     "\\[default: <project>/configs]")) -> None:
     """Print versions of the package and its key dependencies, and the resolved configuration."""
     from pipeline.config.project import CONFIGS_DIR, project_root
     from pipeline.config.registry import resolved_configs
@@ -58,26 +80,32 @@ def info(json_output: bool = typer.Option(False, "--json", help="Print JSON."),
     if json_output:
         _print_json(data)
         return
-    from rich.console import Console
+    from rich.pretty import Pretty
     from rich.table import Table
 
-    console = Console()
-    table = Table("package", "version", title="whisker-pipeline environment")
+    versions = Table("package", "version", title="whisker-pipeline environment", title_justify="left")
     for name, version in data["versions"].items():
-        table.add_row(name, str(version))
-    console.print(table)
-    for name, config in data["configs"].items():
-        console.print(f"[bold]{name}[/bold]")
-        console.print_json(json.dumps(config))
+        versions.add_row(name, str(version))
+    resolved = [part for name, config in data["configs"].items() for part in (f"{configs}/{name}:", Pretty(config))]
+    console.show(versions, *resolved, next_steps=["pipeline run workflows/natural.yaml  (what `make demo` runs)"])
 
 
 @app.command()
 def run(workflow: Path = typer.Argument(..., help="Workflow YAML, e.g. workflows/natural.yaml."),
-        force: bool = typer.Option(False, "--force", help="Run every stage even if unchanged.")) -> None:
+        force: bool = typer.Option(False, "--force", help="Run every stage even if unchanged."),
+        json_output: bool = _JSON) -> None:
     """Run a staged workflow, skipping stages whose inputs and config have not changed."""
     from pipeline.workflow import run_workflow
 
-    run_workflow(workflow, force=force, echo=typer.echo)
+    stages = run_workflow(workflow, force=force, echo=lambda text: typer.echo(text, err=json_output))
+    if json_output:
+        _print_json(stages)
+        return
+    tables = [console.summary_table(stage["summary"] or {}, f"{stage['stage']}: {stage['status']}")
+              for stage in stages]
+    datasets = [stage["summary"]["dataset"] for stage in stages if "dataset" in (stage["summary"] or {})]
+    console.show(*tables, next_steps=_next_for_dataset(_dataset_label(datasets[-1])) if datasets
+                 else ["pipeline datasets list"])
 
 
 # --- recordings: `pipeline view` (issue 5) ---
@@ -86,14 +114,24 @@ def view(target: str = typer.Argument(..., help="An .rrd file, or a dataset NAME
                                                  "its newest version)."),
          trial: Optional[int] = typer.Option(None, "--trial", help="Trial index (dataset targets)."),
          web: bool = typer.Option(False, "--web", help="Serve a web viewer on 127.0.0.1 and print its URL."),
-         port: Optional[int] = typer.Option(None, "--port", help="Web page port (default 9090; data on "
-                                                                  "port+1) or the native viewer's server port.",
-                                      min=1, max=65534),
-         root: Optional[Path] = _ROOT_OPTION) -> None:
+         port: Optional[int] = typer.Option(None, "--port", show_default=False, min=1, max=65534,
+                                            help="Web page port (data on port+1) or the native viewer's "
+                                                 "server port. \\[default: 9090]"),
+         root: Optional[Path] = _ROOT_OPTION,
+         json_output: bool = _JSON) -> None:
     """Open a trial's rerun recording in the viewer; stops the viewer on exit."""
     from pipeline.recordings.viewer import resolve_target, view as open_viewer
 
-    code = open_viewer(resolve_target(target, trial, root), web=web, port=port, echo=typer.echo)
+    def announce(where: dict) -> None:
+        if json_output:
+            typer.echo(json.dumps(where))
+        elif where["url"]:
+            typer.echo(f"web viewer: {where['url']}\n(serving on {where['host']} ports {where['ports'][0]} and "
+                       f"{where['ports'][1]}; Ctrl-C to stop)")
+        else:
+            typer.echo(f"viewing {where['file']}  (close the window or Ctrl-C to stop)")
+
+    code = open_viewer(resolve_target(target, trial, root), web=web, port=port, announce=announce)
     if code:
         raise typer.Exit(code)
 # --- end recordings ---
@@ -126,18 +164,6 @@ def _follicle_override(text: Optional[str]) -> Optional[dict]:
     return {"kind": "compliant", "stiffness_nm_per_rad": k, "damping_nms_per_rad": c}
 
 
-def _engine_name(engine: Optional[str], option: str = "--engine") -> Optional[str]:
-    """``engine`` if it names an engine the model config accepts; UserError otherwise."""
-    from typing import get_args
-
-    from pipeline.config.physics import EngineConfig
-
-    known = get_args(EngineConfig.model_fields["name"].annotation)
-    if engine is not None and engine not in known:
-        raise UserError(f"{option} '{engine}' is not an engine ({', '.join(known)})")
-    return engine
-
-
 def _writable_out(path: Optional[Path], option: str = "--out", *, new_file: bool = False) -> None:
     """UserError if writing ``path`` would change a complete dataset version, or (``new_file``)
     replace an existing file."""
@@ -161,13 +187,13 @@ def resonance(
     zeta: Optional[float] = typer.Option(None, "--zeta", help="Damping ratio ζ of eq. 3."),
     links: Optional[int] = typer.Option(None, "--links", help="Links N."),
     follicle: Optional[str] = typer.Option(None, "--follicle", help="'rigid' or 'K,C'."),
-    engine: Optional[str] = typer.Option(None, "--engine", help="Physics engine (bullet or mujoco)."),
+    engine: Optional[EngineName] = _ENGINE,
     dt_s: Optional[float] = typer.Option(None, "--dt-s", help="Integration step, s."),
     modes: int = typer.Option(1, "--modes", min=1, max=8, help="Report f1..fK and ζ1..ζK of this many modes."),
-    preset: Optional[str] = typer.Option(None, "--preset", help="Material preset (untrimmed or trimmed)."),
-    config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML."),
-    model_file: Optional[Path] = typer.Option(None, "--model", help="Fitted model file (docs/model_file.md)."),
-    json_output: bool = typer.Option(False, "--json", help="Print JSON."),
+    preset: Optional[PresetName] = _PRESET,
+    config: Optional[Path] = _CONFIG,
+    model_file: Optional[Path] = _MODEL_FILE,
+    json_output: bool = _JSON,
 ) -> None:
     """Resonance protocol (Gaussian pulse, abrupt stop): per-mode f and ζ from the ring-down, and
     the paper's two-peak log decrement."""
@@ -182,12 +208,15 @@ def resonance(
                                curvature_per_mm * 1e3)
     result = run_resonance(geometry, model, max(modes, 3)).as_dict(modes)
     if json_output:
-        typer.echo(json.dumps({k: (None if v != v else v) for k, v in result.items() if k != "f1_fft_bin_hz"}))
-    else:
-        for i in range(1, modes + 1):
-            typer.echo(f"f{i} = {result[f'f{i}_hz']:.2f} Hz   ζ{i} = {result[f'zeta{i}']:.4f}")
-        typer.echo(f"paper's two-peak δ = {result['paper_log_decrement']:.3f} "
-                   f"(ζ = {result['paper_damping_ratio']:.3f})")
+        _print_json({k: v for k, v in result.items() if k != "f1_fft_bin_hz"})
+        return
+    rows = [{"mode": i, "frequency_hz": result[f"f{i}_hz"], "damping_ratio": result[f"zeta{i}"]}
+            for i in range(1, modes + 1)]
+    console.show(console.rows_table(rows, ("mode", "frequency_hz", "damping_ratio"),
+                                    f"resonance of a {length_mm:g} mm whisker ({model.engine.name})"),
+                 f"paper's two-peak log decrement δ = {console.number(result['paper_log_decrement'])} "
+                 f"(ζ = {console.number(result['paper_damping_ratio'])})",
+                 next_steps=["pipeline calibrate --library  (fit E and ζ to the measured whiskers)"])
 
 
 @app.command()
@@ -195,12 +224,14 @@ def trial(
     scene: str = typer.Option("none", "--scene", help="none, peg-passive, pegs-active, wall, mesh:PATH."),
     whiskers: str = typer.Option("all", "--whiskers", help="all, R, L or names (RC1,RC2)."),
     duration_s: float = typer.Option(0.25, "--duration-s", help="Duration, s."),
-    pose: Optional[str] = typer.Option(None, "--pose", help="x,y,z (mm),yaw,pitch,roll (deg)."),
+    pose: Optional[str] = typer.Option(None, "--pose", show_default=False,
+                                       help="Head pose x,y,z (mm),yaw,pitch,roll (deg; docs/frames.md). "
+                                            "\\[default: 0,0,0,0,0,0]"),
     out: Optional[Path] = typer.Option(None, "--out", help="Write the trial as a one-trial dataset (HDF5)."),
-    engine: Optional[str] = typer.Option(None, "--engine", help="Physics engine (bullet or mujoco)."),
-    config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML."),
-    model_file: Optional[Path] = typer.Option(None, "--model", help="Fitted model file (docs/model_file.md)."),
-    json_output: bool = typer.Option(False, "--json", help="Print a JSON summary."),
+    engine: Optional[EngineName] = _ENGINE,
+    config: Optional[Path] = _CONFIG,
+    model_file: Optional[Path] = _MODEL_FILE,
+    json_output: bool = _JSON,
 ) -> None:
     """Run one trial of the array in a scene and summarise (or write) its base signals."""
     from pipeline.model.kinematics import Pose
@@ -214,19 +245,19 @@ def trial(
     world = parse_scene(scene)
     drive = default_drive(world, model, duration_s)
     output = run_trial(model, world, head, duration_s, whiskers, drive)
-    summary = {"scene": world.name, "whiskers": len(output.whisker_names),
-               "samples": len(output.time_s), "whiskers_in_contact": output.whiskers_in_contact(),
-               "max_moment_nm": float(output.moment_magnitude().max()),
+    summary = {"scene": world.name, "engine": model.engine.name, "whiskers": len(output.whisker_names),
+               "duration_s": duration_s, "samples": len(output.time_s),
+               "whiskers_in_contact": output.whiskers_in_contact(),
+               "max_moment_N_m": float(output.moment_magnitude().max()),
                "cpu_seconds": output.metadata["cpu_seconds"]}
     if out is not None:
         from pipeline.datasets import write_single_trial
 
         summary["file"] = str(write_single_trial(out, output, model, world, head, drive))
-    if json_output:
-        _print_json(summary)
-    else:
-        for key, value in summary.items():
-            typer.echo(f"{key:>20}: {value}")
+    _print_summary(summary, json_output, "trial: base signals of every whisker",
+                   [f"pipeline datasets show {summary['file']}" if out is not None else
+                    "add --out trial.h5 to keep the signals (docs/dataset.md)",
+                    "pipeline simulate --n 200  (many trials into a dataset)"])
 
 
 # --- meshes: `pipeline build-meshes` (issue 4) ---
@@ -234,9 +265,10 @@ def trial(
 def build_meshes(
     scans: Path = typer.Option(Path("scans"), "--scans", help="Folder of .ply .pcd .xyz .pts scans."),
     out: Path = typer.Option(Path("outputs/meshes"), "--out", help="Folder for <name>.obj and manifest.json."),
-    config: Optional[Path] = typer.Option(None, "--config", help="Mesh config YAML (default configs/meshes.yaml)."),
+    config: Optional[Path] = typer.Option(None, "--config", show_default=False,
+                                          help="Mesh config YAML. \\[default: configs/meshes.yaml]"),
     force: bool = typer.Option(False, "--force", help="Rebuild scans even if unchanged."),
-    json_output: bool = typer.Option(False, "--json", help="Print JSON."),
+    json_output: bool = _JSON,
 ) -> None:
     """Turn every scan into a collision mesh (OBJ, metres) with quality metrics in manifest.json."""
     from pipeline.meshes.build import build_meshes as build, load_mesh_config
@@ -246,16 +278,12 @@ def build_meshes(
     if json_output:
         _print_json(report.to_dict())
     else:
-        from rich.console import Console
-        from rich.table import Table
-
-        table = Table("scan", "status", "triangles", "max edge mm", "to data p95 mm", "seconds",
-                      title=f"meshes → {report.out_dir}")
-        for scan in report.scans:
-            m = scan.metrics
-            table.add_row(scan.name, scan.status, str(m.get("triangles", "")), str(m.get("max_edge_mm", "")),
-                          str(m.get("surface_to_data_p95_mm", "")), f"{scan.seconds:.1f}" if scan.seconds else "")
-        Console().print(table)
+        rows = [{"scan": scan.name, "status": scan.status, **scan.metrics, "build_seconds": scan.seconds or None}
+                for scan in report.scans]
+        console.show(console.rows_table(rows, ("scan", "status", "triangles", "max_edge_mm",
+                                               "surface_to_data_p95_mm", "build_seconds"),
+                                        f"meshes → {report.out_dir}"),
+                     next_steps=[f"pipeline simulate --scenes {report.out_dir} --n 20"])
     for scan in report.failed:
         typer.echo(f"error: {_one_line(scan.message)}", err=True)
     if report.failed:
@@ -263,35 +291,42 @@ def build_meshes(
 # --- end meshes ---
 
 # --- simulate and datasets (issue 5) ---
-def _print_summary(summary: dict, json_output: bool) -> None:
-    if json_output:
-        _print_json(summary)
-        return
-    for key, value in summary.items():
-        typer.echo(f"{key:>30}: {json.dumps(value, default=str) if isinstance(value, (dict, list)) else value}")
+def _dataset_label(folder: str) -> str:
+    """``NAME/vK`` of a version folder, the folder itself for a shard or a file."""
+    path = Path(folder)
+    return f"{path.parent.name}/{path.name}" if path.name.startswith("v") and path.name[1:].isdigit() else folder
+
+
+def _next_for_dataset(target: str) -> list[str]:
+    return [f"pipeline stats {target}  (tactile statistics)", f"pipeline view {target} --trial 0 --web"]
 
 
 @app.command()
 def simulate(
-    n: Optional[int] = typer.Option(None, "--n", help="Trials in the run (config: trials)."),
-    scenes: Optional[Path] = typer.Option(None, "--scenes", help="Folder of meshes from build-meshes "
-                                                                 "(config: scenes.folder, default outputs/meshes)."),
-    config: Optional[Path] = typer.Option(None, "--config", help="Run config YAML (default: "
-                                                                 "<project>/configs/simulate.yaml)."),
-    name: Optional[str] = typer.Option(None, "--name", help="Dataset name (config: dataset.name)."),
-    workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (0: one per core)."),
+    n: Optional[int] = typer.Option(None, "--n", show_default=False,
+                                    help="Trials in the run. \\[default: config trials]"),
+    scenes: Optional[Path] = typer.Option(None, "--scenes", show_default=False,
+                                          help="Folder of meshes from build-meshes. \\[default: config "
+                                               "scenes.folder, else outputs/meshes]"),
+    config: Optional[Path] = typer.Option(None, "--config", show_default=False,
+                                          help="Run config YAML. \\[default: <project>/configs/simulate.yaml]"),
+    name: Optional[str] = typer.Option(None, "--name", show_default=False,
+                                       help="Dataset name. \\[default: config dataset.name]"),
+    workers: Optional[int] = typer.Option(None, "--workers", show_default=False,
+                                          help="Local worker processes (0: one per core). \\[default: config "
+                                               "cluster.workers]"),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Existing dask scheduler, tcp://HOST:PORT."),
-    record_every: Optional[int] = typer.Option(None, "--record-every", help="Rerun recording of every K-th trial "
-                                                                            "(0: none)."),
+    record_every: Optional[int] = typer.Option(None, "--record-every", show_default=False,
+                                               help="Rerun recording of every K-th trial (0: none). "
+                                                    "\\[default: config cluster.record_every]"),
     resume: bool = typer.Option(False, "--resume", help="Write the missing trials of the unfinished newest "
                                                         "version (same config)."),
     shard: Optional[str] = typer.Option(None, "--shard", help="Run block i of N (i/N, 1-based) without a "
                                                               "scheduler; join with `pipeline datasets join`."),
     root: Optional[Path] = _ROOT_OPTION,
-    engine: Optional[str] = typer.Option(None, "--engine", help="Physics engine (bullet or mujoco; config: "
-                                                                "model.engine.name)."),
-    model_file: Optional[Path] = typer.Option(None, "--model", help="Fitted model file (docs/model_file.md)."),
-    json_output: bool = typer.Option(False, "--json", help="Print the summary as JSON (no progress bar)."),
+    engine: Optional[EngineName] = _ENGINE,
+    model_file: Optional[Path] = _MODEL_FILE,
+    json_output: bool = _JSON,
 ) -> None:
     """Simulate N trials (scenes × head poses × whisks) on dask into a new versioned HDF5 dataset."""
     from pipeline.config.simulate import load_simulate_config
@@ -305,7 +340,11 @@ def simulate(
         "model": {"engine": {"name": engine}, "file": _model_path(model_file)},
         "cluster": {"kind": "scheduler" if scheduler else "local" if workers is not None else None,
                     "workers": workers, "scheduler": scheduler, "record_every": record_every}})
-    _print_summary(run_simulation(settings, resume=resume, shard=shard, progress=not json_output), json_output)
+    summary = run_simulation(settings, resume=resume, shard=shard, progress=not json_output)
+    target = _dataset_label(summary["dataset"])
+    steps = ([f"pipeline datasets join {settings.dataset.name}  (once every shard is complete)"] if shard else
+             _next_for_dataset(target) if summary["complete"] else ["the same command plus --resume"])
+    _print_summary(summary, json_output, f"simulate → {target}", steps)
 
 
 datasets_app = typer.Typer(help="List, inspect and join simulated datasets (outputs/datasets/).",
@@ -315,7 +354,7 @@ app.add_typer(datasets_app, name="datasets")
 
 @datasets_app.command("list")
 def datasets_list(root: Optional[Path] = _ROOT_OPTION,
-                  json_output: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
+                  json_output: bool = _JSON) -> None:
     """Every version of every dataset: state, trials, size."""
     from pipeline.config.project import datasets_root
     from pipeline.datasets.catalog import list_datasets
@@ -325,37 +364,40 @@ def datasets_list(root: Optional[Path] = _ROOT_OPTION,
     if json_output:
         _print_json(rows)
         return
-    from rich.console import Console
-    from rich.table import Table
-
     columns = ("dataset", "state", "trials", "ok", "failed", "size_mb", "created_utc")
-    table = Table(*columns, "shards done", title=f"datasets in {root}/")
-    for row in rows:
-        shards = f"{row['shards_done']}/{row['shards']}" if "shards" in row else ""
-        table.add_row(*(str(row.get(c, "")) for c in columns), shards)
-    Console().print(table)
+    rows = [{**row, "shards_done": f"{row['shards_done']}/{row['shards']}" if "shards" in row else ""}
+            for row in rows]
+    steps = [f"pipeline datasets show {rows[-1]['dataset']}"] if rows else ["pipeline simulate --n 20"]
+    console.show(console.rows_table(rows, (*columns, "shards_done"), f"datasets in {root}/",
+                                    no_wrap=("dataset", "created_utc")), next_steps=steps)
 
 
 @datasets_app.command("show")
 def datasets_show(target: str = typer.Argument(..., help="NAME, NAME/vK, a version folder or a data file."),
                   root: Optional[Path] = _ROOT_OPTION,
                   verify: bool = typer.Option(False, "--verify", help="Re-hash files against the manifest."),
-                  json_output: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
+                  json_output: bool = _JSON) -> None:
     """Summary of one dataset version (trials, scenes, arrays, provenance)."""
     from pipeline.datasets.catalog import describe
 
-    _print_summary(describe(target, root, check=verify), json_output)
+    info = describe(target, root, check=verify)
+    _print_summary(info, json_output, f"dataset {info['label']}", _next_for_dataset(_dataset_label(info["path"])))
 
 
 @datasets_app.command("join")
 def datasets_join(name: str = typer.Argument(..., help="Dataset name whose shards to join."),
                   run: Optional[str] = typer.Option(None, "--run", help="Run id (prefix) if shards of "
                                                                         "several runs exist."),
-                  root: Optional[Path] = _ROOT_OPTION) -> None:
+                  root: Optional[Path] = _ROOT_OPTION, json_output: bool = _JSON) -> None:
     """Join the complete shards of a --shard run into a new version (virtual datasets, no copy)."""
     from pipeline.datasets.join import join_shards
 
-    typer.echo(join_shards(root, name, run))
+    version = join_shards(root, name, run)
+    if json_output:
+        _print_json({"dataset": str(version)})
+        return
+    console.show(f"joined the shards of {name} → {version}",
+                 next_steps=[f"pipeline datasets show {_dataset_label(str(version))} --verify"])
 # --- end simulate and datasets ---
 
 # --- exports: `pipeline export nwb|whiskit`, `pipeline compare-whiskit` (issue 18 §2) ---
@@ -370,13 +412,15 @@ def export_nwb(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a 
                                                                       "<project>/outputs/exports/<name>_v<k>.nwb)."),
                trials: Optional[str] = typer.Option(None, "--trials", help="Trials to export, e.g. 0,2,5-7 "
                                                                            "(default: every ok trial)."),
-               root: Path = _ROOT_OPTION,
-               json_output: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
+               root: Optional[Path] = _ROOT_OPTION,
+               json_output: bool = _JSON) -> None:
     """One NWB file: base signals, contacts and drive as time series, whisker and trial tables, provenance."""
     from pipeline.exports.nwb import export_nwb as run_export
 
     _writable_out(out)
-    _print_summary(run_export(target, root, trials, out), json_output)
+    summary = run_export(target, root, trials, out)
+    _print_summary(summary, json_output, f"export nwb → {summary['nwb']}",
+                   ["pynwb: NWBHDF5IO(path, 'r').read()  (docs/export.md)"])
 
 
 @export_app.command("whiskit")
@@ -384,13 +428,14 @@ def export_whiskit(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK
                                                           "file."),
                    trial: int = typer.Option(..., "--trial", help="Trial index in the dataset."),
                    out: Path = typer.Option(..., "--out", help="New (or empty) folder to write."),
-                   root: Path = _ROOT_OPTION,
-                   json_output: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
+                   root: Optional[Path] = _ROOT_OPTION,
+                   json_output: bool = _JSON) -> None:
     """One trial as the original WHISKiT C++ writes its output: CSV files in mm, mN, µN·m."""
     from pipeline.exports.whiskit import export_whiskit as run_export
 
     _writable_out(out)
-    _print_summary(run_export(target, trial, out, root), json_output)
+    _print_summary(run_export(target, trial, out, root), json_output, f"export whiskit → {out}",
+                   [f"pipeline compare-whiskit WHISKIT_OUTPUT_DIR {target} --trial {trial}"])
 
 
 @app.command("compare-whiskit")
@@ -404,8 +449,8 @@ def compare_whiskit(folder: Path = typer.Argument(..., help="WHISKiT output fold
                                                                                  "for WHISKiT; 1/rate for a "
                                                                                  "`pipeline export whiskit` "
                                                                                  "folder)."),
-                    root: Path = _ROOT_OPTION,
-                    json_output: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
+                    root: Optional[Path] = _ROOT_OPTION,
+                    json_output: bool = _JSON) -> None:
     """Per whisker and base signal: RMS difference and correlation of WHISKiT output vs a dataset trial."""
     from pipeline.exports.whiskit import compare_whiskit as run_compare
 
@@ -431,10 +476,10 @@ def compare_whiskit(folder: Path = typer.Argument(..., help="WHISKiT output fold
 # --- reports: `pipeline stats`, `pipeline validate` (issue 7) ---
 @app.command()
 def stats(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a version folder or a data file."),
-          out: Optional[Path] = typer.Option(None, "--out", help="Report folder (default "
-                                                                 "reports/stats/<name>_v<k>/)."),
+          out: Optional[Path] = typer.Option(None, "--out", show_default=False,
+                                             help="Report folder. \\[default: reports/stats/<name>_v<k>/]"),
           root: Optional[Path] = _ROOT_OPTION,
-          json_output: bool = typer.Option(False, "--json", help="Print the summary as JSON.")) -> None:
+          json_output: bool = _JSON) -> None:
     """Natural tactile statistics of a dataset's ok trials (read one at a time): report.md, PNGs, stats.json."""
     from pipeline.reports.stats import stats_report
 
@@ -442,25 +487,26 @@ def stats(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a versi
     summary = stats_report(target, root, out)
     if json_output:
         _print_json(summary)
-    else:
-        typer.echo(f"{summary['dataset']}: {summary['trials_used']} trials in {summary['seconds']:.1f} s → "
-                   f"{summary['report']}")
+        return
+    _print_summary({k: summary[k] for k in ("dataset", "trials_used", "seconds", "report")}, False,
+                   f"statistics of {summary['dataset']}", [f"open {summary['report']}"])
 
 
 @app.command()
 def validate(
-    engine: Optional[str] = typer.Option(None, "--engine", help="Physics engine (bullet or mujoco)."),
+    engine: Optional[EngineName] = _ENGINE,
     out: Path = typer.Option(Path("reports/validation"), "--out", help="Report folder."),
     quick: bool = typer.Option(False, "--quick", help="Fewer whiskers and speeds (under a minute)."),
     refit: bool = typer.Option(False, "--refit", help="Refit E and ζ on Table 1 first (~100 s more)."),
     follicle: Optional[str] = typer.Option(None, "--follicle", help="The model's follicle, 'rigid' or 'K,C' "
                                                                     "(N·m/rad, N·m·s/rad); Fig. 4 compares rigid "
-                                                                    "with K,C (default constants if rigid)."),
-    mesh: Optional[Path] = typer.Option(None, "--mesh", help="Natural scene of Fig. 5 (mesh in metres; default "
-                                                             "outputs/meshes/drainpipe.obj)."),
-    config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML."),
-    model_file: Optional[Path] = typer.Option(None, "--model", help="Fitted model file (docs/model_file.md)."),
-    json_output: bool = typer.Option(False, "--json", help="Print the checks as JSON (no progress)."),
+                                                                    "with K,C (the default K,C if rigid)."),
+    mesh: Optional[Path] = typer.Option(None, "--mesh", show_default=False,
+                                        help="Natural scene of Fig. 5 (mesh in metres). "
+                                             "\\[default: outputs/meshes/drainpipe.obj]"),
+    config: Optional[Path] = _CONFIG,
+    model_file: Optional[Path] = _MODEL_FILE,
+    json_output: bool = _JSON,
 ) -> None:
     """Reproduce the paper's validation (Table 1, figures 2–5): report.md, PNGs, validation.json."""
     from pipeline.reports.document import number
@@ -475,13 +521,12 @@ def validate(
     if json_output:
         _print_json(result)
         return
-    for check in result["checks"]:
-        verdict = {True: "agrees", False: "DIFFERS", None: ""}[check["agrees"]]
-        typer.echo(f"{check['name']:>45}: published {number(check['published'])}, "
-                   f"ours {number(check['simulated'])}"
-                   f"{' (' + check['detail'] + ')' if check.get('detail') else ''}  {verdict}")
-    typer.echo(f"{result['agree']} of {result['judged']} checks agree; {result['seconds']:.0f} s → "
-               f"{result['report']}")
+    rows = [{**check, "published": number(check["published"]), "simulated": number(check["simulated"]),
+             "verdict": {True: "agrees", False: "DIFFERS", None: ""}[check["agrees"]]} for check in result["checks"]]
+    console.show(console.rows_table(rows, ("name", "published", "simulated", "detail", "verdict"),
+                                    f"validation against the paper: {result['agree']} of {result['judged']} "
+                                    f"checks agree ({result['seconds']:.0f} s)"),
+                 next_steps=[f"open {result['report']}"])
 # --- end reports ---
 
 # --- measured data: `pipeline calibrate`, `diagnose`, `synth` (issue 8) ---
@@ -496,17 +541,17 @@ def calibrate(
     objective: str = typer.Option("msa", "--objective", help="msa (paper eq. 4a/4b) or trajectory."),
     grid_points: Optional[int] = typer.Option(None, "--grid-points", min=2, help="Grid values per parameter."),
     bootstrap: int = typer.Option(0, "--bootstrap", min=0, help="Bootstrap refits over trials for the sd."),
-    engine: Optional[str] = typer.Option(None, "--engine", help="Check and refine the fit on an engine (bullet or mujoco)."),
-    config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML (material, links, damping)."),
+    engine: Optional[EngineName] = typer.Option(None, "--engine", show_default=False,
+                                                help="Check and refine the fit on this engine. \\[default: none]"),
+    config: Optional[Path] = _CONFIG,
     save_model: Optional[Path] = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md)."),
-    preset: Optional[str] = typer.Option(None, "--preset", help="Material preset to start from (untrimmed or trimmed)."),
-    json_output: bool = typer.Option(False, "--json", help="Print JSON."),
+    preset: Optional[PresetName] = _PRESET,
+    json_output: bool = _JSON,
 ) -> None:
     """Fit model parameters to measured data (median symmetric accuracy), with uncertainties;
     several resonance tables (or --library) are fitted jointly, with each set's misfit."""
     from pipeline.diagnosis.commands import run_calibrate, run_calibrate_sets
 
-    _engine_name(engine)
     _writable_out(save_model, "--save-model")
     material = _model_config(config, {"material": {"preset": preset}}).material
     files = list(files or [])
@@ -521,8 +566,10 @@ def calibrate(
         raise UserError("calibrate needs a measurement FILE or --library")
     if json_output:
         _print_json(data)
-    else:
-        typer.echo("\n".join(lines))
+        return
+    console.show(lines[0], console.parameters_table(data["params"], "fitted parameters"), "\n".join(lines[1:]),
+                 next_steps=[f"pipeline trial --model {save_model}" if save_model else
+                             "add --save-model M.yaml to use the fit (pipeline trial --model M.yaml)"])
 
 
 @app.command()
@@ -530,17 +577,17 @@ def diagnose(
     file: Optional[Path] = typer.Argument(None, help="Measurement: time series (.h5) or resonance table (.csv)."),
     library: bool = typer.Option(False, "--library", help="Diagnose the shipped measurement library's resonance tables combined."),
     report: Optional[Path] = typer.Option(None, "--report", help="Write report.md and PNG figures here."),
-    engine: Optional[str] = typer.Option(None, "--engine", help="Check and refine the result on an engine (bullet or mujoco)."),
+    engine: Optional[EngineName] = typer.Option(None, "--engine", show_default=False,
+                                                help="Check and refine the result on this engine. \\[default: none]"),
     candidates: Optional[str] = typer.Option(None, "--candidates", help="Only these extensions (comma-separated)."),
-    config: Optional[Path] = typer.Option(None, "--config", help="Model config YAML (material, links, damping)."),
+    config: Optional[Path] = _CONFIG,
     save_model: Optional[Path] = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md)."),
-    preset: Optional[str] = typer.Option(None, "--preset", help="Material preset to start from (untrimmed or trimmed)."),
-    json_output: bool = typer.Option(False, "--json", help="Print JSON."),
+    preset: Optional[PresetName] = _PRESET,
+    json_output: bool = _JSON,
 ) -> None:
     """What the model gets wrong on measured data, and which model extension explains it."""
     from pipeline.diagnosis.commands import run_diagnose
 
-    _engine_name(engine)
     _writable_out(report, "--report")
     _writable_out(save_model, "--save-model")
     if report is not None and report.exists() and not report.is_dir():
@@ -551,8 +598,10 @@ def diagnose(
                                candidates, library, save_model)
     if json_output:
         _print_json(data)
-    else:
-        typer.echo("\n".join(lines))
+        return
+    steps = [f"pipeline trial --model {save_model}"] if save_model else []
+    console.show(lines[0], console.parameters_table(data["params"], "parameters of the diagnosed model"),
+                 "\n".join(lines[1:]), next_steps=steps + ([] if report else ["add --report DIR for report.md and figures"]))
 
 
 @app.command()
@@ -560,19 +609,18 @@ def synth(
     config: Path = typer.Option(..., "--config", help="Synth config YAML (docs/measurements.md)."),
     out: Path = typer.Option(..., "--out", help="Measurement file to write (.h5)."),
     seed: Optional[int] = typer.Option(None, "--seed", min=0, help="Override the config's seed."),
-    model_file: Optional[Path] = typer.Option(None, "--model", help="Fitted model file as the truth's base "
-                                                                   "(docs/model_file.md)."),
-    json_output: bool = typer.Option(False, "--json", help="Print JSON."),
+    model_file: Optional[Path] = typer.Option(None, "--model", show_default=False,
+                                              help="Fitted model file as the truth's base (docs/model_file.md)."),
+    json_output: bool = _JSON,
 ) -> None:
     """Write a synthetic measurement from the model with chosen extensions, noise and drives."""
     from pipeline.diagnosis.commands import run_synth
 
     _writable_out(out, new_file=True)
-    data, lines = run_synth(config, out, seed, _model_path(model_file))
-    if json_output:
-        _print_json(data)
-    else:
-        typer.echo("\n".join(lines))
+    data = run_synth(config, out, seed, _model_path(model_file))
+    _print_summary(data, json_output, "synthetic measurement",
+                   [f"pipeline diagnose {out}  (does the diagnosis find the hidden extensions?)",
+                    f"pipeline calibrate {out}"])
 # --- end measured data ---
 
 

@@ -484,9 +484,9 @@ def test_join_refuses_shards_of_different_partitions_then_joins_one(shard_runs):
     assert result.returncode == 0, result.stderr
     for stray in (root / "tiny" / "shards").glob("*/shard_003_of_003"):
         shutil.rmtree(stray)
-    joined = cli("datasets", "join", "tiny", "--root", root)
+    joined = cli("datasets", "join", "tiny", "--root", root, "--json")
     assert joined.returncode == 0, joined.stderr
-    version = Path(joined.stdout.strip())
+    version = Path(json.loads(joined.stdout)["dataset"])
     with datasets.open(version / "data.h5") as ds:
         assert ds.pending.size == 0
         assert not np.isnan(ds.base_wrench.values[ds.ok]).all(axis=(1, 2, 3)).any()

@@ -200,7 +200,7 @@ def test_trial_runs_the_model_on_both_engines_and_records_it(tmp_path, data_file
         out = tmp_path / f"{engine}.h5"
         summary = json.loads(ok("trial", "--model", path, "--engine", engine, "--whiskers", "RC1,RD2",
                                 "--duration-s", "0.03", "--out", out, "--json"))
-        moments[engine] = summary["max_moment_nm"]
+        moments[engine] = summary["max_moment_N_m"]
         with datasets.open(out) as ds:
             record = ds.provenance["model_file"]
             assert record["sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
@@ -208,7 +208,7 @@ def test_trial_runs_the_model_on_both_engines_and_records_it(tmp_path, data_file
             assert ds.provenance["config"]["extensions"]["stiffness_gradient"] == {"gamma": -1.0}
     plain = json.loads(ok("trial", "--engine", "mujoco", "--whiskers", "RC1,RD2", "--duration-s", "0.03", "--json"))
     assert moments["bullet"] == pytest.approx(moments["mujoco"], rel=0.05)
-    assert abs(moments["mujoco"] / plain["max_moment_nm"] - 1) > 0.05
+    assert abs(moments["mujoco"] / plain["max_moment_N_m"] - 1) > 0.05
 
 
 def _simulate_records(tmp_path: Path, model: Path, trials: int) -> None:

@@ -69,10 +69,17 @@ def test_candidate_aims_the_chosen_side_at_a_surface_point(sampler):
 def test_head_angles_are_anatomical():
     from pipeline.model.kinematics import Pose
 
-    pitch_up = Pose(yaw_pitch_roll_rad=(0.0, 0.0, np.radians(20)))     # as draw_candidate builds it
+    pitch_up = Pose.anatomical(pitch_rad=np.radians(20))             # as draw_candidate builds it
     assert pitch_up.rotation[:, 1][2] > 0.3                           # nose (+y) tilts up (+z)
-    roll = Pose(yaw_pitch_roll_rad=(0.0, np.radians(20), 0.0))
+    roll = Pose.anatomical(roll_rad=np.radians(20))
     assert np.allclose(roll.rotation[:, 1], [0, 1, 0])                # rolling keeps the nose direction
+    assert roll.rotation[:, 0][2] < -0.3                              # and lowers the right side (docs/frames.md)
+    yaw = Pose.anatomical(yaw_rad=np.radians(20))
+    assert yaw.rotation[:, 1][0] < -0.3 and np.allclose(yaw.rotation[:, 2], [0, 0, 1])   # nose to the left
+    # the CLI's --pose x,y,z,yaw,pitch,roll means the same angles
+    assert np.allclose(Pose.parse("0,0,0,0,20,0").rotation, pitch_up.rotation)
+    assert np.allclose(Pose.parse("0,0,0,0,0,20").rotation, roll.rotation)
+    assert np.allclose(Pose.parse("0,0,0,20,0,0").rotation, yaw.rotation)
 
 
 def test_no_acceptable_pose_reports_the_reasons():

@@ -147,9 +147,9 @@ def test_shards_joined_equal_one_run(tmp_path, reference):
         summary = finish(start(config, "--shard", shard))
         assert summary["complete"] and summary["trials"] == TRIALS // 2
     assert finish(start(config, "--shard", "2/2"))["written_now"] == 0          # requeued job: no-op
-    result = pipeline_cli("datasets", "join", "ref", "--root", tmp_path / "datasets")
+    result = pipeline_cli("datasets", "join", "ref", "--root", tmp_path / "datasets", "--json")
     assert result.returncode == 0, result.stderr
-    version = Path(result.stdout.strip())
+    version = Path(json.loads(result.stdout)["dataset"])
     assert version.name == "v1"
     assert_same_trials(reference, version / "data.h5")
     assert len(list((version / "recordings").glob("*.rrd"))) == TRIALS // 2

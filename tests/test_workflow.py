@@ -1,6 +1,7 @@
-"""`pipeline run WORKFLOW`: stages in order, skipped only while config, inputs and args are
+"""`pipeline run WORKFLOW`: stages in order, skipped only while config, inputs, args and code are
 unchanged and the stage's outputs still exist (real build-meshes stage on a shipped scan)."""
 
+import json
 import shutil
 from pathlib import Path
 
@@ -62,6 +63,20 @@ def test_stage_reruns_exactly_when_something_it_depends_on_changes(project):
         scan.write("0.001 0.002 0.003\n")
     assert _run() == "[build-meshes] running (inputs, config or args changed)"
     assert _run(force=True) == "[build-meshes] running (forced)"
+
+
+def test_stage_reruns_when_the_code_it_ran_changed(project):
+    """The state records the source hash of every module the stage ran; a module whose source
+    differs from the recorded hash (an edit, a new version) makes the stage run again."""
+    assert _run() == "[build-meshes] running (first run)"
+    state_file = project / "outputs" / ".workflow" / "tiny" / "build-meshes.json"
+    state = json.loads(state_file.read_text())
+    assert "meshes/clean.py" in state["code"]
+    assert _run() == "[build-meshes] unchanged, skipped"
+    state["code"]["meshes/clean.py"] = "0" * 64              # as if clean.py was edited since
+    state_file.write_text(json.dumps(state))
+    assert _run() == "[build-meshes] running (code changed: meshes/clean.py)"
+    assert _run() == "[build-meshes] unchanged, skipped"
 
 
 def test_bad_workflows_get_one_line_errors(project):

@@ -56,6 +56,9 @@ MATERIAL_PRESETS = {
 }
 
 
+PresetName = Literal["trimmed", "untrimmed"]     # the keys of MATERIAL_PRESETS
+
+
 def _apply_preset(data):
     """Fill the material fields a config leaves unset from its named preset."""
     if not isinstance(data, dict) or data.get("preset") is None:
@@ -74,7 +77,7 @@ def _apply_preset(data):
 class MaterialConfig(StrictModel):
     """Material and discretisation of every whisker (docs/model.md §2)."""
 
-    preset: Optional[Literal["trimmed", "untrimmed"]] = Field(
+    preset: Optional[PresetName] = Field(
         None, description="named defaults (MATERIAL_PRESETS) for the fields not set explicitly")
 
     # Defaults: the 'untrimmed' preset (MATERIAL_PRESETS), fitted on the measured untrimmed
@@ -97,10 +100,13 @@ class MaterialConfig(StrictModel):
     _preset = model_validator(mode="before")(_apply_preset)
 
 
+EngineName = Literal["bullet", "mujoco"]     # the physics engines (pipeline/engines)
+
+
 class EngineConfig(StrictModel):
     """Which engine and how it steps. Outputs are always sampled at ``output_rate_hz``."""
 
-    name: Literal["bullet", "mujoco"] = "bullet"
+    name: EngineName = "bullet"
     dt_s: float = Field(1e-4, gt=1e-7, le=1e-3,
                         description="integration step of the longest whiskers (the coarsest step), s")
     f1_tolerance: float = Field(0.01, ge=0, le=0.2,

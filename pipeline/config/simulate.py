@@ -103,6 +103,7 @@ class PoseSamplingConfig(StrictModel):
     """
 
     distance_mm: Annotated[Range, within(1.0, 200.0)] = Range(low=10.0, high=35.0)
+    # anatomical head yaw (heading), pitch and roll, degrees: docs/frames.md
     heading_deg: Annotated[Range, within(-360.0, 360.0)] = Range(low=-180.0, high=180.0)
     pitch_deg: Annotated[Range, within(-90.0, 90.0)] = Range(low=-20.0, high=20.0)
     roll_deg: Annotated[Range, within(-90.0, 90.0)] = Range(low=-15.0, high=15.0)

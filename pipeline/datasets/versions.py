@@ -7,10 +7,11 @@ it, under an exclusive ``flock`` on its ``.lock`` file (released by the OS when 
 
 from __future__ import annotations
 
-import fcntl
 import os
 import re
 from pathlib import Path
+
+from filelock import FileLock, Timeout
 
 from pipeline.config.project import datasets_root
 from pipeline.datasets.schema import DATA_FILE, MANIFEST_FILE
@@ -100,32 +101,24 @@ def resolve(target: str | Path, root: str | Path | None = None) -> Path:
 
 
 class VersionLock:
-    """Exclusive lock of a version (or shard) folder for the one process writing it."""
+    """Exclusive lock of a version (or shard) folder for the one process writing it (filelock's
+    ``flock`` on ``LOCK_FILE``, which names the writer's pid while it holds the lock)."""
 
     def __init__(self, folder: Path):
         self.path = Path(folder) / LOCK_FILE
-        self._handle = None
+        self._lock = FileLock(self.path, is_singleton=False)
 
     def __enter__(self) -> "VersionLock":
-        handle = open(self.path, "a+")
         try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            handle.seek(0)
-            owner = handle.read().strip() or "another process"
-            handle.close()
-            raise UserError(f"{self.path.parent} is being written by {owner}") from None
-        handle.seek(0)
-        handle.truncate()
-        handle.write(f"pid {os.getpid()}")
-        handle.flush()
-        self._handle = handle
+            self._lock.acquire(blocking=False)
+        except Timeout:
+            owner = self.path.read_text().strip() if self.path.is_file() else ""
+            raise UserError(f"{self.path.parent} is being written by {owner or 'another process'}") from None
+        self.path.write_text(f"pid {os.getpid()}")
         return self
 
     def __exit__(self, *exc) -> None:
-        # The file stays (removing it would let two processes lock two different inodes).
-        fcntl.flock(self._handle, fcntl.LOCK_UN)
-        self._handle.close()
+        self._lock.release()
 
 
 def is_locked(folder: Path) -> bool:
@@ -133,6 +126,13 @@ def is_locked(folder: Path) -> bool:
     path = Path(folder) / LOCK_FILE
     if not path.is_file():
         return False
+    probe = FileLock(path, is_singleton=False)
+    try:
+        probe.acquire(blocking=False)
+    except Timeout:
+        return True
+    probe.release()
+    return False
     with open(path) as handle:
         try:
             fcntl.flock(handle, fcntl.LOCK_SH | fcntl.LOCK_NB)

@@ -376,7 +376,7 @@ def write_single_trial(path: str | Path, output: TrialOutput, model: "ModelConfi
         status="ok", scene=scene.name, duration_s=duration, samples=len(output.time_s),
         whisk_kind=drive.kind, whisk_frequency_hz=drive.frequency_hz,
         whisk_protraction_rad=float(np.max(theta)), whisk_retraction_rad=float(-np.min(theta)),
-        pose_position_m=tuple(pose.position_m), pose_euler_zyx_rad=tuple(pose.yaw_pitch_roll_rad),
+        pose_position_m=tuple(pose.position_m), pose_euler_zyx_rad=tuple(pose.euler_zyx_rad),
         pose_rotation=pose.rotation,
         whiskers_in_contact=output.whiskers_in_contact(),
         cpu_seconds=output.metadata.get("cpu_seconds", 0.0),

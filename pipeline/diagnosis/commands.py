@@ -1,6 +1,7 @@
 """One library function per command (``pipeline calibrate``, ``diagnose``, ``synth``): load the
-inputs, run, and return (JSON-ready result, human-readable lines). Non-finite numbers become
-``null`` in the JSON-ready result."""
+inputs, run, and return (JSON-ready result, human-readable lines; synth: its summary alone).
+The lines leave out the fitted parameters (the result's ``params``: value, sd, unit), which
+the CLI shows as a table. Non-finite numbers become ``null`` in the JSON-ready result."""
 
 from __future__ import annotations
 
@@ -22,10 +23,6 @@ def _jsonable(value):
     return None if isinstance(value, float) and not math.isfinite(value) else value
 
 
-def _format_params(params: dict) -> list[str]:
-    return [f"  {name:>26} = {p['value']:.5g} ± {p['sd']:.2g} {p['unit']}" for name, p in params.items()]
-
-
 def run_calibrate(path: Path, names: str, method: str, objective: str, material, engine, bootstrap: int,
                   grid_points, save_model: Path | None = None) -> tuple[dict, list[str]]:
     from pipeline.diagnosis.calibrate import calibrate
@@ -35,7 +32,6 @@ def run_calibrate(path: Path, names: str, method: str, objective: str, material,
     result = calibrate(load_measurement(path), parse_names(names), method, objective, material, engine,
                        bootstrap, grid_points)
     lines = [f"{path}: {result['metric']} = {result['error']:.4g} ({method}, {result['evaluations']} simulations)"]
-    lines += _format_params(result["params"])
     lines += [f"  mode 1 of {w}: {m['f1_hz']:.2f} Hz, ζ1 = {m['zeta1']:.4f}" for w, m in result["modes"].items()]
     if "engine" in result:
         e = result["engine"]
@@ -88,7 +84,6 @@ def run_calibrate_sets(paths, library: bool, where: str | None, hold_out: bool, 
     lines = [f"joint fit of {result['values']} values ({len(result['fitted_records'])} whiskers): "
              f"{result['metric']} = {result['error']:.4g}, χ² = {result['chi2']:.1f}; "
              f"{material.damping_model} damping, {material.links} links"]
-    lines += _format_params(result["params"])
     lines.append(f"  {'set':<36} {'conditions':<58} {'MSA':>6} {'χ²/n':>7}")
     for name, s in result["sets"].items():
         c = s["conditions"]
@@ -172,7 +167,6 @@ def _diagnose_series(measurement, material, report, engine, candidates) -> tuple
     lines = [f"{measurement.path}: cause = {result.cause}",
              f"  held-out RMS {result.baseline_heldout * 1e3:.4f} mm (baseline) → {result.gain_after * 1e3:.4f} mm; "
              f"noise {result.noise_m * 1e3:.4f} mm"]
-    lines += _format_params(result.final.params())
     lines.append("  candidate             held-out (mm)  explained  ΔBIC      z")
     lines += [f"  {c.name:<20} {c.heldout_error * 1e3:>12.4f} {c.score:>10.2f} {c.bic_delta:>7.0f} {c.z:>6.1f}"
               for c in result.candidates]
@@ -193,7 +187,6 @@ def _diagnose_table(table, material, report, engine) -> tuple[dict, list[str], o
     result = diagnose_table(table, material)
     data = result.as_dict()
     lines = [f"{table.path or 'measurement library'}: cause = {result.cause}", f"  {result.summary}"]
-    lines += _format_params(result.baseline.params())
     lines += [f"  {i['name']}.{i['param'].split('.')[-1]}: {i['verdict']}" for i in result.identifiability]
     lines += [f"  note: {n}" for n in result.notes]
     if engine:
@@ -213,12 +206,11 @@ def _check_on_engine(data: dict, lines: list[str], model, objective, engine: str
     lines.append(f"  engine check: {data['engine']}")
 
 
-def run_synth(config: Path, out: Path, seed: int | None, model_file: str | None = None) -> tuple[dict, list[str]]:
+def run_synth(config: Path, out: Path, seed: int | None, model_file: str | None = None) -> dict:
+    """The summary of the synthetic measurement written to ``out`` (file, whisker, trials, samples, engine)."""
     from pipeline.diagnosis.synth import load_synth_config, synth
     from pipeline.diagnosis.threads import single_threaded_blas
 
     settings = load_synth_config(config, {"seed": seed, "model_file": model_file})
     with single_threaded_blas():
-        summary = synth(settings, out)
-    return summary, [f"{summary['file']}: {summary['trials']} trials, {summary['samples']} samples "
-                     f"({summary['engine']} engine)"]
+        return synth(settings, out)

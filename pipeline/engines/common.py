@@ -34,7 +34,7 @@ def start_trial(array, scene, pose: Pose, drive, duration_s: float, output_rate_
 
 def check_pose(pose: Pose) -> None:
     """Raise :class:`UserError` for a head pose with non-finite values."""
-    if not (np.all(np.isfinite(pose.position_m)) and np.all(np.isfinite(pose.yaw_pitch_roll_rad))):
+    if not (np.all(np.isfinite(pose.position_m)) and np.all(np.isfinite(pose.euler_zyx_rad))):
         raise UserError(f"head pose has non-finite values: {pose}")
 
 

@@ -112,25 +112,34 @@ def euler_joint_rates(row: int, side: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Pose:
-    """A rigid transform: head frame → world. Position (m) and yaw–pitch–roll (rad, Z–Y–X)."""
+    """A rigid transform: head frame → world. Position (m) and the head frame's Z–Y–X Euler
+    angles (rad), R = Rz(a0)·Ry(a1)·Rx(a2) with head x lateral, y rostral, z dorsal: a0 is the
+    anatomical yaw, a1 the roll and a2 the pitch (docs/frames.md)."""
 
     position_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    yaw_pitch_roll_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    euler_zyx_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @classmethod
+    def anatomical(cls, position_m=(0.0, 0.0, 0.0), yaw_rad: float = 0.0, pitch_rad: float = 0.0,
+                   roll_rad: float = 0.0) -> "Pose":
+        """The pose of anatomical yaw (about dorsal z, nose toward −x > 0), pitch (about lateral x,
+        nose up > 0) and roll (about rostral y), all rad (docs/frames.md)."""
+        return cls(tuple(position_m), (float(yaw_rad), float(roll_rad), float(pitch_rad)))
 
     @property
     def rotation(self) -> np.ndarray:
-        return rotation_zyx(*self.yaw_pitch_roll_rad)
+        return rotation_zyx(*self.euler_zyx_rad)
 
     def apply(self, points: np.ndarray) -> np.ndarray:
         return np.asarray(points) @ self.rotation.T + np.asarray(self.position_m)
 
     @classmethod
     def parse(cls, text: str) -> "Pose":
-        """'x,y,z,yaw,pitch,roll' with x, y, z in mm and angles in degrees."""
+        """'x,y,z,yaw,pitch,roll': position in mm, anatomical angles in degrees (docs/frames.md)."""
         try:
             values = [float(v) for v in text.split(",")]
         except ValueError:
             values = []
         if len(values) != 6 or not np.all(np.isfinite(values)):
             raise UserError(f"pose '{text}' must be six numbers: x,y,z (mm),yaw,pitch,roll (deg)")
-        return cls(tuple(v * 1e-3 for v in values[:3]), tuple(np.radians(values[3:]).tolist()))
+        return cls.anatomical([v * 1e-3 for v in values[:3]], *np.radians(values[3:]).tolist())

@@ -5,7 +5,8 @@ A target is an ``.rrd`` file or a dataset ``NAME[/vK]`` whose version folder hol
 
 The ``rerun`` command is a Python wrapper that starts the viewer binary as a child; killing the
 wrapper alone leaves the viewer running, so it is started in its own process group and the
-whole group is stopped on exit.
+whole group is stopped on exit (rerun's own ``rr.spawn`` returns no handle to stop the viewer it
+starts); psutil tells when no live process of the group is left.
 """
 
 from __future__ import annotations
@@ -147,26 +148,16 @@ class ViewerProcess:
 
 
 def _group_has_live_process(pgid: int) -> bool:
-    proc = Path("/proc")
-    if not proc.is_dir():                         # not Linux: ask the kernel (counts zombies)
+    """Any process of group ``pgid`` that is not a zombie (psutil's process table)."""
+    import psutil
+
+    for proc in psutil.process_iter(["status"]):
         try:
-            os.killpg(pgid, 0)
-        except ProcessLookupError:
-            return False
-        except PermissionError:
-            pass
-        return True
-    for entry in proc.iterdir():
-        if not entry.name.isdigit():
+            if os.getpgid(proc.pid) == pgid and proc.info["status"] not in (psutil.STATUS_ZOMBIE,
+                                                                            psutil.STATUS_DEAD):
+                return True
+        except (ProcessLookupError, PermissionError):         # gone, or not ours to look at
             continue
-        try:
-            stat = (entry / "stat").read_text()
-        except OSError:
-            continue
-        # pid (comm) state ppid pgrp ...; comm may contain spaces and parentheses
-        fields = stat[stat.rindex(")") + 2:].split()
-        if int(fields[2]) == pgid and fields[0] not in "ZX":
-            return True
     return False
 
 
@@ -218,19 +209,19 @@ def wait_listening(viewer: ViewerProcess, port: int, timeout_s: float = 15.0) ->
 
 
 def view(path: Path, web: bool = False, port: int | None = None,
-         echo: Callable[[str], None] = print) -> int:
-    """Show ``path`` until the viewer is closed or Ctrl-C / SIGTERM; always stops the viewer."""
+         announce: Callable[[dict], None] = print) -> int:
+    """Show ``path`` until the viewer is closed or Ctrl-C / SIGTERM; always stops the viewer.
+    ``announce`` gets {file, url (web only, else None), host, ports} once the viewer is up."""
     check_recording(path)
     viewer = start_viewer(path, web=web, port=port)
     previous = signal.signal(signal.SIGTERM, _raise_interrupt)
     try:
+        where = {"file": str(path), "url": None, "host": HOST, "ports": []}
         if web:
-            wait_listening(viewer, DEFAULT_WEB_PORT if port is None else port)
             web_port = DEFAULT_WEB_PORT if port is None else port
-            echo(f"web viewer: {viewer.url}\n(serving on {HOST} ports {web_port} and {web_port + 1}; "
-                 "Ctrl-C to stop)")
-        else:
-            echo(f"viewing {path}  (close the window or Ctrl-C to stop)")
+            wait_listening(viewer, web_port)
+            where.update(url=viewer.url, ports=[web_port, web_port + 1])
+        announce(where)
         return viewer.process.wait()
     finally:
         viewer.stop()

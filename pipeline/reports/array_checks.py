@@ -138,7 +138,7 @@ def array_section(config: ModelConfig, quick: bool = False, mesh: Path | None = 
     summary = {key: {"scene": run["scene"], "note": run["note"], "whiskers": run["names"],
                      "duration_s": float(run["time_s"][-1]),
                      "contact_probability": run["touching"].mean(axis=0),
-                     "first_contact_s": first_contact_s(run), "max_moment_nm": run["moment"].max(axis=0),
+                     "first_contact_s": first_contact_s(run), "max_moment_N_m": run["moment"].max(axis=0),
                      "slip_off": slips[key]}
                for key, run in runs.items()}
     whiskers = runs["peg-passive"]["names"]

@@ -122,7 +122,7 @@ class Simulator:
                 record.pose_side, record.pose_distance_m = sample.side, sample.distance_m
                 record.pose_attempts, record.whiskers_reaching = sample.attempts, sample.whiskers_reaching
                 record.pose_rejections = tuple(sample.rejections.values())
-            record.pose_position_m, record.pose_euler_zyx_rad = pose.position_m, pose.yaw_pitch_roll_rad
+            record.pose_position_m, record.pose_euler_zyx_rad = pose.position_m, pose.euler_zyx_rad
             record.pose_rotation = pose.rotation
             record.sampling_seconds = time.perf_counter() - start_wall
             output = self.whisking.run(scene, pose, drive, whisk["duration_s"])

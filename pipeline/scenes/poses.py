@@ -16,9 +16,8 @@ is accepted when, checked in this order (the first failure is the rejection reas
                        whisker reaches when one of its links, at one of ``sweep_steps`` angles,
                        or one of its nodes' paths between consecutive angles crosses a face.
 
-Anatomical angles map onto :class:`~pipeline.model.kinematics.Pose` (Z–Y–X Euler angles of the
-head frame, x lateral, y rostral, z dorsal) as yaw = heading, "pitch" (about y, rostral) = head
-roll, "roll" (about x, lateral) = head pitch (nose up positive). Distances use Open3D's
+Head angles are the anatomical yaw (config: heading), pitch and roll of docs/frames.md,
+turned into a :class:`~pipeline.model.kinematics.Pose` by ``Pose.anatomical``. Distances use Open3D's
 ``RaycastingScene`` (one thread). Units: metres and radians.
 """
 
@@ -78,11 +77,11 @@ class PoseSampler:
         heading, pitch, roll = (np.radians(r.draw(rng)) for r in (c.heading_deg, c.pitch_deg, c.roll_deg))
         distance = c.distance_mm.draw(rng) * 1e-3
         target = self.surface.random_point(rng)
-        orientation = Pose(yaw_pitch_roll_rad=(float(heading), float(roll), float(pitch)))
+        orientation = Pose.anatomical(yaw_rad=heading, pitch_rad=pitch, roll_rad=roll)
         aim = orientation.rotation @ np.array([side * np.cos(elevation) * np.cos(azimuth),
                                                np.cos(elevation) * np.sin(azimuth), np.sin(elevation)])
         origin = target - distance * aim
-        return (Pose(tuple(origin.tolist()), orientation.yaw_pitch_roll_rad), side, distance, aim)
+        return (Pose(tuple(origin.tolist()), orientation.euler_zyx_rad), side, distance, aim)
 
     def check(self, pose: Pose, aim: np.ndarray, start: np.ndarray,
               envelope: np.ndarray) -> tuple[str | None, int]:
