@@ -205,7 +205,7 @@ class BulletWorld(World):
             for k in running:
                 w = self.bodies[k]
                 target = held[k] if held[k] is not None else w.rest_driven + w.rates * thetas[step]
-                w.apply_implicit_torques(target, h, setup.loads[k])
+                w.apply_implicit_torques(target, h, setup.loads[k], refresh_mass=step % self.steps_per_sample == 0)
             if moving:
                 self._place_obstacles(t + h)
             p.stepSimulation(physicsClientId=c)

@@ -126,7 +126,7 @@ class BulletWhisker:
                                     forces=[0.0] * len(self.dofs), physicsClientId=client)
         p.enableJointForceTorqueSensor(self.body, self.sensor_joint, True, physicsClientId=client)
         self.n_dof = len(self.dofs)
-        self.driven_dofs, self.free_dofs = np.arange(3), np.arange(3, self.n_dof)
+        self.free_dofs = np.arange(3, self.n_dof)
         self.stiffness = np.concatenate([np.zeros(3), layout.stiffness * U.TORQUE])
         self.damping = np.concatenate([np.zeros(3), layout.damping * U.TORQUE])
         self.rest_driven = np.asarray(model.rest_joint_angles, float)
@@ -136,6 +136,7 @@ class BulletWhisker:
         self.link1_angle = chain.link_angles_rad[0]
         self.tip_offset = chain.link_lengths_m[-1] * U.LENGTH
         self.local_link = {link: i for i, link in enumerate(self.whisker_links)}
+        self._lhs_inverse = None
 
     # -- per trial -----------------------------------------------------------------------
     def driven_targets(self, drive: ProtractionDrive, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -153,6 +154,7 @@ class BulletWhisker:
         p.resetBasePositionAndOrientation(self.body, base_mm.tolist(), orientation,
                                           physicsClientId=self.client)
         q_driven, v_driven = self.driven_targets(drive, 0.0)
+        self._lhs_inverse = None                            # the next step computes M afresh
         for k, joint in enumerate(self.dofs):
             q, v = (q_driven[k], v_driven[k]) if k < 3 else (free_angles[k - 3], 0.0)
             p.resetJointState(self.body, joint, q, v, physicsClientId=self.client)
@@ -163,33 +165,38 @@ class BulletWhisker:
         return np.array([s[0] for s in p.getJointStates(self.body, self.dofs[:3],
                                                           physicsClientId=self.client)])
 
-    def apply_implicit_torques(self, q_target: np.ndarray, h: float, loads=()) -> None:
+    def apply_implicit_torques(self, q_target: np.ndarray, h: float, loads=(), refresh_mass: bool = True) -> None:
         """Joint torques of one linearly implicit step of size h (s) toward driven angles q_target.
 
         ``loads`` (:mod:`pipeline.model.loads`) enter the implicit solve as the generalised force
-        Jᵀ·F and are applied to Bullet's bodies too, so the step Bullet takes is the implicit one."""
+        Jᵀ·F and are applied to Bullet's bodies too, so the step Bullet takes is the implicit one.
+        M·a + b comes from Bullet's inverse dynamics (exact at every step); only the free–free
+        block M_FF inside the implicit operator is that of the last step with ``refresh_mass``
+        (Bullet's mass matrix is its costliest query). The driven joints land on q_target exactly."""
         import pybullet as p
 
         c = self.client
-        states = p.getJointStates(self.body, self.dofs, physicsClientId=c)
-        q = np.fromiter((s[0] for s in states), float, self.n_dof)
-        v = np.fromiter((s[1] for s in states), float, self.n_dof)
+        q, v = np.array([s[:2] for s in p.getJointStates(self.body, self.dofs, physicsClientId=c)]).T
         q_list, v_list = q.tolist(), v.tolist()
-        mass = np.array(p.calculateMassMatrix(self.body, q_list, physicsClientId=c))
-        bias = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, [0.0] * self.n_dof,
-                                                   physicsClientId=c))
-        if loads:                                       # Bullet adds Jᵀ·F itself: take it out
-            bias = bias - self._apply_loads(loads, q_list)
+        if refresh_mass or self._lhs_inverse is None:
+            self._factorise(q_list, h)
+        generalised = self._apply_loads(loads, q_list) if loads else 0.0   # Bullet adds Jᵀ·F itself
         accel = np.zeros(self.n_dof)
-        d, f = self.driven_dofs, self.free_dofs
-        accel[d] = ((q_target - q[d]) / h - v[d]) / h
-        lhs = mass[np.ix_(f, f)] + np.diag(h * self.damping[f] + h * h * self.stiffness[f])
-        rhs = (-self.stiffness[f] * q[f] - self.damping[f] * v[f] - bias[f]
-               - mass[np.ix_(f, d)] @ accel[d])
-        accel[f] = np.linalg.solve(lhs, rhs)
-        torque = mass @ accel + bias
+        accel[:3] = ((q_target - q[:3]) / h - v[:3]) / h
+        driven_only = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, accel.tolist(),
+                                                          physicsClientId=c)) - generalised   # M_·D·a_D + b − Jᵀ·F
+        accel[3:] = self._lhs_inverse @ (-self.stiffness[3:] * q[3:] - self.damping[3:] * v[3:] - driven_only[3:])
+        torque = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, accel.tolist(),
+                                                     physicsClientId=c)) - generalised
         p.setJointMotorControlArray(self.body, self.dofs, p.TORQUE_CONTROL, forces=torque.tolist(),
                                     physicsClientId=c)
+
+    def _factorise(self, q: list[float], h: float) -> None:
+        """(M_FF + h·C + h²·K)⁻¹ at joint angles q (F: the free joints)."""
+        import pybullet as p
+
+        mass = np.array(p.calculateMassMatrix(self.body, q, physicsClientId=self.client))
+        self._lhs_inverse = np.linalg.inv(mass[3:, 3:] + np.diag(h * self.damping[3:] + h * h * self.stiffness[3:]))
 
     def link_state(self, velocities: bool) -> LinkState:
         """The whisker links' centres of mass, frames and velocities (world frame, SI)."""
