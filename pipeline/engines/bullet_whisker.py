@@ -23,6 +23,11 @@ from pipeline.model.rotations import axis_rotation, matrix_from_xyzw, quat_xyzw,
 IDENTITY_QUAT = (0.0, 0.0, 0.0, 1.0)
 _CAPSULE_ALONG_X = (0.0, 0.7071067811865476, 0.0, 0.7071067811865476)   # z axis → x axis
 _AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
+# Largest change of a free joint angle (rad) before M_FF of the implicit step is recomputed:
+# M_FF then changes by ≲ 0.5 × this, relative (measured on RC1); in a full-array free whisk it
+# is recomputed on ≈ 1 step in 10 and the base signals stay within 5·10⁻⁵ RMS of recomputing it
+# every step (issue 16; 1 ms-old matrices were 13× further off and failed the twist cross-check).
+MASS_REFRESH_RAD = 1e-4
 
 
 def quat(matrix: np.ndarray) -> list[float]:
@@ -136,7 +141,7 @@ class BulletWhisker:
         self.link1_angle = chain.link_angles_rad[0]
         self.tip_offset = chain.link_lengths_m[-1] * U.LENGTH
         self.local_link = {link: i for i, link in enumerate(self.whisker_links)}
-        self._lhs_inverse = None
+        self._lhs_inverse, self._factorised_at = None, None
 
     # -- per trial -----------------------------------------------------------------------
     def driven_targets(self, drive: ProtractionDrive, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -165,20 +170,22 @@ class BulletWhisker:
         return np.array([s[0] for s in p.getJointStates(self.body, self.dofs[:3],
                                                           physicsClientId=self.client)])
 
-    def apply_implicit_torques(self, q_target: np.ndarray, h: float, loads=(), refresh_mass: bool = True) -> None:
+    def apply_implicit_torques(self, q_target: np.ndarray, h: float, loads=()) -> None:
         """Joint torques of one linearly implicit step of size h (s) toward driven angles q_target.
 
         ``loads`` (:mod:`pipeline.model.loads`) enter the implicit solve as the generalised force
         Jᵀ·F and are applied to Bullet's bodies too, so the step Bullet takes is the implicit one.
-        M·a + b comes from Bullet's inverse dynamics (exact at every step); only the free–free
-        block M_FF inside the implicit operator is that of the last step with ``refresh_mass``
-        (Bullet's mass matrix is its costliest query). The driven joints land on q_target exactly."""
+        M·a + b comes from Bullet's inverse dynamics (exact at every step). The free–free block
+        M_FF inside the implicit operator depends on the free angles q_F only (the driven joints
+        turn the whole chain rigidly), so it is recomputed (Bullet's costliest query) only once
+        some free angle has moved :data:`MASS_REFRESH_RAD` from where it was last computed. The
+        driven joints land on q_target exactly."""
         import pybullet as p
 
         c = self.client
         q, v = np.array([s[:2] for s in p.getJointStates(self.body, self.dofs, physicsClientId=c)]).T
         q_list, v_list = q.tolist(), v.tolist()
-        if refresh_mass or self._lhs_inverse is None:
+        if self._lhs_inverse is None or np.abs(q[3:] - self._factorised_at).max() > MASS_REFRESH_RAD:
             self._factorise(q_list, h)
         generalised = self._apply_loads(loads, q_list) if loads else 0.0   # Bullet adds Jᵀ·F itself
         accel = np.zeros(self.n_dof)
@@ -196,6 +203,7 @@ class BulletWhisker:
         import pybullet as p
 
         mass = np.array(p.calculateMassMatrix(self.body, q, physicsClientId=self.client))
+        self._factorised_at = np.array(q[3:])
         self._lhs_inverse = np.linalg.inv(mass[3:, 3:] + np.diag(h * self.damping[3:] + h * h * self.stiffness[3:]))
 
     def link_state(self, velocities: bool) -> LinkState:
