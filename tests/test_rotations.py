@@ -28,3 +28,9 @@ def test_z_onto_takes_z_to_the_axis_including_the_opposite_one():
         rotation = z_onto(axis)
         np.testing.assert_allclose(rotation @ [0.0, 0.0, 1.0], np.asarray(axis) / np.linalg.norm(axis), atol=1e-12)
         np.testing.assert_allclose(rotation.T @ rotation, np.eye(3), atol=1e-12)
+
+
+def test_quaternion_to_matrix_batched_and_unnormalised_matches_scipy():
+    quaternions = np.random.default_rng(4).normal(size=(50, 4))     # not unit length
+    np.testing.assert_allclose(matrix_from_xyzw(quaternions), Rotation.from_quat(quaternions).as_matrix(),
+                               atol=1e-12)

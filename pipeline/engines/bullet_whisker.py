@@ -23,6 +23,11 @@ from pipeline.model.rotations import axis_rotation, matrix_from_xyzw, quat_xyzw,
 IDENTITY_QUAT = (0.0, 0.0, 0.0, 1.0)
 _CAPSULE_ALONG_X = (0.0, 0.7071067811865476, 0.0, 0.7071067811865476)   # z axis → x axis
 _AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
+# Largest change of a free joint angle (rad) before M_FF of the implicit step is recomputed:
+# M_FF then changes by ≲ 0.5 × this, relative (measured on RC1); in a full-array free whisk it
+# is recomputed on ≈ 1 step in 10 and the base signals stay within 5·10⁻⁵ RMS of recomputing it
+# every step (issue 16; 1 ms-old matrices were 13× further off and failed the twist cross-check).
+MASS_REFRESH_RAD = 1e-4
 
 
 def quat(matrix: np.ndarray) -> list[float]:
@@ -126,7 +131,7 @@ class BulletWhisker:
                                     forces=[0.0] * len(self.dofs), physicsClientId=client)
         p.enableJointForceTorqueSensor(self.body, self.sensor_joint, True, physicsClientId=client)
         self.n_dof = len(self.dofs)
-        self.driven_dofs, self.free_dofs = np.arange(3), np.arange(3, self.n_dof)
+        self.free_dofs = np.arange(3, self.n_dof)
         self.stiffness = np.concatenate([np.zeros(3), layout.stiffness * U.TORQUE])
         self.damping = np.concatenate([np.zeros(3), layout.damping * U.TORQUE])
         self.rest_driven = np.asarray(model.rest_joint_angles, float)
@@ -136,6 +141,7 @@ class BulletWhisker:
         self.link1_angle = chain.link_angles_rad[0]
         self.tip_offset = chain.link_lengths_m[-1] * U.LENGTH
         self.local_link = {link: i for i, link in enumerate(self.whisker_links)}
+        self._lhs_inverse, self._factorised_at = None, None
 
     # -- per trial -----------------------------------------------------------------------
     def driven_targets(self, drive: ProtractionDrive, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -153,6 +159,7 @@ class BulletWhisker:
         p.resetBasePositionAndOrientation(self.body, base_mm.tolist(), orientation,
                                           physicsClientId=self.client)
         q_driven, v_driven = self.driven_targets(drive, 0.0)
+        self._lhs_inverse = None                            # the next step computes M afresh
         for k, joint in enumerate(self.dofs):
             q, v = (q_driven[k], v_driven[k]) if k < 3 else (free_angles[k - 3], 0.0)
             p.resetJointState(self.body, joint, q, v, physicsClientId=self.client)
@@ -167,29 +174,37 @@ class BulletWhisker:
         """Joint torques of one linearly implicit step of size h (s) toward driven angles q_target.
 
         ``loads`` (:mod:`pipeline.model.loads`) enter the implicit solve as the generalised force
-        Jᵀ·F and are applied to Bullet's bodies too, so the step Bullet takes is the implicit one."""
+        Jᵀ·F and are applied to Bullet's bodies too, so the step Bullet takes is the implicit one.
+        M·a + b comes from Bullet's inverse dynamics (exact at every step). The free–free block
+        M_FF inside the implicit operator depends on the free angles q_F only (the driven joints
+        turn the whole chain rigidly), so it is recomputed (Bullet's costliest query) only once
+        some free angle has moved :data:`MASS_REFRESH_RAD` from where it was last computed. The
+        driven joints land on q_target exactly."""
         import pybullet as p
 
         c = self.client
-        states = p.getJointStates(self.body, self.dofs, physicsClientId=c)
-        q = np.fromiter((s[0] for s in states), float, self.n_dof)
-        v = np.fromiter((s[1] for s in states), float, self.n_dof)
+        q, v = np.array([s[:2] for s in p.getJointStates(self.body, self.dofs, physicsClientId=c)]).T
         q_list, v_list = q.tolist(), v.tolist()
-        mass = np.array(p.calculateMassMatrix(self.body, q_list, physicsClientId=c))
-        bias = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, [0.0] * self.n_dof,
-                                                   physicsClientId=c))
-        if loads:                                       # Bullet adds Jᵀ·F itself: take it out
-            bias = bias - self._apply_loads(loads, q_list)
+        if self._lhs_inverse is None or np.abs(q[3:] - self._factorised_at).max() > MASS_REFRESH_RAD:
+            self._factorise(q_list, h)
+        generalised = self._apply_loads(loads, q_list) if loads else 0.0   # Bullet adds Jᵀ·F itself
         accel = np.zeros(self.n_dof)
-        d, f = self.driven_dofs, self.free_dofs
-        accel[d] = ((q_target - q[d]) / h - v[d]) / h
-        lhs = mass[np.ix_(f, f)] + np.diag(h * self.damping[f] + h * h * self.stiffness[f])
-        rhs = (-self.stiffness[f] * q[f] - self.damping[f] * v[f] - bias[f]
-               - mass[np.ix_(f, d)] @ accel[d])
-        accel[f] = np.linalg.solve(lhs, rhs)
-        torque = mass @ accel + bias
+        accel[:3] = ((q_target - q[:3]) / h - v[:3]) / h
+        driven_only = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, accel.tolist(),
+                                                          physicsClientId=c)) - generalised   # M_·D·a_D + b − Jᵀ·F
+        accel[3:] = self._lhs_inverse @ (-self.stiffness[3:] * q[3:] - self.damping[3:] * v[3:] - driven_only[3:])
+        torque = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, accel.tolist(),
+                                                     physicsClientId=c)) - generalised
         p.setJointMotorControlArray(self.body, self.dofs, p.TORQUE_CONTROL, forces=torque.tolist(),
                                     physicsClientId=c)
+
+    def _factorise(self, q: list[float], h: float) -> None:
+        """(M_FF + h·C + h²·K)⁻¹ at joint angles q (F: the free joints)."""
+        import pybullet as p
+
+        mass = np.array(p.calculateMassMatrix(self.body, q, physicsClientId=self.client))
+        self._factorised_at = np.array(q[3:])
+        self._lhs_inverse = np.linalg.inv(mass[3:, 3:] + np.diag(h * self.damping[3:] + h * h * self.stiffness[3:]))
 
     def link_state(self, velocities: bool) -> LinkState:
         """The whisker links' centres of mass, frames and velocities (world frame, SI)."""

@@ -11,10 +11,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from pipeline.errors import UserError
 from pipeline.model.rotations import rot_x, rot_y, rotation_zyx
+from pipeline.model.spline import linear_spline, not_a_knot_spline
 
 # Knutsen, Biess & Ahissar 2008 as used by the paper (eq. 8–9), rows A–E.
 ELEVATION_PER_PROTRACTION = (0.398, 0.591, 0.578, 0.393, 0.217)
@@ -30,9 +30,9 @@ WHISKER_FRAME_OFFSET = {1: rot_x(-np.pi / 2), -1: rot_x(-np.pi / 2) @ rot_y(np.p
 class ProtractionDrive:
     """Protraction θ(t) (rad) as samples at times t (s).
 
-    Interpolated with a C² cubic spline, or piecewise linearly (``interpolation="linear"``,
-    for drives with kinks such as an abrupt stop). Before the first sample θ holds its
-    first value, after the last its last value. ``kind`` says where the table came from
+    Interpolated with a C² cubic spline (not-a-knot ends, :mod:`pipeline.model.spline`), or
+    piecewise linearly (``interpolation="linear"``, for drives with kinks such as an abrupt
+    stop). Before the first sample θ holds its first value, after the last its last value. ``kind`` says where the table came from
     (``table``, ``sinusoid`` with its ``frequency_hz``, or ``still``), for the records.
     """
 
@@ -53,11 +53,9 @@ class ProtractionDrive:
         object.__setattr__(self, "time_s", t)
         object.__setattr__(self, "angle_rad", a)
         if self.interpolation == "cubic":
-            spline = CubicSpline(t, a)
+            spline = not_a_knot_spline(t, a)
         elif self.interpolation == "linear":
-            from scipy.interpolate import make_interp_spline
-
-            spline = make_interp_spline(t, a, k=1)
+            spline = linear_spline(t, a)
         else:
             raise UserError(f"unknown interpolation '{self.interpolation}' (cubic or linear)")
         object.__setattr__(self, "_spline", spline)

@@ -106,7 +106,11 @@ def quat_xyzw(matrix) -> np.ndarray:
 
 
 def matrix_from_xyzw(quaternion) -> np.ndarray:
-    """Rotation matrix of a quaternion (x, y, z, w)."""
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_quat(quaternion).as_matrix()
+    """[..., 3, 3] rotation matrices of quaternions [..., 4] (x, y, z, w), normalised first."""
+    q = np.asarray(quaternion, float)
+    x, y, z, w = np.moveaxis(q / np.linalg.norm(q, axis=-1, keepdims=True), -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=-1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=-1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1),
+    ], axis=-2)

@@ -15,7 +15,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
 
 from pipeline.errors import UserError
 
@@ -43,8 +42,8 @@ class WhiskerGeometry:
                             "(check units: lengths in m here)")
 
 
-def parabola_arc_length(x: float, a: float) -> float:
-    """Arc length of y = a·x² from 0 to x (m)."""
+def parabola_arc_length(x, a: float):
+    """Arc length of y = a·x² from 0 to x (m; x a number or an array)."""
     if abs(a) < 1e-12:
         return x
     u = 2 * a * x
@@ -54,11 +53,15 @@ def parabola_arc_length(x: float, a: float) -> float:
 def rest_nodes(geometry: WhiskerGeometry, links: int) -> np.ndarray:
     """N+1 node positions (m, whisker frame) equidistant along the arc of y = A·x²."""
     a, s_total = geometry.curvature_per_m, geometry.arc_length_m
-    xs = [0.0]
-    for n in range(1, links + 1):
-        target = s_total * n / links
-        xs.append(brentq(lambda x: parabola_arc_length(x, a) - target, xs[-1], target + 1e-12))
-    xs = np.array(xs)
+    target = s_total * np.arange(links + 1) / links
+    # Newton on L(x) = target from x = target ≥ root: L is increasing and convex on x ≥ 0,
+    # so the iterates fall monotonically onto the root (to rounding within a few steps).
+    xs = target.copy()
+    for _ in range(100):
+        step = (parabola_arc_length(xs, a) - target) / np.sqrt(1 + (2 * a * xs) ** 2)
+        xs = xs - step
+        if np.all(np.abs(step) <= 1e-15 * s_total):
+            break
     return np.stack([xs, a * xs ** 2, np.zeros_like(xs)], axis=1)
 
 
@@ -175,9 +178,13 @@ def planar_mass_matrix(chain: WhiskerChain) -> np.ndarray:
 
 
 def planar_modes(chain: WhiskerChain, stiffness: np.ndarray | None = None):
-    """Undamped in-plane natural frequencies (Hz, ascending) and mode shapes of the chain."""
-    from scipy.linalg import eigh
+    """Undamped in-plane natural frequencies (Hz, ascending) and mode shapes of the chain
+    (normalised to unit modal mass, φᵀ·M·φ = 1).
 
+    The generalised problem K·φ = ω²·M·φ is reduced with M = L·Lᵀ to the symmetric
+    L⁻¹·K·L⁻ᵀ·ψ = ω²·ψ, φ = L⁻ᵀ·ψ (what LAPACK's sygv does; numpy only, no scipy at start-up)."""
     k = chain.stiffness_nm_per_rad if stiffness is None else stiffness
-    omega_sq, shapes = eigh(np.diag(k), planar_mass_matrix(chain))
+    cholesky_inverse = np.linalg.inv(np.linalg.cholesky(planar_mass_matrix(chain)))
+    omega_sq, reduced = np.linalg.eigh(cholesky_inverse @ np.diag(k) @ cholesky_inverse.T)
+    shapes = cholesky_inverse.T @ reduced
     return np.sqrt(np.maximum(omega_sq, 0)) / (2 * np.pi), shapes
