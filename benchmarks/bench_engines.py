@@ -142,7 +142,8 @@ def ringing_f1_hz(engine_name: str, geometry, material) -> tuple[float, float]:
     from pipeline.engines import create_engine
     from pipeline.model.array import single_whisker
     from pipeline.model.kinematics import Pose
-    from pipeline.protocols.resonance import pulse_drive, spectral_peak
+    from pipeline.signals.resonance import pulse_drive
+    from pipeline.signals.ringdown import spectral_peak
     from pipeline.scenes import empty
 
     config = ModelConfig(material=material,

@@ -490,7 +490,11 @@ class MujocoWorld(World):
 
     def _simulate(self, setup: TrialSetup) -> WorldResult:
         """Integrate the current model (its ``members``; ``setup`` for them) for the trial's
-        output intervals."""
+        output intervals.
+
+        The per-step work in Python is kept to array operations on views taken once: the
+        kinematic targets of every step are computed before the loop (rows rewritten when a
+        base holds), the sensors are switched only on the steps that record."""
         import mujoco
 
         m, d, h, spp = self.model, self.data, self.dt_s, self.steps_per_sample
@@ -499,37 +503,42 @@ class MujocoWorld(World):
         times = np.arange(n_steps + 2) * h
         thetas = np.asarray(setup.drive(times), float)
         slide_rate = np.concatenate([np.zeros(self.n_driven), self.obstacle_velocity])
+        targets = offset + theta_rate * thetas[1:, None] + slide_rate * times[1:, None]   # [step, kinematic]
         result = WorldResult.zeros(setup.samples, n_w, self.links)
         flags = ContactFlags(n_w, self.links)
         held = np.zeros(n_w, bool)
         loaded = [k for k in range(n_w) if setup.loads[k]]
         sensor_bit = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
-        sensors_on, sensors_off = m.opt.disableflags & ~sensor_bit, m.opt.disableflags | sensor_bit
+        option = m.opt
+        sensors_on, sensors_off = option.disableflags & ~sensor_bit, option.disableflags | sensor_bit
         bad_acceleration = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
+        qpos, qvel, qfrc = d.qpos, d.qvel, d.qfrc_applied
+        kinematic, armature, spring_rate = self.kinematic, self.armature, self.spring_rate
+        step_function = mujoco.mj_step
         for step in range(n_steps + 1):
-            target = offset + theta_rate * thetas[step + 1] + slide_rate * times[step + 1]
-            np.multiply(self.spring_rate, d.qvel, out=d.qfrc_applied)
-            q, v = d.qpos[self.kinematic], d.qvel[self.kinematic]
-            d.qfrc_applied[self.kinematic] = self.armature * (((target - q) / h - v) / h)
+            np.multiply(spring_rate, qvel, out=qfrc)
+            qfrc[kinematic] = armature * (((targets[step] - qpos[kinematic]) / h - qvel[kinematic]) / h)
             if loaded:
                 self._apply_loads(setup.loads, loaded)
             sample, due = divmod(step, spp)
-            m.opt.disableflags = sensors_on if due == 0 and sample > 0 else sensors_off
-            mujoco.mj_step(m, d)
+            records = due == 0 and sample > 0
+            if due < 2:
+                option.disableflags = sensors_on if records else sensors_off
+            step_function(m, d)
             if bad_acceleration.number:
                 self._blown_up(step * h)
-            if due == 0 and sample > 0:
+            if records:
                 self._record(result, sample - 1, flags.take(), time_s=step * h)
             if d.ncon:
                 flags.add(self._touched())
                 links = self.link_of_geom[d.contact.geom]
                 result.touched[links[links >= 0] // self.links] = True
-            if setup.hold_on_contact:
-                newly = flags.touching.any(axis=1) & ~held
-                for k in np.flatnonzero(newly):
-                    rows = slice(3 * k, 3 * k + 3)
-                    offset[rows], theta_rate[rows] = d.qpos[self.kinematic[rows]], 0.0
-                held |= newly
+                if setup.hold_on_contact:
+                    newly = flags.touching.any(axis=1) & ~held
+                    for k in np.flatnonzero(newly):
+                        rows = slice(3 * k, 3 * k + 3)
+                        targets[step + 1:, rows] = qpos[kinematic[rows]]
+                    held |= newly
         return result
 
     def _blown_up(self, time_s: float) -> None:
