@@ -91,6 +91,7 @@ from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, TrialSetup, World, WorldResult
 from pipeline.engines.common import ContactFlags, implausible, jam_message, link_reach_m, path_distance_m
+from pipeline.engines.stepping import damping_folds, folded_refinement_levels
 from pipeline.errors import SimulationError
 from pipeline.model.array import ArrayModel, WhiskerModel
 from pipeline.model.kinematics import Pose, ProtractionDrive
@@ -389,6 +390,10 @@ class MujocoWorld(World):
         springs = m.jnt_stiffness > 0
         stiffness[m.jnt_dofadr[springs]] = m.jnt_stiffness[springs]
         self.spring_rate = self.dt_s * stiffness      # h·K per dof (module docstring, Integration)
+        for k, qpos in zip(members, self.free_qpos):  # hinges: qpos address = dof address
+            if damping_folds(self.whiskers[k], self.dt_s):
+                m.dof_damping[qpos] -= self.spring_rate[qpos]
+                self.spring_rate[qpos] = 0.0
 
     # -- scene ---------------------------------------------------------------------------
     def _mesh_prisms(self, scene: Scene, index: int) -> MeshPrisms:
@@ -620,6 +625,9 @@ class MujocoEngine(Engine):
         self._prisms: dict[tuple, MeshPrisms] = {}
         self._scene_key: object = None
         super().__init__(array, config)
+
+    def step_levels(self, array: ArrayModel, config: EngineConfig) -> np.ndarray:
+        return folded_refinement_levels(array, config)
 
     def make_world(self, whiskers: list[WhiskerModel], dt_s: float) -> MujocoWorld:
         return MujocoWorld(whiskers, self.config, dt_s, self._prisms)
