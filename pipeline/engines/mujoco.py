@@ -308,27 +308,31 @@ class MujocoWorld(World):
         self._contact_options(geom)
 
     def _add_obstacle(self, spec, part: _Part) -> None:
-        """A static obstacle on a body without joints, a moving one on three kinematic slides."""
+        """A static obstacle on a body without joints, a moving one on three kinematic slides.
+        Built in a spec of its own and attached: adding thousands of prisms to the spec that
+        already holds the whiskers costs about twice as much per element."""
         import mujoco
 
         obstacle = part.obstacle
-        body = spec.worldbody.add_body(name=f"obstacle{part.index}",
+        piece = mujoco.MjSpec()
+        body = piece.worldbody.add_body(name="body",
                                        pos=np.asarray(obstacle.position_m, float) * U.LENGTH,
                                        quat=quat_wxyz(obstacle.rotation))
         if part.velocity_mm_s.any():
             body.explicitinertial = True
             body.mass, body.inertia = OBSTACLE_MASS_MG, [OBSTACLE_MASS_MG] * 3
             for axis, label in zip((_X, _Y, _Z), "xyz"):
-                body.add_joint(name=f"obstacle{part.index}/{label}", type=mujoco.mjtJoint.mjJNT_SLIDE,
+                body.add_joint(name=label, type=mujoco.mjtJoint.mjJNT_SLIDE,
                                axis=obstacle.rotation.T @ np.asarray(axis),
                                armature=KINEMATIC_ARMATURE * OBSTACLE_MASS_MG)
-        SHAPES[type(obstacle)](self, spec, body, part)
+        SHAPES[type(obstacle)](self, piece, body, part)
+        spec.worldbody.add_frame().attach_body(body, f"obstacle{part.index}/", "")
 
     def _add_mesh(self, spec, body, part: _Part) -> None:
         import mujoco
 
         for f, prism in enumerate(part.prisms):
-            name = f"obstacle{part.index}/f{f}"
+            name = f"f{f}"
             spec.add_mesh(name=name, uservert=prism.ravel())
             self._obstacle_geom(body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name))
 

@@ -54,13 +54,17 @@ def scheme_f1_error(chain, dt_s: float, folded: bool) -> float:
     ``dt_s`` by the engines' step, against the same chain in continuous time. The step is
     (M + h·D + h²·K)·a = −K·q − D·v (``folded`` False: linearly implicit) or
     (M + h·D)·a = −K·q − D·v (``folded``), then v ← v + h·a, q ← q + h·v; its modes are the
-    logarithms of the eigenvalues of that update, divided by h."""
+    logarithms of the eigenvalues of that update, divided by h. NaN if no mode oscillates
+    (an overdamped chain)."""
     mass = planar_mass_matrix(chain)
     stiffness, damping = np.diag(chain.stiffness_nm_per_rad), np.diag(chain.damping_nms_per_rad)
     n, h = len(mass), dt_s
     continuous = np.linalg.eigvals(np.block([[np.zeros((n, n)), np.eye(n)],
                                    [-np.linalg.solve(mass, stiffness), -np.linalg.solve(mass, damping)]]))
-    first = continuous[continuous.imag > 0][np.argmin(np.abs(continuous[continuous.imag > 0]))]
+    oscillating = continuous[continuous.imag > 0]
+    if not oscillating.size:
+        return float("nan")
+    first = oscillating[np.argmin(np.abs(oscillating))]
     metric = mass + h * damping + (0.0 if folded else h * h) * stiffness
     acceleration = -np.linalg.solve(metric, np.hstack([stiffness, damping]))      # a = A·[q; v]
     velocity = np.hstack([np.zeros((n, n)), np.eye(n)]) + h * acceleration
@@ -73,7 +77,7 @@ def scheme_f1_error(chain, dt_s: float, folded: bool) -> float:
 def folded_refinement_levels(array: ArrayModel, config: EngineConfig, most: int = 8) -> np.ndarray:
     """[W] j per whisker for the folded step: the smallest j at which the whisker's damping folds
     and its f1 error (:func:`scheme_f1_error`) is within ``engine.f1_tolerance``; a whisker
-    for which no j ≤ ``most`` qualifies keeps the level of :func:`refinement_levels` (and is
+    for which no j ≤ ``most`` qualifies (or without an oscillating mode) keeps the level of :func:`refinement_levels` (and is
     stepped unfolded). Whiskers with the same chain share the evaluation."""
     levels = refinement_levels(array, config)
     known: dict[tuple, int | None] = {}
