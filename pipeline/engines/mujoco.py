@@ -440,7 +440,7 @@ class MujocoWorld(World):
         they changed) in which only the links that can reach a part collide."""
         import mujoco
 
-        key = (scene.key, tuple(p.key for p in parts), members.tobytes())
+        key = (scene.key if parts else None, tuple(p.key for p in parts), members.tobytes())
         if key != self._built_key:
             self._build(parts, members)
             self._built_key = key
