@@ -49,22 +49,31 @@ def damping_folds(whisker, dt_s: float) -> bool:
     return all(j.damping_nms_per_rad >= 0.25 * dt_s * j.stiffness_nm_per_rad for j in whisker.layout.joints)
 
 
+def damped_first_mode(chain) -> complex:
+    """The first oscillating root λ = −σ + iω_d (1/s) of the chain's in-plane joints with a rigid
+    base in continuous time (λ²M + λD + K singular); NaN if no mode oscillates."""
+    mass = planar_mass_matrix(chain)
+    n = len(mass)
+    stiffness, damping = np.diag(chain.stiffness_nm_per_rad), np.diag(chain.damping_nms_per_rad)
+    roots = np.linalg.eigvals(np.block([[np.zeros((n, n)), np.eye(n)],
+                                        [-np.linalg.solve(mass, stiffness), -np.linalg.solve(mass, damping)]]))
+    oscillating = roots[roots.imag > 1e-9]
+    return oscillating[np.argmin(np.abs(oscillating))] if oscillating.size else complex(np.nan, np.nan)
+
+
 def scheme_f1_error(chain, dt_s: float, folded: bool) -> float:
     """Relative error of the first damped in-plane mode of ``chain`` (rigid base) integrated at
-    ``dt_s`` by the engines' step, against the same chain in continuous time. The step is
+    ``dt_s`` by the engines' step, against :func:`damped_first_mode`. The step is
     (M + h·D + h²·K)·a = −K·q − D·v (``folded`` False: linearly implicit) or
     (M + h·D)·a = −K·q − D·v (``folded``), then v ← v + h·a, q ← q + h·v; its modes are the
     logarithms of the eigenvalues of that update, divided by h. NaN if no mode oscillates
     (an overdamped chain)."""
+    first = damped_first_mode(chain)
+    if np.isnan(first.imag):
+        return float("nan")
     mass = planar_mass_matrix(chain)
     stiffness, damping = np.diag(chain.stiffness_nm_per_rad), np.diag(chain.damping_nms_per_rad)
     n, h = len(mass), dt_s
-    continuous = np.linalg.eigvals(np.block([[np.zeros((n, n)), np.eye(n)],
-                                   [-np.linalg.solve(mass, stiffness), -np.linalg.solve(mass, damping)]]))
-    oscillating = continuous[continuous.imag > 0]
-    if not oscillating.size:
-        return float("nan")
-    first = oscillating[np.argmin(np.abs(oscillating))]
     metric = mass + h * damping + (0.0 if folded else h * h) * stiffness
     acceleration = -np.linalg.solve(metric, np.hstack([stiffness, damping]))      # a = A·[q; v]
     velocity = np.hstack([np.zeros((n, n)), np.eye(n)]) + h * acceleration
