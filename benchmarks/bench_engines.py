@@ -121,19 +121,9 @@ def cost_table(engines, tolerances, mesh_path: Path, runs: int, duration: float)
 # -- accuracy ---------------------------------------------------------------------------
 def damped_f1_hz(chain) -> float:
     """Damped first in-plane mode (Hz) of the chain in continuous time (rigid base)."""
-    from scipy.linalg import eigvals
+    from pipeline.engines.stepping import damped_first_mode
 
-    from pipeline.model.whisker import planar_mass_matrix
-
-    mass = planar_mass_matrix(chain)
-    n = len(mass)
-    inverse = np.linalg.inv(mass)
-    state = np.block([[np.zeros((n, n)), np.eye(n)],
-                      [-inverse @ np.diag(chain.stiffness_nm_per_rad),
-                       -inverse @ np.diag(chain.damping_nms_per_rad)]])
-    roots = eigvals(state)
-    oscillating = roots[roots.imag > 1e-9]
-    return float(oscillating[np.argmin(np.abs(oscillating))].imag / (2 * np.pi))
+    return float(damped_first_mode(chain).imag / (2 * np.pi))
 
 
 def ringing_f1_hz(engine_name: str, geometry, material) -> tuple[float, float]:
@@ -142,7 +132,8 @@ def ringing_f1_hz(engine_name: str, geometry, material) -> tuple[float, float]:
     from pipeline.engines import create_engine
     from pipeline.model.array import single_whisker
     from pipeline.model.kinematics import Pose
-    from pipeline.protocols.resonance import pulse_drive, spectral_peak
+    from pipeline.signals.resonance import pulse_drive
+    from pipeline.signals.ringdown import spectral_peak
     from pipeline.scenes import empty
 
     config = ModelConfig(material=material,

@@ -67,7 +67,9 @@ def test_extension_runs_on_both_engines_as_the_linear_model_predicts(case, basel
     assert effect > 3 * tolerance, f"{case}: effect {effect:.3g} m too small to test"
     assert _rms(bullet, linear) < tolerance
     assert _rms(mujoco, linear) < tolerance
-    assert _rms(bullet, mujoco) < 1e-4 * swing     # measured ≈ 1e-6
+    # the engines' steps differ by h²·K in the metric (MuJoCo folds h·K·v into its damping,
+    # pipeline.engines.stepping); measured 3e-4–1e-3 (≈ 1e-6 with the same step)
+    assert _rms(bullet, mujoco) < 3e-3 * swing
 
 
 @pytest.mark.parametrize("engine", ("bullet", "mujoco"))

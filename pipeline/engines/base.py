@@ -113,13 +113,17 @@ class Engine(ABC):
     def __init__(self, array: ArrayModel, config: EngineConfig):
         self.array, self.config = array, config
         steps_per_sample(config)                      # validates dt_s against the output rate
-        self.levels = refinement_levels(array, config)
+        self.levels = self.step_levels(array, config)
         start = time.perf_counter()
         self.worlds: list[tuple[np.ndarray, World]] = [
             (members, self.make_world([array.whiskers[k] for k in members], dt_s))
             for members, dt_s in step_groups(self.levels, config.dt_s)]
         self.build_seconds = time.perf_counter() - start
         self.free = FreeMotion(array.whiskers)
+
+    def step_levels(self, array: ArrayModel, config: EngineConfig) -> np.ndarray:
+        """[W] j per whisker: it steps at ``dt_s / 2**j`` (:mod:`pipeline.engines.stepping`)."""
+        return refinement_levels(array, config)
 
     @abstractmethod
     def make_world(self, whiskers: list[WhiskerModel], dt_s: float) -> World:
