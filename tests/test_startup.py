@@ -40,6 +40,9 @@ def test_importing_the_cli_loads_no_heavy_module():
 
 @pytest.mark.parametrize("engine", ["bullet", "mujoco"])
 def test_a_short_trial_loads_no_heavy_module(engine):
+    """With --json nothing heavy is loaded; the human summary loads rich only, after the run."""
     body = ("sys.argv = ['pipeline', 'trial', '--whiskers', 'RC1', '--duration-s', '0.001', "
-            f"'--engine', '{engine}']\nrunpy.run_module('pipeline.cli', run_name='__main__')")
+            f"'--engine', '{engine}', '--json']\nrunpy.run_module('pipeline.cli', run_name='__main__')")
     assert loaded_heavy_modules(body) == []
+    table = loaded_heavy_modules(body.replace(", '--json']", "]"))
+    assert {name.split(".")[0] for name in table} == {"rich"}, table
