@@ -65,22 +65,34 @@ def effect_rms(case, clean) -> float:
     return float(np.sqrt(np.mean(diff ** 2)))
 
 
-def run_one(k: int, seed0: int, workdir: Path) -> dict:
+def prepare(k: int, seed0: int, workdir: Path, elements: int) -> tuple[Path, dict]:
+    """Draw k's measurement file and what is known about its truth; kept in ``workdir`` (a
+    second run with the same directory reuses them: the truth costs most of a draw's time)."""
     cause, seed = CAUSES[k % len(CAUSES)], seed0 + k
-    case = draw_case(cause, seed)
+    path, meta_path = workdir / f"draw_{seed}_{elements}.h5", workdir / f"draw_{seed}_{elements}.json"
+    if path.is_file() and meta_path.is_file():
+        return path, json.loads(meta_path.read_text())
+    case = draw_case(cause, seed, elements=elements)
     clean = simulate_clean(case.whisker, case.trials, case.tracking)
-    path = write_timeseries(workdir / f"draw_{seed}.h5",
-                            measurement_of(case.whisker, case.trials, case.tracking, clean, seed, f"{cause}_{seed}"))
+    write_timeseries(path, measurement_of(case.whisker, case.trials, case.tracking, clean, seed, f"{cause}_{seed}"))
+    meta = {"cause": cause, "expected": case.expected, "seed": seed, "noise_m": case.tracking.noise_m,
+            "effect_rms_m": effect_rms(case, clean), "bend": bend_fraction(case, clean),
+            "curved": bool(case.whisker.curvature_per_m > 0), "length_m": case.whisker.arc_length_m,
+            "truth": {name: float(v) for name, v in case.truth.items()}}
+    meta_path.write_text(json.dumps(meta))
+    return path, meta
+
+
+def run_one(k: int, seed0: int, workdir: Path, elements: int) -> dict:
+    path, meta = prepare(k, seed0, workdir, elements)
+    case = draw_case(meta["cause"], meta["seed"], elements=elements)
     start = time.process_time()
     data, _ = run_diagnose(path, MaterialConfig(), None, None)
     cpu = time.process_time() - start
     relative, in_sd = case.key_error(data["params"]) if data["cause"] == case.expected else (float("nan"),) * 2
-    return {"cause": cause, "expected": case.expected, "seed": seed, "named": data["cause"],
-            "noise_m": case.tracking.noise_m, "effect_rms_m": effect_rms(case, clean),
-            "bend": bend_fraction(case, clean), "key_relative_error": relative, "key_error_in_sd": in_sd,
-            "curved": case.whisker.curvature_per_m > 0, "length_m": case.whisker.arc_length_m,
-            "E_fit": data["params"]["E"]["value"], "truth": {k: float(v) for k, v in case.truth.items()},
-            "params": data["params"], "cpu_s": cpu}
+    return {**meta, "named": data["cause"], "key_relative_error": relative, "key_error_in_sd": in_sd,
+            "E_fit": data["params"]["E"]["value"], "params": data["params"], "decision": data.get("decision", {}),
+            "cpu_s": cpu}
 
 
 def _table(rows) -> list[str]:
@@ -137,18 +149,28 @@ def main():
     parser.add_argument("--n", type=int, default=30, help="number of draws")
     parser.add_argument("--seed", type=int, default=5000, help="seed of draw 0 (draw k uses seed + k)")
     parser.add_argument("--json", type=Path, help="write the rows here")
+    parser.add_argument("--elements", type=int, default=100, help="elements of the truth rod")
+    parser.add_argument("--cache", type=Path, help="keep (and reuse) the draws' measurement files here")
+    parser.add_argument("--prepare-only", action="store_true", help="only simulate the draws into --cache")
     args = parser.parse_args()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
+        workdir = args.cache or Path(tmp)
+        workdir.mkdir(parents=True, exist_ok=True)
         for k in range(args.n):
-            rows.append(run_one(k, args.seed, Path(tmp)))
+            if args.prepare_only:
+                prepare(k, args.seed, workdir, args.elements)
+                print(f"{k + 1:4d}/{args.n} prepared", flush=True)
+                continue
+            rows.append(run_one(k, args.seed, workdir, args.elements))
             r = rows[-1]
             print(f"{k + 1:4d}/{args.n} {r['cause']:>18} → {r['named']:<18} effect/noise "
                   f"{r['effect_rms_m'] / r['noise_m']:.2f} bend {r['bend']:.2f} ({r['cpu_s']:.1f} s)", flush=True)
             if args.json:
                 args.json.write_text(json.dumps(rows, indent=1, default=float))
-    print()
-    print(report(rows))
+    if rows:
+        print()
+        print(report(rows))
 
 
 if __name__ == "__main__":

@@ -95,7 +95,7 @@ def _signature(trial) -> tuple[str, int]:
     if isinstance(trial.drive, ReleaseDrive):
         tip = trial.positions_m[:, int(np.argmax(trial.arc_fraction))]
         travel = np.nanmean(tip[:5], axis=0) - np.nanmean(tip[-max(5, len(tip) // 10):], axis=0)
-        return "release", int(np.argmax(np.abs(travel[1:])))
+        return "release", int(np.argmax(np.nan_to_num(np.abs(travel[1:]))))
     return "rotation", int(np.argmax(np.abs(trial.drive.angles_rad).max(axis=0)))
 
 
