@@ -37,8 +37,8 @@ def deflection(trial: Trial, positions: np.ndarray, rotation: np.ndarray | None 
     """[T, K, 3] base-frame positions minus their settled values (m)."""
     moved = body(trial, positions, rotation)
     settled = moved[-max(2, int(SETTLED_FRACTION * len(moved))):]
-    with np.errstate(invalid="ignore"):
-        return moved - np.nanmean(settled, axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return moved - np.nansum(settled, axis=0) / np.isfinite(settled).sum(axis=0)
 
 
 def amplitude(measurement: TimeSeriesMeasurement) -> float:

@@ -35,10 +35,12 @@ def msa(log_ratios) -> float:
 
 
 def _fill(signal: np.ndarray) -> np.ndarray:
-    """Linear interpolation over NaN samples (ends held)."""
+    """Linear interpolation over NaN samples (ends held; zeros when none is finite)."""
     good = np.isfinite(signal)
     if good.all():
         return signal
+    if not good.any():
+        return np.zeros_like(signal)
     index = np.arange(len(signal))
     return np.interp(index, index[good], signal[good])
 
@@ -54,8 +56,10 @@ class TipSignal:
         self.rotation = base_motion(trial.drive, trial.time_s).rotation
         self.start = int(np.searchsorted(trial.time_s, last_motion_time(trial.drive)))
         self.axes = [a for a in (1, 2) if trial.measured_axes[a]]
-        transverse = self._deflection(measured)[self.start:]
-        transverse = transverse[np.isfinite(transverse).all(axis=1)]
+        tip = self._deflection(measured)
+        tracked = np.isfinite(tip).all(axis=1)
+        # a drive still moving at the end leaves too few ringing frames for a direction
+        transverse = tip[self.start:][tracked[self.start:]] if tracked[self.start:].sum() >= 3 else tip[tracked]
         _, _, vt = np.linalg.svd(transverse - transverse.mean(axis=0), full_matrices=False)
         self.direction = vt[0]
 
