@@ -152,8 +152,9 @@ def _candidates(session: _Session, baseline: Fit, chosen: list[Candidate]) -> li
                                      CANDIDATE_ITERATIONS))
     leaders = sorted((s for s in scores if s.bic_delta < -BIC_MIN), key=lambda s: s.heldout_error)[:LEADERS]
     for lead in leaders:
-        scores[scores.index(lead)] = _fit_candidate(session, baseline, lead.name, lead.fit.spec, lead.fit.names,
-                                                    FINAL_ITERATIONS)
+        refine = next(c.refine for c in chosen if c.name == lead.name)
+        scores[scores.index(lead)] = _fit_candidate(session, baseline, lead.name, lead.fit.spec.with_values(refine),
+                                                    lead.fit.names + tuple(refine), FINAL_ITERATIONS)
     return scores
 
 
