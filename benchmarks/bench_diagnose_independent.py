@@ -1,6 +1,7 @@
 """Does ``pipeline diagnose`` name the right cause on data it did not generate?
 
-Run: .venv/bin/python benchmarks/bench_diagnose_independent.py [--n 30] [--seed 5000] [--json out.json]
+Run: .venv/bin/python benchmarks/bench_diagnose_independent.py [--n 100] [--seed 5000] [--json out.json]
+     [--elements 80] [--cache DIR] [--prepare-only]; or --from-json ROWS.json ... to report saved rows.
 
 Draw k has cause CAUSES[k mod 10] of tests/truth/cases.py and seed seed + k: the independent
 truth (a planar, geometrically exact discrete rod with 100 elements, Kelvin–Voigt damping;
@@ -33,6 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from pipeline.config.physics import MaterialConfig  # noqa: E402
 from pipeline.diagnosis.candidates import CANDIDATE_NAMES  # noqa: E402
 from pipeline.diagnosis.commands import run_diagnose  # noqa: E402
+from pipeline.diagnosis.diagnose import LINEAR_BEND_MAX  # noqa: E402
 from pipeline.measurements.timeseries import write_timeseries  # noqa: E402
 from tests.truth.cases import CAUSES, KEY_PARAMETER, draw_case  # noqa: E402
 from tests.truth.drives import GaussianPulse  # noqa: E402
@@ -107,6 +109,33 @@ def _table(rows) -> list[str]:
     return lines
 
 
+def _recovery_table(keyed: list[dict]) -> list[str]:
+    """Per cause named right: within 15 %, ±1σ and ±2σ coverage, median |relative error|."""
+    lines = [f"{'cause named right':>18} {'n':>3} {'≤15 %':>6} {'±1σ':>5} {'±2σ':>5} {'median |err|':>13}"]
+    for cause in sorted({r["cause"] for r in keyed}):
+        mine = [r for r in keyed if r["cause"] == cause]
+        rel = np.abs([r["key_relative_error"] for r in mine])
+        sds = np.abs([r["key_error_in_sd"] for r in mine])
+        lines.append(f"{cause:>18} {len(mine):>3} {int(np.sum(rel <= TOLERANCE)):>6} {int(np.sum(sds <= 1)):>5} "
+                     f"{int(np.sum(sds <= 2)):>5} {np.median(rel):>13.3f}")
+    return lines
+
+
+def _bending_table(rows: list[dict]) -> list[str]:
+    """Relative errors of E (every draw) and of the named parameter (named right), for draws
+    whose data stay within the linear simulator's bend bound and those beyond it."""
+    lines = [f"bias by bend of the data (bound {LINEAR_BEND_MAX:.2f} of S; median, mean |error|)"]
+    for label, chosen in (("within", [r for r in rows if r["decision"].get("bend", 0) <= LINEAR_BEND_MAX]),
+                          ("beyond", [r for r in rows if r["decision"].get("bend", 0) > LINEAR_BEND_MAX])):
+        e = np.array([r["E_fit"] / r["truth"]["E"] - 1 for r in chosen])
+        key = np.array([r["key_relative_error"] for r in chosen if np.isfinite(r["key_relative_error"])])
+        if chosen:
+            lines.append(f"  {label:>6}: {len(chosen)} draws, E {np.median(e):+.3f} / {np.mean(np.abs(e)):.3f}"
+                         + (f"; named parameter ({len(key)}) {np.median(key):+.3f} / {np.mean(np.abs(key)):.3f}"
+                            if key.size else ""))
+    return lines
+
+
 def _share(hits: int, total: int) -> str:
     return f"{hits}/{total}" + (f" ({100 * hits / total:.0f} %)" if total else "")
 
@@ -130,6 +159,7 @@ def report(rows: list[dict]) -> str:
         for r in keyed:
             lines.append(f"  {r['cause']:>18} seed {r['seed']}: relative error {r['key_relative_error']:+.3f}, "
                          f"{r['key_error_in_sd']:+.1f} SD")
+        lines += [""] + _recovery_table(keyed) + [""] + _bending_table(rows)
     e_err = [r["E_fit"] / r["truth"]["E"] - 1 for r in rows if r["cause"] == "none"]
     if e_err:
         lines.append(f"E on effect-free draws (cause none): relative error {', '.join(f'{e:+.3f}' for e in e_err)}")
@@ -152,7 +182,11 @@ def main():
     parser.add_argument("--elements", type=int, default=100, help="elements of the truth rod")
     parser.add_argument("--cache", type=Path, help="keep (and reuse) the draws' measurement files here")
     parser.add_argument("--prepare-only", action="store_true", help="only simulate the draws into --cache")
+    parser.add_argument("--from-json", type=Path, nargs="+", help="only print the report of these saved rows")
     args = parser.parse_args()
+    if args.from_json:
+        print(report([row for path in args.from_json for row in json.loads(path.read_text())]))
+        return
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         workdir = args.cache or Path(tmp)

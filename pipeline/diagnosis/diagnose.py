@@ -9,19 +9,26 @@ Time series (positions of tracked points):
 3. Each candidate extension (:mod:`.candidates`): fit E, ζ and its parameters on the training
    trials (best of a few starts), held-out error e_c, and BIC = n·ln(RSS/n) + p·ln(n) on the
    training residuals. The ``LEADERS`` best candidates with ΔBIC < −``BIC_MIN`` continue
-   their fits (a short fit can stop short of a strong effect, letting a surrogate win).
-4. Tracking noise σ̂ on the held-out trials, from the second differences of the best model's
-   residuals (:mod:`.residuals`). The excess e₀² − σ̂² is the misfit to explain; a
-   candidate's score is the share it explains, φ = (e₀² − e_c²)/(e₀² − σ̂²). The excess is
-   significant when it exceeds ``SIGNIFICANT`` times its standard error ≈ 1.5·σ̂²/√n (n
-   held-out values, white noise).
-5. A candidate is supported when ΔBIC < −``BIC_MIN`` and the paired held-out test
-   z = (Σr₀² − Σr_c²)/(2σ̂·|p₀ − p_c|) > ``Z_MIN`` (r residuals, p predictions: the shared
-   noise cancels, so z measures the improvement against what noise alone could produce).
-   Cause: the supported candidate with the lowest held-out error, unless it leaves a
-   significant excess and explains less than ``EXPLAINED_MIN`` of it ("unexplained"); with
-   no supported candidate, "unexplained" if the baseline's excess is significant, else "none".
-6. The named model (or the baseline) is refitted on all trials for its parameters.
+   their fits (a short fit can stop short of a strong effect, letting a surrogate win),
+   with the candidate's ``refine`` parameters added (drag: the quadratic C_d).
+4. Evidence on the held-out trials: tracking noise σ̂ from the second differences of the
+   best model's residuals (:mod:`.residuals`); a model-error floor f = ``FLOOR_FRACTION``·A,
+   A the RMS deflection of the held-out data (:mod:`.deflection`): the misfit even a right
+   model leaves because the chain is not the continuum (measured on effect-free draws of an
+   independent simulator, docs/measurements.md §9); the excess e₀² − σ̂² − f² is the misfit
+   to explain, significant when it exceeds ``SIGNIFICANT`` times its standard error
+   ≈ 1.5·σ̂²/√n (n held-out values, white noise). A candidate's share of it is
+   φ = (e₀² − e_c²)/(e₀² − σ̂² − f²); its paired held-out z = (Σr₀² − Σr_c²)/(2σ̂·|p₀ − p_c|)
+   (r residuals, p predictions: the shared noise cancels).
+5. Decision (:func:`decide`): no significant excess → "none" (the baseline is adequate).
+   Otherwise the candidate with the lowest held-out error among those with ΔBIC <
+   −``BIC_MIN``, z > ``Z_MIN`` and φ ≥ ``EXPLAINED_MIN``; none such → "unexplained". A named
+   cause that still leaves a significant excess gets a note (a second effect?).
+6. The named model (or the baseline) is refitted on all trials for its parameters; their
+   SDs are block-sandwich SDs over 50 ms stretches plus the floor's share
+   (:func:`~.fitting.block_sandwich_sd`). Data that bend the whisker beyond
+   ``LINEAR_BEND_MAX`` of its length (largest tip deflection off the rigidly rotated rest
+   shape) get a note: the linear fast simulator does not follow them.
 
 Resonance tables (f1, δ per whisker): see :func:`diagnose_table`.
 """
