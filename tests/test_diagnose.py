@@ -172,7 +172,7 @@ def test_diagnose_paper_table_says_what_it_can_and_cannot_identify():
 
     result = diagnose_table(load_measurement(PAPER_ALPHA_B1), MaterialConfig(preset="trimmed"))
     data = result.as_dict()
-    assert set(data) == {"baseline", "candidates", "cause", "params", "gain"}
+    assert set(data) == {"baseline", "candidates", "cause", "params", "gain", "decision"}
     assert data["cause"] == "none" and result.dof == 2
     assert 7.0e9 < data["params"]["E"]["value"] < 7.8e9
     verdicts = {i["param"]: i["verdict"] for i in result.identifiability}
@@ -236,7 +236,7 @@ def test_cli_names_hidden_gravity(tmp_path):
 
     cli("synth", "--config", str(config), "--out", str(data_file))
     data = json.loads(cli("diagnose", str(data_file), "--json", "--report", str(tmp_path / "report")))
-    assert set(data) == {"baseline", "candidates", "cause", "params", "gain"}
+    assert set(data) == {"baseline", "candidates", "cause", "params", "gain", "decision"}
     assert set(data["baseline"]) == {"params", "error"} and set(data["gain"]) == {"metric", "before", "after"}
     assert all(set(c) == {"name", "params", "heldout_error", "score"} for c in data["candidates"])
     assert data["cause"] == "gravity" and data["gain"]["after"] < data["gain"]["before"]
