@@ -92,6 +92,7 @@ class Diagnosis:
     notes: list[str] = field(default_factory=list)
     simulated: dict = field(default_factory=dict)     # "baseline"/"cause" → positions per trial
     evidence: dict = field(default_factory=dict)      # what the cause was decided on (see decide)
+    floor_m: float = 0.0                              # model-error floor on the held-out trials (m)
 
     def as_dict(self) -> dict:
         """The JSON of ``pipeline diagnose --json`` (docs/measurements.md)."""
@@ -261,4 +262,4 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
         analysis=analyse(measurement, simulated["baseline"]),
         cause_analysis=analyse(measurement, simulated["cause"]),
         split={"train": train, "heldout": test}, notes=notes + final.notes, simulated=simulated,
-        evidence=evidence)
+        evidence=evidence, floor_m=FLOOR_FRACTION * evidence["amplitude_m"])

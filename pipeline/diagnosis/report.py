@@ -119,7 +119,8 @@ def write_report(directory: str | Path, measurement, diagnosis) -> Path:
     lines = [f"# Diagnosis of {measurement.path or measurement.whisker}", "",
              f"**Cause: {diagnosis.cause}.** Held-out RMS error {diagnosis.baseline_heldout * 1e3:.4f} mm "
              f"(baseline) → {diagnosis.gain_after * 1e3:.4f} mm; tracking noise estimated at "
-             f"{diagnosis.noise_m * 1e3:.4f} mm per coordinate.", "",
+             f"{diagnosis.noise_m * 1e3:.4f} mm per coordinate, model-error floor "
+             f"{diagnosis.floor_m * 1e3:.4f} mm.", "",
              f"Training trials: {', '.join(diagnosis.split['train'])}; held out: "
              f"{', '.join(diagnosis.split['heldout'])}.", "", "## Fitted parameters", ""]
     lines += _params_table(diagnosis.final.params()) + ["", "## Baseline residuals (all trials)", "",
