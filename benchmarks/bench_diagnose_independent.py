@@ -182,6 +182,8 @@ def main():
     parser.add_argument("--elements", type=int, default=100, help="elements of the truth rod")
     parser.add_argument("--cache", type=Path, help="keep (and reuse) the draws' measurement files here")
     parser.add_argument("--prepare-only", action="store_true", help="only simulate the draws into --cache")
+    parser.add_argument("--wait", action="store_true",
+                        help="diagnose each draw once a --prepare-only run has put it into --cache")
     parser.add_argument("--from-json", type=Path, nargs="+", help="only print the report of these saved rows")
     args = parser.parse_args()
     if args.from_json:
@@ -196,6 +198,8 @@ def main():
                 prepare(k, args.seed, workdir, args.elements)
                 print(f"{k + 1:4d}/{args.n} prepared", flush=True)
                 continue
+            while args.wait and not (workdir / f"draw_{args.seed + k}_{args.elements}.json").is_file():
+                time.sleep(10)
             rows.append(run_one(k, args.seed, workdir, args.elements))
             r = rows[-1]
             print(f"{k + 1:4d}/{args.n} {r['cause']:>18} → {r['named']:<18} effect/noise "
