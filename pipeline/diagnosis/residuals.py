@@ -61,7 +61,7 @@ def analyse(measurement: TimeSeriesMeasurement, simulated: list[np.ndarray]) -> 
             "trial": trial.name, "rms_m": _rms(b),
             "rms_first_tenth_m": _rms(b[early]), "rms_rest_m": _rms(b[~early]),
             "frf_measured_hz": meas_f["frf_hz"], "frf_simulated_hz": sim_f["frf_hz"],
-            "frf_shift_rel": sim_f["frf_hz"] / meas_f["frf_hz"] - 1,
+            "frf_shift_rel": sim_f["frf_hz"] / meas_f["frf_hz"] - 1 if meas_f["frf_hz"] > 0 else float("nan"),
             "decrement_measured": decrement(meas_f), "decrement_simulated": decrement(sim_f)})
     stacked = np.concatenate([b.reshape(-1, 3) for b in body])
     return {"rms_m": _rms(stacked),
