@@ -172,7 +172,7 @@ def test_diagnose_paper_table_says_what_it_can_and_cannot_identify():
 
     result = diagnose_table(load_measurement(PAPER_ALPHA_B1), MaterialConfig(preset="trimmed"))
     data = result.as_dict()
-    assert set(data) == {"baseline", "candidates", "cause", "params", "gain", "decision"}
+    assert set(data) == {"baseline", "candidates", "cause", "params", "gain"}
     assert data["cause"] == "none" and result.dof == 2
     assert 7.0e9 < data["params"]["E"]["value"] < 7.8e9
     verdicts = {i["param"]: i["verdict"] for i in result.identifiability}
