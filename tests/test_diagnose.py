@@ -183,8 +183,10 @@ def test_diagnose_paper_table_says_what_it_can_and_cannot_identify():
 # -- hidden effects -----------------------------------------------------------------------------
 # Seeds are the draws' only input. Damping and density gradients are not always detectable
 # (benchmarks/bench_diagnose.py: recall 58 % and 75 %, misses named "none"); their seeds here are
-# draws inside the detectable range (seed 22 of damping_gradient, for one, is not).
-CI_DRAWS = [("none", 11), ("follicle", 12), ("length", 13)]
+# draws inside the detectable range (seed 22 of damping_gradient, for one, is not). Follicle seeds
+# 12, 15 and 16 leave a baseline excess (e₀/σ̂ ≈ 1.01) inside the model-error floor the decision
+# allows for measured data (docs/measurements.md §9): "none"; seed 17 (e₀/σ̂ ≈ 3.1) is named.
+CI_DRAWS = [("none", 11), ("follicle", 17), ("length", 13)]
 SLOW_DRAWS = [("stiffness_gradient", 21), ("damping_gradient", 28), ("density", 23), ("drag", 24),
               ("twist", 26), ("none", 27)]
 
@@ -236,7 +238,7 @@ def test_cli_names_hidden_gravity(tmp_path):
 
     cli("synth", "--config", str(config), "--out", str(data_file))
     data = json.loads(cli("diagnose", str(data_file), "--json", "--report", str(tmp_path / "report")))
-    assert set(data) == {"baseline", "candidates", "cause", "params", "gain"}
+    assert set(data) == {"baseline", "candidates", "cause", "params", "gain", "decision"}
     assert set(data["baseline"]) == {"params", "error"} and set(data["gain"]) == {"metric", "before", "after"}
     assert all(set(c) == {"name", "params", "heldout_error", "score"} for c in data["candidates"])
     assert data["cause"] == "gravity" and data["gain"]["after"] < data["gain"]["before"]

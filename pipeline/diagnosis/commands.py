@@ -166,7 +166,7 @@ def _diagnose_series(measurement, material, report, engine, candidates) -> tuple
     data = result.as_dict()
     lines = [f"{measurement.path}: cause = {result.cause}",
              f"  held-out RMS {result.baseline_heldout * 1e3:.4f} mm (baseline) → {result.gain_after * 1e3:.4f} mm; "
-             f"noise {result.noise_m * 1e3:.4f} mm"]
+             f"noise {result.noise_m * 1e3:.4f} mm, model-error floor {result.floor_m * 1e3:.4f} mm"]
     lines.append("  candidate             held-out (mm)  explained  ΔBIC      z")
     lines += [f"  {c.name:<20} {c.heldout_error * 1e3:>12.4f} {c.score:>10.2f} {c.bic_delta:>7.0f} {c.z:>6.1f}"
               for c in result.candidates]

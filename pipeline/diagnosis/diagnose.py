@@ -9,19 +9,26 @@ Time series (positions of tracked points):
 3. Each candidate extension (:mod:`.candidates`): fit E, ζ and its parameters on the training
    trials (best of a few starts), held-out error e_c, and BIC = n·ln(RSS/n) + p·ln(n) on the
    training residuals. The ``LEADERS`` best candidates with ΔBIC < −``BIC_MIN`` continue
-   their fits (a short fit can stop short of a strong effect, letting a surrogate win).
-4. Tracking noise σ̂ on the held-out trials, from the second differences of the best model's
-   residuals (:mod:`.residuals`). The excess e₀² − σ̂² is the misfit to explain; a
-   candidate's score is the share it explains, φ = (e₀² − e_c²)/(e₀² − σ̂²). The excess is
-   significant when it exceeds ``SIGNIFICANT`` times its standard error ≈ 1.5·σ̂²/√n (n
-   held-out values, white noise).
-5. A candidate is supported when ΔBIC < −``BIC_MIN`` and the paired held-out test
-   z = (Σr₀² − Σr_c²)/(2σ̂·|p₀ − p_c|) > ``Z_MIN`` (r residuals, p predictions: the shared
-   noise cancels, so z measures the improvement against what noise alone could produce).
-   Cause: the supported candidate with the lowest held-out error, unless it leaves a
-   significant excess and explains less than ``EXPLAINED_MIN`` of it ("unexplained"); with
-   no supported candidate, "unexplained" if the baseline's excess is significant, else "none".
-6. The named model (or the baseline) is refitted on all trials for its parameters.
+   their fits (a short fit can stop short of a strong effect, letting a surrogate win),
+   with the candidate's ``refine`` parameters added (drag: the quadratic C_d).
+4. Evidence on the held-out trials: tracking noise σ̂ from the second differences of the
+   best model's residuals (:mod:`.residuals`); a model-error floor f = ``FLOOR_FRACTION``·A,
+   A the RMS deflection of the held-out data (:mod:`.deflection`): the misfit even a right
+   model leaves because the chain is not the continuum (measured on effect-free draws of an
+   independent simulator, docs/measurements.md §9); the excess e₀² − σ̂² − f² is the misfit
+   to explain, significant when it exceeds ``SIGNIFICANT`` times its standard error
+   ≈ 1.5·σ̂²/√n (n held-out values, white noise). A candidate's share of it is
+   φ = (e₀² − e_c²)/(e₀² − σ̂² − f²); its paired held-out z = (Σr₀² − Σr_c²)/(2σ̂·|p₀ − p_c|)
+   (r residuals, p predictions: the shared noise cancels).
+5. Decision (:func:`decide`): no significant excess → "none" (the baseline is adequate).
+   Otherwise the candidate with the lowest held-out error among those with ΔBIC <
+   −``BIC_MIN``, z > ``Z_MIN`` and φ ≥ ``EXPLAINED_MIN``; none such → "unexplained". A named
+   cause that still leaves a significant excess gets a note (a second effect?).
+6. The named model (or the baseline) is refitted on all trials for its parameters; their
+   SDs are block-sandwich SDs over 50 ms stretches plus the floor's share
+   (:func:`~.fitting.block_sandwich_sd`). Data that bend the whisker beyond
+   ``LINEAR_BEND_MAX`` of its length (largest tip deflection off the rigidly rotated rest
+   shape) get a note: the linear fast simulator does not follow them.
 
 Resonance tables (f1, δ per whisker): see :func:`diagnose_table`.
 """
@@ -34,7 +41,8 @@ import numpy as np
 
 from pipeline.config.physics import MaterialConfig
 from pipeline.diagnosis.candidates import CANDIDATES, Candidate, WhiskerScales
-from pipeline.diagnosis.fitting import Fit, best_start, fit, matched_start
+from pipeline.diagnosis.deflection import amplitude, bend
+from pipeline.diagnosis.fitting import Fit, best_start, block_sandwich_sd, fit, matched_start
 from pipeline.diagnosis.objective import RESIDUAL_UNIT_M, FeatureObjective, TrajectoryObjective
 from pipeline.diagnosis.parameters import BASELINE_NAMES, ModelSpec
 from pipeline.diagnosis.residuals import analyse, noise_estimate
@@ -44,6 +52,9 @@ BIC_MIN = 10.0             # "very strong" evidence on the Kass–Raftery scale
 Z_MIN = 3.0
 SIGNIFICANT = 3.0
 EXPLAINED_MIN = 0.5
+FLOOR_FRACTION = 0.03       # model-error floor / RMS deflection (docs/measurements.md §9)
+LINEAR_BEND_MAX = 0.2       # largest tip deflection / S the linear fast simulator follows (§9)
+BLOCK_S = 0.05              # residual blocks of the sandwich SDs (s)
 METRIC = "heldout_rms_m"
 CANDIDATE_ITERATIONS = 10   # first fits on the training half: enough to rank candidates
 LEADERS = 3                 # candidates whose fits then continue
@@ -80,13 +91,16 @@ class Diagnosis:
     split: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     simulated: dict = field(default_factory=dict)     # "baseline"/"cause" → positions per trial
+    evidence: dict = field(default_factory=dict)      # what the cause was decided on (see decide)
+    floor_m: float = 0.0                              # model-error floor on the held-out trials (m)
 
     def as_dict(self) -> dict:
         """The JSON of ``pipeline diagnose --json`` (docs/measurements.md)."""
         return {"baseline": {"params": self.baseline.params(), "error": self.baseline_heldout},
                 "candidates": [c.as_dict() for c in self.candidates],
                 "cause": self.cause, "params": self.final.params(),
-                "gain": {"metric": self.metric, "before": self.baseline_heldout, "after": self.gain_after}}
+                "gain": {"metric": self.metric, "before": self.baseline_heldout, "after": self.gain_after},
+                "decision": self.evidence}
 
 
 def _signature(trial) -> tuple[str, int]:
@@ -95,7 +109,7 @@ def _signature(trial) -> tuple[str, int]:
     if isinstance(trial.drive, ReleaseDrive):
         tip = trial.positions_m[:, int(np.argmax(trial.arc_fraction))]
         travel = np.nanmean(tip[:5], axis=0) - np.nanmean(tip[-max(5, len(tip) // 10):], axis=0)
-        return "release", int(np.argmax(np.abs(travel[1:])))
+        return "release", int(np.argmax(np.nan_to_num(np.abs(travel[1:]))))
     return "rotation", int(np.argmax(np.abs(trial.drive.angles_rad).max(axis=0)))
 
 
@@ -146,36 +160,49 @@ def _candidates(session: _Session, baseline: Fit, chosen: list[Candidate]) -> li
                                      CANDIDATE_ITERATIONS))
     leaders = sorted((s for s in scores if s.bic_delta < -BIC_MIN), key=lambda s: s.heldout_error)[:LEADERS]
     for lead in leaders:
-        scores[scores.index(lead)] = _fit_candidate(session, baseline, lead.name, lead.fit.spec, lead.fit.names,
-                                                    FINAL_ITERATIONS)
+        refine = next(c.refine for c in chosen if c.name == lead.name)
+        scores[scores.index(lead)] = _fit_candidate(session, baseline, lead.name, lead.fit.spec.with_values(refine),
+                                                    lead.fit.names + tuple(refine), FINAL_ITERATIONS)
     return scores
 
 
-def _significance(error: float, noise: float, n: int) -> float:
-    """Excess e² − σ̂² in units of its standard error for white noise, 1.5·σ̂²/√n."""
-    return float((error ** 2 - noise ** 2) / (1.5 * noise ** 2 / np.sqrt(n)))
-
-
-def _decide(r0: np.ndarray, noise: float, scores: list[CandidateScore], notes: list[str]) -> str:
-    """Name the cause from held-out residuals r0 (baseline) and the candidates' (0.1 mm units)."""
-    n, sigma = r0.size, noise / RESIDUAL_UNIT_M
-    e0 = float(np.sqrt(np.mean(r0 ** 2))) * RESIDUAL_UNIT_M
-    excess = e0 ** 2 - noise ** 2
+def _paired_z(r0: np.ndarray, noise: float, scores: list[CandidateScore]) -> None:
+    """Each candidate's paired held-out z (residuals r in 0.1 mm units)."""
+    sigma = noise / RESIDUAL_UNIT_M
     for s in scores:
-        s.score = float((e0 ** 2 - s.heldout_error ** 2) / excess) if excess > 0 else 0.0
         change = np.linalg.norm(r0 - s.heldout_residuals)
         s.z = float((r0 @ r0 - s.heldout_residuals @ s.heldout_residuals) / (2 * sigma * change)) \
             if change > 0 else 0.0
-    supported = [s for s in scores if s.bic_delta < -BIC_MIN and s.z > Z_MIN]
+
+
+def significance(error: float, noise: float, floor: float, n: int) -> float:
+    """Excess e² − σ̂² − floor² in units of its standard error for white noise, 1.5·σ̂²/√n."""
+    return float((error ** 2 - noise ** 2 - floor ** 2) / (1.5 * noise ** 2 / np.sqrt(n)))
+
+
+def decide(evidence: dict, floor_fraction: float = None, explained_min: float = None,
+           notes: list[str] | None = None) -> tuple[str, dict[str, float]]:
+    """(cause, each candidate's share φ of the excess) from the held-out evidence
+    (``Diagnosis.evidence``) and the rule's two thresholds (default: this module's)."""
+    floor_fraction = FLOOR_FRACTION if floor_fraction is None else floor_fraction
+    explained_min = EXPLAINED_MIN if explained_min is None else explained_min
+    e0, noise, n = evidence["baseline_m"], evidence["noise_m"], evidence["values"]
+    floor = floor_fraction * evidence["amplitude_m"]
+    excess = e0 ** 2 - noise ** 2 - floor ** 2
+    shares = {c["name"]: (e0 ** 2 - c["heldout_m"] ** 2) / excess if excess > 0 else 0.0
+              for c in evidence["candidates"]}
+    if significance(e0, noise, floor, n) <= SIGNIFICANT:
+        return "none", shares
+    supported = [c for c in evidence["candidates"]
+                 if c["bic_delta"] < -BIC_MIN and c["z"] > Z_MIN and shares[c["name"]] >= explained_min]
     if not supported:
-        return "unexplained" if _significance(e0, noise, n) > SIGNIFICANT else "none"
-    best = min(supported, key=lambda s: s.heldout_error)
-    if _significance(best.heldout_error, noise, n) > SIGNIFICANT:
-        if best.score < EXPLAINED_MIN:
-            return "unexplained"
-        notes.append(f"{best.name} leaves a significant misfit ({best.heldout_error * 1e3:.4f} mm held out vs "
-                     f"noise {noise * 1e3:.4f} mm): a second effect may be present")
-    return best.name
+        return "unexplained", shares
+    best = min(supported, key=lambda c: c["heldout_m"])
+    if notes is not None and significance(best["heldout_m"], noise, floor, n) > SIGNIFICANT:
+        notes.append(f"{best['name']} leaves a significant misfit ({best['heldout_m'] * 1e3:.4f} mm held out vs "
+                     f"noise {noise * 1e3:.4f} mm and model-error floor {floor * 1e3:.4f} mm): "
+                     "a second effect may be present")
+    return best["name"], shares
 
 
 def diagnose(measurement: TimeSeriesMeasurement, material: MaterialConfig | None = None,
@@ -209,16 +236,30 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
     scores = _candidates(session, baseline, chosen)
     best = min([(e0, baseline.spec)] + [(s.heldout_error, s.fit.spec) for s in scores], key=lambda p: p[0])[1]
     noise = noise_estimate(session.test.measurement, session.test.simulate(best))
-    cause = _decide(r0, noise, scores, notes)
+    _paired_z(r0, noise, scores)
+    evidence = {"baseline_m": e0, "noise_m": noise, "amplitude_m": amplitude(session.test.measurement),
+                "values": int(r0.size), "bend": bend(measurement),
+                "candidates": [{"name": c.name, "heldout_m": c.heldout_error, "bic_delta": c.bic_delta, "z": c.z}
+                               for c in scores]}
+    cause, shares = decide(evidence, notes=notes)
+    for c in scores:
+        c.score = shares[c.name]
+    if evidence["bend"] > LINEAR_BEND_MAX:
+        notes.append(f"the data bend the whisker by {100 * evidence['bend']:.0f} % of its length, beyond the "
+                     f"{100 * LINEAR_BEND_MAX:.0f} % the linear fast simulator follows: fitted values may be biased")
     whole = TrajectoryObjective(measurement)
     named = next((s for s in scores if s.name == cause), None)
     final_names = BASELINE_NAMES + (named.fit.names[2:] if named else ())
     final = fit(whole, (named.fit if named else baseline).spec, final_names, max_iterations=FINAL_ITERATIONS)
     baseline_all = fit(whole, baseline.spec, BASELINE_NAMES, max_iterations=FINAL_ITERATIONS)
+    blocks, floor = whole.blocks(BLOCK_S), FLOOR_FRACTION * amplitude(measurement)
+    for result in (final, baseline_all):
+        result.sd = block_sandwich_sd(result, blocks, floor / RESIDUAL_UNIT_M)
     simulated = {"baseline": whole.simulate(baseline_all.spec), "cause": whole.simulate(final.spec)}
     return Diagnosis(
         baseline=baseline_all, baseline_heldout=e0, candidates=scores, cause=cause, final=final,
         gain_after=named.heldout_error if named else e0, noise_m=noise,
         analysis=analyse(measurement, simulated["baseline"]),
         cause_analysis=analyse(measurement, simulated["cause"]),
-        split={"train": train, "heldout": test}, notes=notes + final.notes, simulated=simulated)
+        split={"train": train, "heldout": test}, notes=notes + final.notes, simulated=simulated,
+        evidence=evidence, floor_m=FLOOR_FRACTION * evidence["amplitude_m"])

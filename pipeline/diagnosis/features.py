@@ -19,12 +19,12 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import find_peaks, savgol_filter
 
+from pipeline.diagnosis.deflection import deflection
 from pipeline.diagnosis.drives import base_motion, last_motion_time
 from pipeline.measurements.timeseries import ReleaseDrive, Trial
 from pipeline.signals.ringdown import spectral_peak
 
 PEAK_PROMINENCE = 0.1       # of the largest excursion
-SETTLED_FRACTION = 0.2      # last part of a trial taken as the resting position
 
 
 def msa(log_ratios) -> float:
@@ -35,32 +35,37 @@ def msa(log_ratios) -> float:
 
 
 def _fill(signal: np.ndarray) -> np.ndarray:
-    """Linear interpolation over NaN samples (ends held)."""
+    """Linear interpolation over NaN samples (ends held; zeros when none is finite)."""
     good = np.isfinite(signal)
     if good.all():
         return signal
+    if not good.any():
+        return np.zeros_like(signal)
     index = np.arange(len(signal))
     return np.interp(index, index[good], signal[good])
 
 
 class TipSignal:
-    """How to turn a trial's positions into its scalar tip signal (fixed by the measurement)."""
+    """How to turn a trial's positions into its scalar tip signal (fixed by the measurement):
+    the tip's deflection (:mod:`.deflection`) on its principal direction among the measured
+    transverse axes (y, and z when tracked)."""
 
     def __init__(self, trial: Trial, measured: np.ndarray):
         self.trial = trial
         self.point = int(np.argmax(trial.arc_fraction))
         self.rotation = base_motion(trial.drive, trial.time_s).rotation
         self.start = int(np.searchsorted(trial.time_s, last_motion_time(trial.drive)))
-        deflection = self._deflection(measured)
-        transverse = deflection[self.start:, 1:]
-        transverse = transverse[np.isfinite(transverse).all(axis=1)]
+        self.axes = [a for a in (1, 2) if trial.measured_axes[a]]
+        tip = self._deflection(measured)
+        tracked = np.isfinite(tip).all(axis=1)
+        # a drive still moving at the end leaves too few ringing frames for a direction
+        transverse = tip[self.start:][tracked[self.start:]] if tracked[self.start:].sum() >= 3 else tip[tracked]
         _, _, vt = np.linalg.svd(transverse - transverse.mean(axis=0), full_matrices=False)
-        self.direction = np.concatenate([[0.0], vt[0]])
+        self.direction = vt[0]
 
     def _deflection(self, positions: np.ndarray) -> np.ndarray:
-        body = np.einsum("tba,tb->ta", self.rotation, positions[:, self.point])
-        settled = body[-max(2, int(SETTLED_FRACTION * len(body))):]
-        return body - np.nanmean(settled, axis=0)
+        """[T, measured transverse axes] tip deflection (m)."""
+        return deflection(self.trial, positions[:, [self.point]], self.rotation)[:, 0, self.axes]
 
     def __call__(self, positions: np.ndarray) -> np.ndarray:
         """Ringing part of the projected tip deflection (m)."""

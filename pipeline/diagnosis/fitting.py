@@ -11,7 +11,9 @@ With known standard deviations σ of the measured values (resonance tables) the 
 are divided by σ (a χ² fit) and cov = (JᵀJ)⁻¹; otherwise cov = s²·(JᵀJ)⁻¹ with
 s² = |r|²/(m − p), J the Jacobian at the solution; or a bootstrap over trials
 (:func:`bootstrap`). Trajectory residuals are correlated in time, so the Jacobian values are
-lower bounds; the bootstrap is the honest one when there are enough trials.
+lower bounds; the bootstrap is the honest one when there are enough trials, and
+:func:`block_sandwich_sd` (residuals grouped into blocks of consecutive samples) the honest
+one for a few trials: it follows the misfit, not the white-noise part alone.
 """
 
 from __future__ import annotations
@@ -171,6 +173,24 @@ def _grid(counted: _Counted, x0, bounds, grid_points):
         if error < best_error:
             best, best_error = x, error
     return best
+
+
+def block_sandwich_sd(result: Fit, blocks: np.ndarray, floor: float = 0.0) -> dict[str, float]:
+    """Standard deviations of ``result``'s values: the cluster-robust ("sandwich") covariance
+    B⁻¹·M·B⁻¹ · G/(G − 1), B = JᵀJ, M = Σ_b (J_bᵀr_b)(J_bᵀr_b)ᵀ over the G blocks b of residuals
+    (``blocks``: one label per residual; residuals correlated within a block, a systematic
+    misfit and not only noise, widen it), plus a model-error term floor²·m·B⁻¹: the shift of
+    the values that a model error of RMS ``floor`` (residual units) over all m residuals,
+    coherent like a change of the parameters, could cause."""
+    jac, r = result.jacobian, result.residuals
+    labels = np.unique(blocks, return_inverse=True)[1]
+    count = labels.max() + 1
+    scores = np.zeros((count, jac.shape[1]))
+    np.add.at(scores, labels, jac * r[:, None])
+    bread = np.linalg.pinv(jac.T @ jac)
+    cov = bread @ (scores.T @ scores) @ bread * count / max(count - 1, 1) + floor ** 2 * len(r) * bread
+    space = ParameterSpace(result.names)
+    return space.value_sd(space.to_x(result.values), np.sqrt(np.clip(np.diag(cov), 0, None)))
 
 
 def bootstrap(make_objective, measurement, spec: ModelSpec, names, samples: int, seed: int = 0,

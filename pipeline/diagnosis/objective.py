@@ -42,6 +42,14 @@ class TrajectoryObjective:
     def simulate(self, spec: ModelSpec) -> list[np.ndarray]:
         return self.simulator.simulate(spec.physics(self.measurement.geometry), self.prepared)
 
+    def blocks(self, duration_s: float) -> np.ndarray:
+        """A label per residual: its trial and which ``duration_s`` stretch of it (s) it is in."""
+        labels = []
+        for index, (trial, mask) in enumerate(zip(self.measurement.trials, self.masks)):
+            stretch = ((trial.time_s - trial.time_s[0]) // duration_s).astype(int)
+            labels.append((index * 100_000 + np.broadcast_to(stretch[:, None, None], mask.shape))[mask])
+        return np.concatenate(labels)
+
     def residuals_of(self, simulated: list[np.ndarray]) -> np.ndarray:
         sim = np.concatenate([s[m] for s, m in zip(simulated, self.masks)])
         return (sim - self.measured) / RESIDUAL_UNIT_M

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pipeline.diagnosis.deflection import body as base_frame
 from pipeline.diagnosis.drives import base_motion
 from pipeline.diagnosis.residuals import DIRECTIONS, tip_residual_spectra
 
@@ -35,10 +36,10 @@ def _tip_figure(plt, measurement, diagnosis, path: Path) -> None:
     fig, axes = plt.subplots(len(trials), 2, figsize=(11, 2.2 * len(trials)), squeeze=False, sharex="row")
     for row, trial in enumerate(trials):
         rotation = base_motion(trial.drive, trial.time_s).rotation
-        tip = int(np.argmax(trial.arc_fraction))
+        tip = [int(np.argmax(trial.arc_fraction))]
 
         def body(positions):
-            return np.einsum("tba,tb->ta", rotation, positions[:, tip]) * 1e3
+            return base_frame(trial, positions[:, tip], rotation)[:, 0] * 1e3
 
         for col, (axis, label) in enumerate(((1, "in-plane y"), (2, "out-of-plane z"))):
             ax = axes[row, col]
@@ -118,7 +119,8 @@ def write_report(directory: str | Path, measurement, diagnosis) -> Path:
     lines = [f"# Diagnosis of {measurement.path or measurement.whisker}", "",
              f"**Cause: {diagnosis.cause}.** Held-out RMS error {diagnosis.baseline_heldout * 1e3:.4f} mm "
              f"(baseline) → {diagnosis.gain_after * 1e3:.4f} mm; tracking noise estimated at "
-             f"{diagnosis.noise_m * 1e3:.4f} mm per coordinate.", "",
+             f"{diagnosis.noise_m * 1e3:.4f} mm per coordinate, model-error floor "
+             f"{diagnosis.floor_m * 1e3:.4f} mm.", "",
              f"Training trials: {', '.join(diagnosis.split['train'])}; held out: "
              f"{', '.join(diagnosis.split['heldout'])}.", "", "## Fitted parameters", ""]
     lines += _params_table(diagnosis.final.params()) + ["", "## Baseline residuals (all trials)", "",

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnosis.drives import base_motion
+from pipeline.diagnosis.deflection import body
 from pipeline.diagnosis.features import (TipSignal, decrement, dominant_side, features, is_release,
                                          smoothing_window)
 from pipeline.measurements.timeseries import TimeSeriesMeasurement
@@ -22,8 +22,7 @@ DIRECTIONS = ("axial", "in_plane", "out_of_plane")
 
 def _body_residuals(trial, simulated: np.ndarray) -> np.ndarray:
     """[T, K, 3] simulated − measured in the base frame (NaN where not tracked)."""
-    rotation = base_motion(trial.drive, trial.time_s).rotation
-    return np.einsum("tba,tkb->tka", rotation, simulated - trial.positions_m)
+    return body(trial, simulated - trial.positions_m)
 
 
 def noise_estimate(measurement: TimeSeriesMeasurement, simulated: list[np.ndarray]) -> float:
@@ -62,7 +61,7 @@ def analyse(measurement: TimeSeriesMeasurement, simulated: list[np.ndarray]) -> 
             "trial": trial.name, "rms_m": _rms(b),
             "rms_first_tenth_m": _rms(b[early]), "rms_rest_m": _rms(b[~early]),
             "frf_measured_hz": meas_f["frf_hz"], "frf_simulated_hz": sim_f["frf_hz"],
-            "frf_shift_rel": sim_f["frf_hz"] / meas_f["frf_hz"] - 1,
+            "frf_shift_rel": sim_f["frf_hz"] / meas_f["frf_hz"] - 1 if meas_f["frf_hz"] > 0 else float("nan"),
             "decrement_measured": decrement(meas_f), "decrement_simulated": decrement(sim_f)})
     stacked = np.concatenate([b.reshape(-1, 3) for b in body])
     return {"rms_m": _rms(stacked),

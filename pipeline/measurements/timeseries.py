@@ -28,6 +28,7 @@ MAX_EXTENT_M = 0.2            # no rat whisker point is farther than this from i
 MAX_ANGLE_RAD = 2 * np.pi     # larger drive angles are almost surely degrees
 WRENCH_UNITS = "N,N,N,N*m,N*m,N*m"
 ANGLE_COLUMNS = "yaw_z,pitch_y,roll_x"
+AXES = {"xyz": (True, True, True), "xy": (True, True, False)}   # positions_m.measured_axes
 
 
 class DriveWarning(UserWarning):
@@ -67,6 +68,7 @@ class Trial:
     drive: RotationDrive | ReleaseDrive
     sampling_rate_hz: float
     base_wrench: np.ndarray | None = None   # [T, 6] force (N) and moment (N·m), whisker frame
+    measured_axes: tuple[bool, bool, bool] = (True, True, True)   # x, y, z tracked (planar: z not)
 
     @property
     def samples(self) -> int:
@@ -210,9 +212,14 @@ def _load_trial(name: str, group, where: _Where) -> Trial:
     if positions.shape != expected:
         raise where.error("positions_m", f"shape must be [T, K, 3] = {list(expected)} (T from time_s, "
                                          f"K from arc_fraction), got {list(positions.shape)}")
+    axes = str(_attr(group["positions_m"], "measured_axes", where, "positions_m.measured_axes", default="xyz"))
+    if axes not in AXES:
+        raise where.error("positions_m.measured_axes", f"must be one of {', '.join(AXES)}, got {axes!r}")
+    measured = np.array(AXES[axes])
+    positions[..., ~measured] = np.nan
     if np.isinf(positions).any():
         raise where.error("positions_m", "infinite values (use NaN for missing frames)")
-    valid = np.isfinite(positions).all(axis=2)
+    valid = np.isfinite(positions[..., measured]).all(axis=2)
     if valid.mean() < 0.1:
         raise where.error("positions_m", f"only {100 * valid.mean():.1f} % of point-frames are tracked")
     if np.nanmax(np.abs(positions)) > MAX_EXTENT_M:
@@ -224,7 +231,7 @@ def _load_trial(name: str, group, where: _Where) -> Trial:
         if wrench.shape != (len(time_s), 6):
             raise where.error("base_wrench", f"shape must be [T, 6] = [{len(time_s)}, 6], "
                                              f"got {list(wrench.shape)}")
-    return Trial(name, time_s, fractions, positions, _load_drive(group, where), rate, wrench)
+    return Trial(name, time_s, fractions, positions, _load_drive(group, where), rate, wrench, AXES[axes])
 
 
 def load_timeseries(path: str | Path) -> TimeSeriesMeasurement:
@@ -289,7 +296,10 @@ def write_timeseries(path: str | Path, measurement: TimeSeriesMeasurement) -> Pa
             group.attrs["sampling_rate_hz"] = trial.sampling_rate_hz
             _dataset(group, "time_s", trial.time_s, "s", "time")
             _dataset(group, "arc_fraction", trial.arc_fraction, "1", "point")
-            _dataset(group, "positions_m", trial.positions_m, "m", "time point xyz", compress=True)
+            measured = np.array(trial.measured_axes, bool)
+            _dataset(group, "positions_m", np.where(measured, trial.positions_m, np.nan), "m", "time point xyz",
+                     compress=True)
+            group["positions_m"].attrs["measured_axes"] = next(k for k, v in AXES.items() if v == tuple(measured))
             if trial.base_wrench is not None:
                 _dataset(group, "base_wrench", trial.base_wrench, WRENCH_UNITS, "time signal")
             drive = group.create_group("drive")

@@ -30,7 +30,8 @@ EXPECTED = {"drag_quadratic": "drag", "density_scale": "none"}
 # the diagnosis parameter each cause is judged on; "length" is judged on 1 − scale (the trimmed share)
 KEY_PARAMETER = {"follicle": "follicle.k_f", "stiffness_gradient": "stiffness_gradient.gamma",
                  "damping_gradient": "damping_gradient.gamma", "density": "density.gradient",
-                 "length": "length.scale", "drag": "drag.linear", "gravity": "gravity.g"}
+                 "length": "length.scale", "drag": "drag.linear", "drag_quadratic": "drag.quadratic",
+                 "gravity": "gravity.g"}
 
 
 @dataclass(frozen=True)
