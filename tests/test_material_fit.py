@@ -37,7 +37,7 @@ def test_resonance_command_prints_json():
                              "trimmed", "--json"],
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
-    data = json.loads(result.stdout.strip().splitlines()[-1])
+    data = json.loads(result.stdout)
     assert set(data) == {"f1_hz", "zeta1", "f2_hz", "zeta2", "paper_log_decrement", "paper_damping_ratio"}
     assert data["f1_hz"] == pytest.approx(67.6, rel=0.01)
     assert data["f1_hz"] < data["f2_hz"] < 500.0
