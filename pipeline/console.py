@@ -27,18 +27,10 @@ _LABEL_SUFFIXES = tuple(s for s in UNIT_SUFFIXES if s.startswith("_") and s != "
 
 
 def print_json(data: object) -> None:
-    """``data`` as indented JSON on stdout (NaN as null), nothing else."""
-    print(json.dumps(_finite(data), indent=2, default=str))
+    """``data`` as indented JSON on stdout (NaN as null, numpy as Python), nothing else."""
+    from pipeline.reports.document import jsonable
 
-
-def _finite(data: object) -> object:
-    if isinstance(data, float) and not math.isfinite(data):
-        return None
-    if isinstance(data, Mapping):
-        return {k: _finite(v) for k, v in data.items()}
-    if isinstance(data, (list, tuple)):
-        return [_finite(v) for v in data]
-    return data
+    print(json.dumps(jsonable(data), indent=2, default=str))
 
 
 def number(value: float, digits: int = 3) -> str:
