@@ -359,6 +359,8 @@ def datasets_list(root: Optional[Path] = _ROOT_OPTION,
     from pipeline.config.project import datasets_root
     from pipeline.datasets.catalog import list_datasets
 
+    if root is not None and not root.is_dir():
+        raise UserError(f"--root {root}: no such folder")
     root = datasets_root(root)
     rows = list_datasets(root)
     if json_output:

@@ -144,3 +144,9 @@ def test_simulate_with_config_and_root_from_another_directory(tmp_path):
     assert list(elsewhere.iterdir()) == [] and not (home / "outputs" / "datasets").exists()
     listing = run_pipeline("datasets", "list", "--root", store, "--json", cwd=elsewhere, env=user_env())
     assert [row["dataset"] for row in json.loads(listing.stdout)] == ["ref/v1"]
+
+
+def test_datasets_list_names_a_root_that_does_not_exist(tmp_path):
+    result = run_pipeline("datasets", "list", "--root", tmp_path / "typo", cwd=tmp_path, timeout=60)
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [f"error: --root {tmp_path / 'typo'}: no such folder"]

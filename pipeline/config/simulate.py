@@ -276,7 +276,7 @@ def load_simulate_config(path: str | Path | None = None, overrides: dict | None 
     flags; None = not given; paths in them absolute). Relative paths of the file and environment
     are taken against the project root. ``config.config_file`` records the file used."""
     from pipeline.config.loader import load_config
-    from pipeline.config.project import find_config, in_project, project_root
+    from pipeline.config.project import CONFIGS_DIR, find_config, in_project, project_root
     from pipeline.provenance import file_sha256
 
     path = Path(path) if path is not None else find_config(CONFIG_NAME)
@@ -288,7 +288,7 @@ def load_simulate_config(path: str | Path | None = None, overrides: dict | None 
         "whisk": config.whisk.model_copy(update={"table": in_project(config.whisk.table, root)})})
     if path is None:
         config._config_file = {"path": None, "sha256": None,
-                               "note": f"no {CONFIG_NAME} in {root / 'configs'}; built-in defaults: "
+                               "note": f"no {CONFIG_NAME} in {root / CONFIGS_DIR}; built-in defaults: "
                                        f"{built_in_defaults(config)}"}
     else:
         config._config_file = {"path": str(path.absolute()), "sha256": file_sha256(path)}
