@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from distributed import WorkerPlugin, get_worker
 
+from pipeline.runner.memory import release_free_memory
 from pipeline.runner.trial import RunSpec, Simulator, TrialResult
 
 
@@ -27,5 +28,8 @@ class SimulatorPlugin(WorkerPlugin):
 
 
 def run_trial(plugin_name: str, index: int) -> TrialResult:
-    """The dask task: trial ``index`` on this worker's simulator."""
-    return get_worker().plugins[plugin_name].simulator.run(index)
+    """The dask task: trial ``index`` on this worker's simulator, then the freed heap pages
+    go back to the OS (a worker's memory stays flat over a long run)."""
+    result = get_worker().plugins[plugin_name].simulator.run(index)
+    release_free_memory()
+    return result
