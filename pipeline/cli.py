@@ -263,16 +263,22 @@ def trial(
 # --- meshes: `pipeline build-meshes` (issue 4) ---
 @app.command("build-meshes")
 def build_meshes(
-    scans: Path = typer.Option(Path("scans"), "--scans", help="Folder of .ply .pcd .xyz .pts scans."),
-    out: Path = typer.Option(Path("outputs/meshes"), "--out", help="Folder for <name>.obj and manifest.json."),
+    scans: Optional[Path] = typer.Option(None, "--scans", show_default=False,
+                                         help="Folder of .ply .pcd .xyz .pts scans. \\[default: <project>/scans]"),
+    out: Optional[Path] = typer.Option(None, "--out", show_default=False,
+                                       help="Folder for <name>.obj and manifest.json. "
+                                            "\\[default: <project>/outputs/meshes]"),
     config: Optional[Path] = typer.Option(None, "--config", show_default=False,
-                                          help="Mesh config YAML. \\[default: configs/meshes.yaml]"),
+                                          help="Mesh config YAML. \\[default: <project>/configs/meshes.yaml]"),
     force: bool = typer.Option(False, "--force", help="Rebuild scans even if unchanged."),
     json_output: bool = _JSON,
 ) -> None:
     """Turn every scan into a collision mesh (OBJ, metres) with quality metrics in manifest.json."""
+    from pipeline.config.project import MESHES_DIR, SCANS_DIR, project_root
     from pipeline.meshes.build import build_meshes as build, load_mesh_config
 
+    scans = scans if scans is not None else project_root() / SCANS_DIR
+    out = out if out is not None else project_root() / MESHES_DIR
     _writable_out(out)
     report = build(scans, out, load_mesh_config(config), force=force, progress=not json_output)
     if json_output:

@@ -150,3 +150,22 @@ def test_datasets_list_names_a_root_that_does_not_exist(tmp_path):
     result = run_pipeline("datasets", "list", "--root", tmp_path / "typo", cwd=tmp_path, timeout=60)
     assert result.returncode == 2
     assert result.stderr.strip().splitlines() == [f"error: --root {tmp_path / 'typo'}: no such folder"]
+
+
+def test_build_meshes_from_inside_the_project_uses_its_scans_config_and_outputs(tmp_path):
+    """Run from a subfolder of the project: scans/, configs/meshes.yaml and outputs/meshes/ are
+    the project's, not the working directory's (the config's distinct voxel size shows it was read)."""
+    home = tmp_path / "project"
+    (home / "configs").mkdir(parents=True)
+    (home / "scans").mkdir()
+    shutil.copy(REPO / "scans" / "branch.xyz", home / "scans")
+    (home / "configs" / "meshes.yaml").write_text("downsample: {voxel_mm: 1.7}\n")
+    inside = home / "outputs" / "elsewhere"
+    inside.mkdir(parents=True)
+    result = run_pipeline("build-meshes", "--json", cwd=inside, env=user_env())
+    assert result.returncode == 0, result.stderr
+    manifest_file = home / "outputs" / "meshes" / "manifest.json"
+    assert json.loads(result.stdout)["manifest"] == str(manifest_file)
+    entry = json.loads(manifest_file.read_text())["scans"]["branch"]
+    assert entry["parameters"]["downsample"]["voxel_mm"] == 1.7
+    assert not (inside / "outputs").exists()

@@ -16,6 +16,8 @@ from pathlib import Path
 HOME_ENV = "PIPELINE_HOME"
 CONFIGS_DIR = "configs"
 DATASETS_DIR = Path("outputs/datasets")
+MESHES_DIR = Path("outputs/meshes")      # build-meshes writes here, simulate reads
+SCANS_DIR = Path("scans")
 
 
 def _home_from_env() -> Path | None:

@@ -19,6 +19,7 @@ from typing import Annotated, Literal
 from pydantic import AfterValidator, Field, PrivateAttr, field_validator, model_validator
 
 from pipeline.config.physics import ModelConfig, StrictModel
+from pipeline.config.project import MESHES_DIR
 
 
 class Range(StrictModel):
@@ -69,7 +70,7 @@ class ScenesConfig(StrictModel):
     protocol scenes (docs/model.md §5), which are placed in the head frame (identity head pose).
     """
 
-    folder: Path = Field(Path("outputs/meshes"), description="folder of <name>.obj meshes (metres)")
+    folder: Path = Field(MESHES_DIR, description="folder of <name>.obj meshes (metres)")
     include: list[str] = Field(["meshes"], min_length=1)
 
     @field_validator("include")

@@ -34,7 +34,7 @@ from pipeline.meshes.manifest import (is_current, load_manifest, parameters_key,
 from pipeline.provenance import file_sha256
 
 CONFIG_ENV_PREFIX = "PIPELINE_MESHES_"
-DEFAULT_CONFIG = Path("configs/meshes.yaml")
+CONFIG_NAME = "meshes.yaml"            # found as <project>/configs/meshes.yaml
 
 
 @dataclass
@@ -373,11 +373,13 @@ class _progress:
 # --------------------------------------------------------------------------- stage & config
 
 def load_mesh_config(path: str | Path | None = None) -> MeshConfig:
-    """Defaults < ``path`` (or ``configs/meshes.yaml`` if it exists) < ``PIPELINE_MESHES_*``."""
+    """Defaults < ``path`` (or the project's ``configs/meshes.yaml`` if it exists, see
+    :mod:`pipeline.config.project`) < ``PIPELINE_MESHES_*``."""
     from pipeline.config.loader import load_config
+    from pipeline.config.project import find_config
 
-    if path is None and DEFAULT_CONFIG.is_file():
-        path = DEFAULT_CONFIG
+    if path is None:
+        path = find_config(CONFIG_NAME)
     config, _ = load_config(MeshConfig, path, env_prefix=CONFIG_ENV_PREFIX)
     return config
 
