@@ -21,6 +21,7 @@ import typer
 
 from pipeline import console
 from pipeline.config.physics import EngineName, PresetName
+from pipeline.diagnosis.choices import FitMethod, ObjectiveName
 from pipeline.console import print_json as _print_json
 from pipeline.errors import SimulationError, UserError
 
@@ -466,16 +467,13 @@ def compare_whiskit(folder: Path = typer.Argument(..., help="WHISKiT output fold
     if json_output:
         _print_json(result)
         return
-    from rich.console import Console
-    from rich.table import Table
-
-    table = Table("whisker", "signal", "RMS difference", "RMS dataset", "correlation",
-                  title=f"{result['whiskit']} vs {result['dataset']} trial {result['trial']} "
-                        f"({result['samples_compared']} samples)")
-    for row in result["rows"]:
-        table.add_row(row["whisker"], row["signal"], f"{row['rms_difference']:.3g} {row['unit']}",
-                      f"{row['rms_dataset']:.3g} {row['unit']}", f"{row['correlation']:.4f}")
-    Console().print(table)
+    rows = [{"whisker": row["whisker"], "signal": row["signal"],
+             "rms_difference": console.quantity(row["rms_difference"], row["unit"]),
+             "rms_dataset": console.quantity(row["rms_dataset"], row["unit"]),
+             "correlation": f"{row['correlation']:.4f}"} for row in result["rows"]]
+    console.show(console.rows_table(rows, ("whisker", "signal", "rms_difference", "rms_dataset", "correlation"),
+                                    f"{result['whiskit']} vs {result['dataset']} trial {result['trial']} "
+                                    f"({result['samples_compared']} samples)"))
     for key in ("only_in_whiskit", "only_in_dataset"):
         if result[key]:
             typer.echo(f"{key.replace('_', ' ')}: {', '.join(result[key])}")
@@ -545,8 +543,9 @@ def calibrate(
     where: Optional[str] = typer.Option(None, "--where", help="Only tables with these conditions, e.g. 'trimmed=no'."),
     hold_out: bool = typer.Option(True, "--hold-out/--no-hold-out", help="Keep the library's held-out whiskers out of a joint fit and report the error on them."),
     params: str = typer.Option("E,zeta", "--params", help="Parameters to fit, e.g. E,zeta,follicle.k_f."),
-    method: str = typer.Option("optimizer", "--method", help="optimizer (least squares) or grid (paper)."),
-    objective: str = typer.Option("msa", "--objective", help="msa (paper eq. 4a/4b) or trajectory."),
+    method: FitMethod = typer.Option("optimizer", "--method", help="optimizer (least squares) or grid (paper)."),
+    objective: ObjectiveName = typer.Option("msa", "--objective", help="msa (paper eq. 4a/4b tip features) or "
+                                                                      "trajectory (the tracked points)."),
     grid_points: Optional[int] = typer.Option(None, "--grid-points", min=2, help="Grid values per parameter."),
     bootstrap: int = typer.Option(0, "--bootstrap", min=0, help="Bootstrap refits over trials for the sd."),
     engine: Optional[EngineName] = typer.Option(None, "--engine", show_default=False,

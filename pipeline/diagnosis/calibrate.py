@@ -10,9 +10,12 @@ engine can check and refine it (:func:`~pipeline.diagnosis.fitting.refine_with_e
 
 from __future__ import annotations
 
+from typing import get_args
+
 import numpy as np
 
 from pipeline.config.physics import MaterialConfig
+from pipeline.diagnosis.choices import FitMethod, ObjectiveName
 from pipeline.diagnosis.fitting import bootstrap as bootstrap_sd
 from pipeline.diagnosis.fitting import best_start, engine_check, fit, matched_start
 from pipeline.diagnosis.objective import FeatureObjective, TableObjective, TrajectoryObjective
@@ -20,7 +23,7 @@ from pipeline.diagnosis.parameters import ModelSpec, parameter
 from pipeline.errors import UserError
 from pipeline.measurements.table import ResonanceTable
 
-OBJECTIVES = ("msa", "trajectory")
+OBJECTIVES = get_args(ObjectiveName)
 MAX_ITERATIONS = 60
 
 
@@ -63,7 +66,7 @@ def pinned_notes(values: dict[str, float]) -> list[str]:
     return notes
 
 
-def calibrate(measurement, names=("E", "zeta"), method: str = "optimizer", objective: str = "msa",
+def calibrate(measurement, names=("E", "zeta"), method: FitMethod = "optimizer", objective: ObjectiveName = "msa",
               material: MaterialConfig | None = None, engine: str | None = None, bootstrap: int = 0,
               grid_points: int | None = None) -> dict:
     """Fit ``names`` to ``measurement`` (time series or resonance table); JSON-ready result."""
