@@ -5,7 +5,9 @@ Time series (positions of tracked points):
 1. Split the trials in two, stratified by drive (kind and main axis): a training half and a
    held-out half (a drive type met only once goes to training).
 2. Baseline: fit E and ζ on the training trials (trajectory least squares from a start whose
-   FRF and δ match the data); its error on the held-out trials is e₀.
+   FRF and δ match the data); its error on the held-out trials is e₀. Every model fitted here
+   has the base segment (:class:`~pipeline.model.extensions.BaseSegment`): the chain's rigid
+   base half-link would otherwise bias E by ≈ −1.2/N and the base-weighted parameters with it.
 3. Each candidate extension (:mod:`.candidates`): fit E, ζ and its parameters on the training
    trials (best of a few starts), held-out error e_c, and BIC = n·ln(RSS/n) + p·ln(n) on the
    training residuals. The ``LEADERS`` best candidates with ΔBIC < −``BIC_MIN`` continue
@@ -47,6 +49,7 @@ from pipeline.diagnosis.objective import RESIDUAL_UNIT_M, FeatureObjective, Traj
 from pipeline.diagnosis.parameters import BASELINE_NAMES, ModelSpec
 from pipeline.diagnosis.residuals import analyse, noise_estimate
 from pipeline.measurements.timeseries import ReleaseDrive, TimeSeriesMeasurement
+from pipeline.model.extensions import BaseSegment
 
 BIC_MIN = 10.0             # "very strong" evidence on the Kass–Raftery scale
 Z_MIN = 3.0
@@ -229,7 +232,7 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
         notes.append("a single trial per drive type: held-out error = training error")
         test = train
     session = _Session(measurement, train, test)
-    start = matched_start(session.train_features, ModelSpec(material))
+    start = matched_start(session.train_features, ModelSpec(material, (BaseSegment(),)))
     baseline = fit(session.train, start, BASELINE_NAMES)
     r0 = session.heldout(baseline.spec)
     e0 = session.test.error(r0)
