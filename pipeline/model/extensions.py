@@ -253,18 +253,20 @@ class BaseSegment(Extension):
     joints each stand for the arc of one link around their node, [s_n − l/2, s_n + l/2],
     n = 1..N−1, and link 0 is rigid with the follicle, so the arc [0, l/2] next to the base,
     where the bending moment is largest, bends nowhere: the chain's first natural frequency
-    lies above the continuous beam's by ≈ 0.6/N (+2.7–3.1 % at N = 20 on 20–45 mm whiskers) and
-    a modulus fitted with it comes out ≈ 1.2/N low. This extension adds that arc as a torsional
-    spring-dashpot at the base point about y and z (the follicle's joints):
+    lies above the continuous beam's, an error falling as 1/N (N = 20: +5.3 % for a uniform
+    beam, +2.7–3.1 % for tapered whiskers), and a modulus fitted with it comes out low by twice
+    that. This extension adds that arc as a torsional spring-dashpot at the base point about y
+    and z (the follicle's joints):
 
         k_0 = 1 / ∫_0^{l/2} ds/(E_1·I(s)),   E_1 = k_1·l/I_1,   c_0 = k_0·c_1/k_1,
 
     E_1 the modulus joint 1 was built with (a stiffness gradient's value at s = l), I(s) of the
     linearly tapered radius, c_0 with joint 1's damping per stiffness (Kelvin–Voigt: the same β).
     A compliant follicle is in series with it: k = 1/(1/k_f + 1/k_0), c = k²·(c_f/k_f² + c_0/k_0²)
-    (the series dashpot to first order in frequency). The first frequency is then within
-    ≈ 0.3 % of the converged beam at N = 20 (docs/measurements.md §9). No parameters;
-    ``pipeline diagnose`` fits with it."""
+    (the series dashpot to first order in frequency). The chain then converges at second order
+    (uniform beam, N = 20: −0.12 %); on tapered whiskers ≈ +0.25 % is left, the first-order
+    error of the proximal-node density per link (tests/test_base_segment.py). No parameters;
+    ``pipeline diagnose`` fits with it (docs/measurements.md §9)."""
 
     name: ClassVar[str] = "base_segment"
 
