@@ -111,7 +111,8 @@ def main():
         path, meta = prepare(k, args.seed, args.cache, ELEMENTS)
         measurement = load_measurement(path)
         result = diagnose(measurement, MaterialConfig())
-        rows.append({**meta, "named": result.cause, "points": points(meta, result, measurement)})
+        rows.append({**meta, "named": result.cause, "points": points(meta, result, measurement),
+                     "evidence": result.evidence})
         print(report(rows[-1:], None).splitlines()[0], flush=True)
         if args.json:
             args.json.write_text(json.dumps(rows, indent=1, default=float))

@@ -281,9 +281,11 @@ class BaseSegment(Extension):
         c0 = k0 * c1 / k1
         follicle = physics.follicle
         if follicle is None:
-            return replace(physics, follicle=CompliantFollicle(k0, c0))
+            return replace(physics, follicle=CompliantFollicle(float(k0), float(c0)))
         k = 1.0 / (1.0 / follicle.k_f + 1.0 / k0)
-        return replace(physics, follicle=CompliantFollicle(k, k * k * (follicle.c_f / follicle.k_f ** 2 + c0 / k0 ** 2)))
+        c = k * k * (follicle.c_f / follicle.k_f ** 2 + c0 / k0 ** 2)
+        return replace(physics, follicle=CompliantFollicle(float(k), float(c)))
+
 
 EXTENSIONS: dict[str, type[Extension]] = {
     cls.name: cls for cls in (CompliantFollicle, StiffnessGradient, DampingGradient, DensityChange,
