@@ -56,7 +56,7 @@ def test_in_series_with_a_follicle_whatever_the_order():
     material = MaterialConfig(links=20)
     alone = build_physics(ALPHA, material, (BaseSegment(),)).follicle
     chain = build_physics(ALPHA, material).chain
-    k1, c1, length = chain.stiffness_nm_per_rad[0], chain.damping_nms_per_rad[0], chain.link_length_m
+    k1, c1 = chain.stiffness_nm_per_rad[0], chain.damping_nms_per_rad[0]
     # k_0 = E_1·I_1 / ∫_0^{l/2} I_1/I(s) ds, between the half-link's stiffness at node 0 and at node 1
     assert 2 * k1 < alone.k_f < 2 * k1 * (chain.node_radii_m[0] / chain.node_radii_m[1]) ** 4
     assert alone.c_f / alone.k_f == pytest.approx(c1 / k1, rel=1e-12)
