@@ -10,8 +10,9 @@ benchmarks/bench_diagnose_independent.py (80 elements; ``--cache`` reuses the fi
 final fit's SD of each parameter is SD² = S² + (κ·A)²·U², S the block-sandwich SD, A the RMS
 deflection of the data and U² = m·(JᵀJ)⁻¹ the model-error term per unit RMS model error
 (:func:`pipeline.diagnosis.fitting.block_sandwich_sd`). A point (a parameter with a known true
-value, on a draw whose cause is named right: E, and the key parameter of tests/truth/cases.py;
-a missed effect is absorbed by E, whose value then means nothing) needs κ_i = √max(0, err² − S²)/(A·U) for its truth to lie inside ±1 SD. Printed: every
+value, on a draw whose cause is named right: E (not under a density scale, which E absorbs),
+and the key parameter of tests/truth/cases.py; a missed effect is absorbed by E, whose value
+then means nothing) needs κ_i = √max(0, err² − S²)/(A·U) for its truth to lie inside ±1 SD. Printed: every
 point, κ at the 68th percentile of the κ_i (±1σ coverage 68 % on these draws by construction),
 and the ±1σ / ±2σ coverage that κ gives here, for the key parameters and for E separately.
 """
@@ -48,7 +49,7 @@ def points(row_meta: dict, diagnosis, measurement) -> list[dict]:
     sandwich = block_sandwich_sd(final, blocks, 0.0)
     unit = block_sandwich_sd(final, blocks, scale / RESIDUAL_UNIT_M)
     truth = row_meta["truth"]
-    wanted = {"E": truth["E"]}
+    wanted = {"E": truth["E"]} if row_meta["cause"] != "density_scale" else {}      # E absorbs a density scale
     key = KEY_PARAMETER.get(row_meta["cause"])
     if diagnosis.cause == row_meta["expected"] and key in final.values:
         wanted[key] = truth[key]
@@ -75,7 +76,8 @@ def coverage(chosen: list[dict], kappa: float, width: float) -> tuple[int, int]:
 
 
 def report(rows: list[dict], kappa: float | None) -> str:
-    every = [p for r in rows if r["named"] == r["expected"] for p in r["points"]]
+    every = [p for r in rows if r["named"] == r["expected"] for p in r["points"]
+             if not (p["kind"] == "E" and r["cause"] == "density_scale")]
     keys = [p for p in every if p["kind"] == "key"]
     fitted = float(np.percentile([needed(p) for p in every], 68.27))
     lines = [f"{r['seed']} {r['cause']:>18} → {r['named']:<18} " + ", ".join(

@@ -27,8 +27,10 @@ Time series (positions of tracked points):
    −``BIC_MIN``, z > ``Z_MIN`` and φ ≥ ``EXPLAINED_MIN``; none such → "unexplained". A named
    cause that still leaves a significant excess gets a note (a second effect?).
 6. The named model (or the baseline) is refitted on all trials for its parameters; their
-   SDs are block-sandwich SDs over 50 ms stretches plus the floor's share
-   (:func:`~.fitting.block_sandwich_sd`). Data that bend the whisker beyond
+   SDs are block-sandwich SDs over 50 ms stretches plus a model-error term of RMS
+   ``SD_MODEL_FRACTION``·A (:func:`~.fitting.block_sandwich_sd`), calibrated so that ±1 SD
+   holds the truth on 68 % of independent draws kept apart from the benchmark
+   (benchmarks/calibrate_sd.py, docs/measurements.md §9). Data that bend the whisker beyond
    ``LINEAR_BEND_MAX`` of its length (largest tip deflection off the rigidly rotated rest
    shape) get a note: the linear fast simulator does not follow them.
 
@@ -58,6 +60,7 @@ EXPLAINED_MIN = 0.5
 FLOOR_FRACTION = 0.03       # model-error floor / RMS deflection (docs/measurements.md §9)
 LINEAR_BEND_MAX = 0.2       # largest tip deflection / S the linear fast simulator follows (§9)
 BLOCK_S = 0.05              # residual blocks of the sandwich SDs (s)
+SD_MODEL_FRACTION = 0.004   # model-error term of the SDs / RMS deflection (benchmarks/calibrate_sd.py, §9)
 METRIC = "heldout_rms_m"
 CANDIDATE_ITERATIONS = 10   # first fits on the training half: enough to rank candidates
 LEADERS = 3                 # candidates whose fits then continue
@@ -255,9 +258,9 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
     final_names = BASELINE_NAMES + (named.fit.names[2:] if named else ())
     final = fit(whole, (named.fit if named else baseline).spec, final_names, max_iterations=FINAL_ITERATIONS)
     baseline_all = fit(whole, baseline.spec, BASELINE_NAMES, max_iterations=FINAL_ITERATIONS)
-    blocks, floor = whole.blocks(BLOCK_S), FLOOR_FRACTION * amplitude(measurement)
+    blocks, model_error = whole.blocks(BLOCK_S), SD_MODEL_FRACTION * amplitude(measurement)
     for result in (final, baseline_all):
-        result.sd = block_sandwich_sd(result, blocks, floor / RESIDUAL_UNIT_M)
+        result.sd = block_sandwich_sd(result, blocks, model_error / RESIDUAL_UNIT_M)
     simulated = {"baseline": whole.simulate(baseline_all.spec), "cause": whole.simulate(final.spec)}
     return Diagnosis(
         baseline=baseline_all, baseline_heldout=e0, candidates=scores, cause=cause, final=final,
