@@ -171,6 +171,11 @@ def report(rows: list[dict]) -> str:
     e_err = [r["E_fit"] / r["truth"]["E"] - 1 for r in rows if r["cause"] == "none"]
     if e_err:
         lines.append(f"E on effect-free draws (cause none): relative error {', '.join(f'{e:+.3f}' for e in e_err)}")
+    e_sd = np.abs([(r["E_fit"] - r["truth"]["E"]) / r["params"]["E"]["sd"] for r in rows
+                   if r["named"] == r["expected"] and r["cause"] != "density_scale"])
+    if e_sd.size:
+        lines.append(f"E on draws named right (but density_scale: E absorbs it): coverage ±1σ "
+                     f"{_share(int(np.sum(e_sd <= 1)), e_sd.size)}, ±2σ {_share(int(np.sum(e_sd <= 2)), e_sd.size)}")
     lines += ["", "per draw: cause → named, effect RMS / noise, bend (tip off the rigid rotation / S), curved, S"]
     lines += [f"  {r['seed']} {r['cause']:>18} → {r['named']:<18} {r['effect_rms_m'] / r['noise_m']:6.2f} "
               f"{r['bend']:5.2f} {'curved' if r['curved'] else 'straight':>8} {r['length_m'] * 1e3:5.1f} mm"

@@ -264,7 +264,8 @@ def test_diagnose_saves_its_final_model_or_the_baseline(tmp_path, measurement):
         assert content.provenance.fit.method == "diagnose" and content.provenance.fit.cause == cause
         assert content.material.youngs_modulus_gpa * 1e9 == pytest.approx(out["params"]["E"]["value"])
         assert content.material_sd.damping_ratio == pytest.approx(out["params"]["zeta"]["sd"])
-        assert set(content.extensions) == ({"follicle"} if cause == "follicle" else set())
+        # every diagnose model has the base segment (docs/measurements.md §9)
+        assert set(content.extensions) == {"base_segment"} | ({"follicle"} if cause == "follicle" else set())
         for name, entry in content.extensions.get("follicle", {}).items():
             assert entry.value == pytest.approx(out["params"][f"follicle.{name}"]["value"])
             assert entry.sd == pytest.approx(out["params"][f"follicle.{name}"]["sd"])

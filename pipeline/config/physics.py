@@ -173,7 +173,8 @@ class ModelConfig(StrictModel):
 
     @model_validator(mode="after")
     def _fits_engine(self) -> "ModelConfig":
-        compliant = self.material.follicle.kind == "compliant" or "follicle" in self.extensions
+        compliant = (self.material.follicle.kind == "compliant" or "follicle" in self.extensions
+                     or "base_segment" in self.extensions)
         hinges = 3 if "twist" in self.extensions else 2
         limit = bullet_max_links(compliant, hinges)
         if self.engine.name == "bullet" and self.material.links > limit:

@@ -5,7 +5,9 @@ Time series (positions of tracked points):
 1. Split the trials in two, stratified by drive (kind and main axis): a training half and a
    held-out half (a drive type met only once goes to training).
 2. Baseline: fit E and ζ on the training trials (trajectory least squares from a start whose
-   FRF and δ match the data); its error on the held-out trials is e₀.
+   FRF and δ match the data); its error on the held-out trials is e₀. Every model fitted here
+   has the base segment (:class:`~pipeline.model.extensions.BaseSegment`): the chain's rigid
+   base half-link would otherwise bias E by ≈ −1.2/N and the base-weighted parameters with it.
 3. Each candidate extension (:mod:`.candidates`): fit E, ζ and its parameters on the training
    trials (best of a few starts), held-out error e_c, and BIC = n·ln(RSS/n) + p·ln(n) on the
    training residuals. The ``LEADERS`` best candidates with ΔBIC < −``BIC_MIN`` continue
@@ -25,8 +27,10 @@ Time series (positions of tracked points):
    −``BIC_MIN``, z > ``Z_MIN`` and φ ≥ ``EXPLAINED_MIN``; none such → "unexplained". A named
    cause that still leaves a significant excess gets a note (a second effect?).
 6. The named model (or the baseline) is refitted on all trials for its parameters; their
-   SDs are block-sandwich SDs over 50 ms stretches plus the floor's share
-   (:func:`~.fitting.block_sandwich_sd`). Data that bend the whisker beyond
+   SDs are block-sandwich SDs over 50 ms stretches plus a model-error term of RMS
+   ``SD_MODEL_FRACTION``·A (:func:`~.fitting.block_sandwich_sd`), calibrated so that ±1 SD
+   holds the truth on 68 % of independent draws kept apart from the benchmark
+   (benchmarks/calibrate_sd.py, docs/measurements.md §9). Data that bend the whisker beyond
    ``LINEAR_BEND_MAX`` of its length (largest tip deflection off the rigidly rotated rest
    shape) get a note: the linear fast simulator does not follow them.
 
@@ -47,6 +51,7 @@ from pipeline.diagnosis.objective import RESIDUAL_UNIT_M, FeatureObjective, Traj
 from pipeline.diagnosis.parameters import BASELINE_NAMES, ModelSpec
 from pipeline.diagnosis.residuals import analyse, noise_estimate
 from pipeline.measurements.timeseries import ReleaseDrive, TimeSeriesMeasurement
+from pipeline.model.extensions import BaseSegment
 
 BIC_MIN = 10.0             # "very strong" evidence on the Kass–Raftery scale
 Z_MIN = 3.0
@@ -55,6 +60,7 @@ EXPLAINED_MIN = 0.5
 FLOOR_FRACTION = 0.03       # model-error floor / RMS deflection (docs/measurements.md §9)
 LINEAR_BEND_MAX = 0.2       # largest tip deflection / S the linear fast simulator follows (§9)
 BLOCK_S = 0.05              # residual blocks of the sandwich SDs (s)
+SD_MODEL_FRACTION = 0.0055  # model-error term of the SDs / RMS deflection (benchmarks/calibrate_sd.py, §9)
 METRIC = "heldout_rms_m"
 CANDIDATE_ITERATIONS = 10   # first fits on the training half: enough to rank candidates
 LEADERS = 3                 # candidates whose fits then continue
@@ -229,7 +235,7 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
         notes.append("a single trial per drive type: held-out error = training error")
         test = train
     session = _Session(measurement, train, test)
-    start = matched_start(session.train_features, ModelSpec(material))
+    start = matched_start(session.train_features, ModelSpec(material, (BaseSegment(),)))
     baseline = fit(session.train, start, BASELINE_NAMES)
     r0 = session.heldout(baseline.spec)
     e0 = session.test.error(r0)
@@ -252,9 +258,9 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
     final_names = BASELINE_NAMES + (named.fit.names[2:] if named else ())
     final = fit(whole, (named.fit if named else baseline).spec, final_names, max_iterations=FINAL_ITERATIONS)
     baseline_all = fit(whole, baseline.spec, BASELINE_NAMES, max_iterations=FINAL_ITERATIONS)
-    blocks, floor = whole.blocks(BLOCK_S), FLOOR_FRACTION * amplitude(measurement)
+    blocks, model_error = whole.blocks(BLOCK_S), SD_MODEL_FRACTION * amplitude(measurement)
     for result in (final, baseline_all):
-        result.sd = block_sandwich_sd(result, blocks, floor / RESIDUAL_UNIT_M)
+        result.sd = block_sandwich_sd(result, blocks, model_error / RESIDUAL_UNIT_M)
     simulated = {"baseline": whole.simulate(baseline_all.spec), "cause": whole.simulate(final.spec)}
     return Diagnosis(
         baseline=baseline_all, baseline_heldout=e0, candidates=scores, cause=cause, final=final,

@@ -83,7 +83,7 @@ def draw(cause: str, seed: int, duration_s: float = 0.25) -> Scenario:
 
     scales = WhiskerScales.of(true_spec(config).physics(config.whisker.geometry()))
     effect = _effect(cause, rng, scales)
-    extensions: dict[str, dict[str, float]] = {}
+    extensions: dict[str, dict[str, float]] = {"base_segment": {}}      # the model diagnose fits
     for name, value in effect.items():
         ext, field = name.split(".")
         extensions.setdefault(ext, {})[field] = value

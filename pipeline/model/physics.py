@@ -84,9 +84,11 @@ def build_physics(geometry: WhiskerGeometry, material: MaterialConfig,
 
     The damping model of ``material`` (eq. 3 or Kelvin–Voigt) sees the final masses and
     stiffnesses. The follicle and gravity that ``material`` switches on come first, so a
-    ``follicle`` or ``gravity`` extension given here overrides them.
+    ``follicle`` or ``gravity`` extension given here overrides them; a ``base_segment`` comes
+    last, whatever its place in ``extensions``.
     """
-    extensions = material_extensions(material) + tuple(extensions)
+    # a base segment's spring goes in series with the follicle: its hooks run after the follicle's
+    extensions = sorted(material_extensions(material) + tuple(extensions), key=lambda e: e.name == "base_segment")
     for ext in extensions:
         material = ext.material(material)
     for ext in extensions:
