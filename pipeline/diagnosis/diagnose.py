@@ -8,9 +8,13 @@ Time series (positions of tracked points):
    FRF and δ match the data); its error on the held-out trials is e₀.
 3. Each candidate extension (:mod:`.candidates`): fit E, ζ and its parameters on the training
    trials (best of a few starts), held-out error e_c, and BIC = n·ln(RSS/n) + p·ln(n) on the
-   training residuals. The ``LEADERS`` best candidates with ΔBIC < −``BIC_MIN`` continue
-   their fits (a short fit can stop short of a strong effect, letting a surrogate win),
-   with the candidate's ``refine`` parameters added (drag: the quadratic C_d).
+   training residuals. The ``LEADERS`` candidates with the lowest held-out error among those
+   with ΔBIC < −``BIC_MIN``, and the one with the lowest ΔBIC, continue their fits (a short
+   fit can stop short of a strong effect, letting a surrogate win), with the candidate's
+   ``refine`` parameters added (drag: the quadratic C_d). The lowest ΔBIC joins because a
+   first fit without its refine parameter can fit the training trials and still miss the
+   held-out ones: linear drag fitted to one pulse mispredicts a faster one when the drag is
+   quadratic.
 4. Evidence on the held-out trials: tracking noise σ̂ from the second differences of the
    best model's residuals (:mod:`.residuals`); a model-error floor f = ``FLOOR_FRACTION``·A,
    A the RMS deflection of the held-out data (:mod:`.deflection`): the misfit even a right
@@ -168,7 +172,11 @@ def _candidates(session: _Session, baseline: Fit, chosen: list[Candidate]) -> li
         start = best_start(session.train, session.train_features, baseline.spec, c.starts(scales))
         scores.append(_fit_candidate(session, baseline, c.name, start, BASELINE_NAMES + c.params,
                                      CANDIDATE_ITERATIONS))
-    leaders = sorted((s for s in scores if s.bic_delta < -BIC_MIN), key=lambda s: s.heldout_error)[:LEADERS]
+    strong = [s for s in scores if s.bic_delta < -BIC_MIN]
+    leaders = sorted(strong, key=lambda s: s.heldout_error)[:LEADERS]
+    best_trained = min(strong, key=lambda s: s.bic_delta, default=None)
+    if best_trained is not None and best_trained not in leaders:
+        leaders.append(best_trained)
     for lead in leaders:
         refine = next(c.refine for c in chosen if c.name == lead.name)
         scores[scores.index(lead)] = _fit_candidate(session, baseline, lead.name, lead.fit.spec.with_values(refine),
