@@ -40,8 +40,8 @@ class Candidate:
     """``refine``: parameters (with their start) added only when the candidate's fit continues
     among the leaders (quadratic drag: the nonlinear force makes every simulation ≈ 3× dearer).
     ``absorbs``: the largest held-out gain √(e₀² − e_c²)/A the candidate made on effect-free
-    draws of the independent truth (benchmarks/calibrate_floor.py, seeds 9100–9112; A the RMS
-    deflection): how much of the model's own error it can take for an effect
+    draws of the independent truth (benchmarks/calibrate_floor.py, seeds 9100–9112, rounded
+    up; A the RMS deflection): how much of the model's own error it can take for an effect
     (docs/measurements.md §9)."""
 
     name: str
@@ -61,7 +61,7 @@ CANDIDATES: tuple[Candidate, ...] = (
     Candidate("stiffness_gradient", ("stiffness_gradient.gamma",),
               _values("stiffness_gradient.gamma", (-1.5, 0.0, 1.5)), 0.0246),
     Candidate("damping_gradient", ("damping_gradient.gamma",),
-              _values("damping_gradient.gamma", (-2.0, 0.0, 2.0)), 0.0117),
+              _values("damping_gradient.gamma", (-2.0, 0.0, 2.0)), 0.0118),
     Candidate("density", ("density.gradient",), _values("density.gradient", (-1.5, 0.0, 1.5)), 0.0054),
     Candidate("length", ("length.scale",), _values("length.scale", (0.8, 0.95, 1.1)), 0.0026),
     Candidate("drag", ("drag.linear",), _values("drag.linear", (3e-5, 3e-4)), 0.0034, {"drag.quadratic": 2.0}),
