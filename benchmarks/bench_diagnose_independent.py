@@ -2,8 +2,9 @@
 
 Run: .venv/bin/python benchmarks/bench_diagnose_independent.py [--n 100] [--seed 5000] [--json out.json]
      [--elements 80] [--cache DIR] [--prepare-only] [--no-sizes]; or --from-json ROWS.json ...
-     [--cache DIR] [--redecide] to report saved rows (with the sizes the cache holds; with the
-     causes today's decision rule names from their saved evidence).
+     [--cache DIR] [--redecide] to report saved rows (a draw's row in a later file replaces an
+     earlier one; with the sizes the cache holds; with the causes today's decision rule names
+     from their saved evidence).
 
 Draw k has cause CAUSES[k mod 10] of tests/truth/cases.py and seed seed + k: the independent
 truth (a planar, geometrically exact discrete rod with 100 elements, Kelvin–Voigt damping;
@@ -46,6 +47,7 @@ from pipeline.measurements.timeseries import write_timeseries  # noqa: E402
 from tests.truth.cases import CAUSES, KEY_PARAMETER, draw_case  # noqa: E402
 from tests.truth.drives import GaussianPulse  # noqa: E402
 from tests.truth.record import PulseTrial, measurement_of, simulate_clean  # noqa: E402
+from tests.truth.rod import Rod  # noqa: E402
 
 NAMED = ("none",) + CANDIDATE_NAMES + ("unexplained",)
 TOLERANCE = 0.15
@@ -78,16 +80,23 @@ def _in_plane(whisker, case) -> np.ndarray:
     return np.stack([positions[..., :2] for positions, _ in clean])
 
 
-def _refit_baseline(case, target: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, dict]:
+def _first_mode_hz(whisker) -> float:
+    return float(Rod(replace(whisker, elements=REFERENCE_ELEMENTS)).natural_frequencies(1)[0])
+
+
+def _refit_baseline(case, target: np.ndarray) -> tuple[np.ndarray, dict]:
     """The effect-free truth with E and ζ₁ refitted to ``target`` (least squares on the clean
-    tracked coordinates; Gauss–Newton in (ln E, ζ₁) from the true values, whose simulation is
-    ``start``, with a finite-difference Jacobian there and Broyden's update after each step):
-    (residual, refitted values)."""
+    tracked coordinates; Gauss–Newton in (ln E, ζ₁) from the true ζ₁ and the E that gives the
+    first mode of the truth with the effect (exact for a uniform density change), with a
+    finite-difference Jacobian there and Broyden's update after each step): (residual,
+    refitted values)."""
     def simulate(x):
         return _in_plane(replace(case.neutral, youngs_modulus_pa=float(np.exp(x[0])),
                                  zeta1=float(max(x[1], 1e-3))), case)
 
-    x = np.array([np.log(case.whisker.youngs_modulus_pa), case.whisker.zeta1])
+    matched = (_first_mode_hz(case.whisker) / _first_mode_hz(case.neutral)) ** 2
+    x = np.array([np.log(case.whisker.youngs_modulus_pa * matched), case.whisker.zeta1])
+    start = simulate(x)
     residual = start - target
     jacobian = np.stack([(simulate(x + h * np.eye(2)[i]) - start).ravel() / h
                          for i, h in enumerate(REFIT_DELTAS)], axis=1)
@@ -117,7 +126,7 @@ def effect_size(case) -> dict:
         return {"effect_rms_m": 0.0, "detectable_rms_m": 0.0,
                 "detectable_by_trial_m": {t.name: 0.0 for t in case.trials}, "refit": {}}
     target, neutral = _in_plane(case.whisker, case), _in_plane(case.neutral, case)
-    residual, refit = _refit_baseline(case, target, neutral)
+    residual, refit = _refit_baseline(case, target)
     return {"effect_rms_m": float(np.sqrt(np.mean((target - neutral) ** 2))),
             "detectable_rms_m": float(np.sqrt(np.mean(residual ** 2))),
             "detectable_by_trial_m": {t.name: float(np.sqrt(np.mean(r ** 2))) for t, r in zip(case.trials, residual)},
@@ -303,7 +312,8 @@ def main():
                         help="with --from-json: name each cause again from the saved evidence with today's rule")
     args = parser.parse_args()
     if args.from_json:
-        rows = [row for path in args.from_json for row in json.loads(path.read_text())]
+        latest = {row["seed"]: row for path in args.from_json for row in json.loads(path.read_text())}
+        rows = sorted(latest.values(), key=lambda row: row["seed"])     # a later run of a draw replaces it
         if args.cache:
             rows = [_with_sizes(row, args.cache, args.elements) for row in rows]
         print(report([redecided(row) for row in rows] if args.redecide else rows))
