@@ -80,3 +80,51 @@ def test_effect_free_noise_free_draw_gives_the_true_modulus():
     result = fit(TrajectoryObjective(measurement), start, BASELINE_NAMES, max_iterations=40)
     assert result.values["E"] == pytest.approx(case.truth["E"], rel=0.01)
     assert result.error < 4e-6
+
+
+def test_decision_counts_a_gain_beyond_the_candidates_own_floor():
+    """Most of the chain's model error looks like a compliant follicle, little of it like a
+    density gradient: the same held-out gain, below the floor of the whole model error, names
+    ``density`` (it absorbed ≤ 0.0054·A on effect-free draws) but not ``follicle`` (0.028·A)."""
+    from pipeline.diagnosis.diagnose import ABSORB_MARGIN, FLOOR_FRACTION, beyond_floor, decide, significance
+    from pipeline.diagnosis.candidates import ABSORBS
+
+    amplitude, noise = 4e-4, 50e-6
+    floor = FLOOR_FRACTION * amplitude
+    gain = (0.6 * floor) ** 2                    # (0.018·A)²: above density's floor, below follicle's
+    assert (ABSORB_MARGIN * ABSORBS["density"]) ** 2 < 0.5 * (gain / amplitude ** 2) < ABSORBS["follicle"] ** 2
+    baseline = float(np.sqrt(noise ** 2 + gain))
+    heldout = noise
+    assert significance(baseline, noise, floor, 7000) <= 3          # the excess alone: within noise + floor
+    for name, named in (("density", "density"), ("follicle", "none")):
+        evidence = _evidence(baseline, noise, [(name, heldout)])
+        assert decide(evidence)[0] == named, beyond_floor(evidence)
+
+
+def test_decision_gain_beyond_the_floor_still_needs_training_evidence():
+    """A held-out gain beyond the candidate's floor is not enough without ΔBIC < −10 on the
+    training trials."""
+    from pipeline.diagnosis.diagnose import FLOOR_FRACTION, decide
+
+    amplitude, noise = 4e-4, 50e-6
+    baseline = float(np.sqrt(noise ** 2 + (0.6 * FLOOR_FRACTION * amplitude) ** 2))
+    evidence = _evidence(baseline, noise, [("density", noise)])
+    evidence["candidates"][0]["bic_delta"] = -5.0
+    assert decide(evidence)[0] == "none"
+
+
+def test_uniform_density_change_is_absorbed_by_e_and_said_so(tmp_path):
+    """A whisker 0.68 times as dense as the file's nominal density (seed 5009): positions
+    cannot tell it from a stiffer whisker, so the answer is "none", E comes out as E/0.68, and the diagnosis names the ambiguity."""
+    from pipeline.config.physics import MaterialConfig
+    from pipeline.diagnosis.commands import run_diagnose
+
+    case = draw_case("density_scale", 5009, elements=80)
+    path = tmp_path / "density_scale.h5"
+    simulate_measurement(case.whisker, case.trials, case.tracking, 5009, path)
+    data, lines = run_diagnose(path, MaterialConfig(), None, None)
+    assert data["cause"] == "none"
+    assert data["decision"]["ambiguous"] == ["E", "density.scale"]
+    assert any("E/ρ" in line for line in lines)
+    absorbed = data["params"]["E"]["value"] * case.truth["truth.density_scale"] / case.truth["E"]
+    assert abs(absorbed - 1) < 0.1

@@ -10,22 +10,35 @@ Time series (positions of tracked points):
    base half-link would otherwise bias E by ≈ −1.2/N and the base-weighted parameters with it.
 3. Each candidate extension (:mod:`.candidates`): fit E, ζ and its parameters on the training
    trials (best of a few starts), held-out error e_c, and BIC = n·ln(RSS/n) + p·ln(n) on the
-   training residuals. The ``LEADERS`` best candidates with ΔBIC < −``BIC_MIN`` continue
-   their fits (a short fit can stop short of a strong effect, letting a surrogate win),
-   with the candidate's ``refine`` parameters added (drag: the quadratic C_d).
+   training residuals. The ``LEADERS`` candidates with the lowest held-out error among those
+   with ΔBIC < −``BIC_MIN``, and the one with the lowest ΔBIC, continue their fits (a short
+   fit can stop short of a strong effect, letting a surrogate win), with the candidate's
+   ``refine`` parameters added (drag: the quadratic C_d). The lowest ΔBIC joins because a
+   first fit without its refine parameter can fit the training trials and still miss the
+   held-out ones: linear drag fitted to one pulse mispredicts a faster one when the drag is
+   quadratic.
 4. Evidence on the held-out trials: tracking noise σ̂ from the second differences of the
    best model's residuals (:mod:`.residuals`); a model-error floor f = ``FLOOR_FRACTION``·A,
    A the RMS deflection of the held-out data (:mod:`.deflection`): the misfit even a right
    model leaves because the chain is not the continuum (measured on effect-free draws of an
-   independent simulator, docs/measurements.md §9); the excess e₀² − σ̂² − f² is the misfit
-   to explain, significant when it exceeds ``SIGNIFICANT`` times its standard error
-   ≈ 1.5·σ̂²/√n (n held-out values, white noise). A candidate's share of it is
-   φ = (e₀² − e_c²)/(e₀² − σ̂² − f²); its paired held-out z = (Σr₀² − Σr_c²)/(2σ̂·|p₀ − p_c|)
-   (r residuals, p predictions: the shared noise cancels).
-5. Decision (:func:`decide`): no significant excess → "none" (the baseline is adequate).
-   Otherwise the candidate with the lowest held-out error among those with ΔBIC <
-   −``BIC_MIN``, z > ``Z_MIN`` and φ ≥ ``EXPLAINED_MIN``; none such → "unexplained". A named
-   cause that still leaves a significant excess gets a note (a second effect?).
+   independent simulator, docs/measurements.md §9); the excess X = e₀² − σ̂² − f² is the
+   misfit to explain, significant when it exceeds ``SIGNIFICANT`` times its standard error
+   ≈ 1.5·σ̂²/√n (n held-out values, white noise). A candidate's gain g = e₀² − e_c², its
+   share of the excess φ = g/X (X ≤ 0: 1 if g exceeds the candidate's own floor, else 0); its
+   paired held-out z = (Σr₀² − Σr_c²)/(2σ̂·|p₀ − p_c|) (r residuals, p predictions: the shared
+   noise cancels), and the same z beyond the candidate's own floor, z·(g − f_c²)/g: f_c =
+   min(f, ``ABSORB_MARGIN``·κ_c·A), κ_c the most of the model error that candidate took for
+   an effect on effect-free draws (``Candidate.absorbs``). Most of the model error looks like
+   a compliant follicle or a stiffness gradient (κ_c ≈ 0.025), little of it like a density
+   gradient or drag (≤ 0.006), so a weak effect of the latter kind stands out long before it
+   exceeds f.
+5. Decision (:func:`decide`): the baseline is inadequate when X is significant or when a
+   candidate with ΔBIC < −``BIC_MIN`` beats it on the held-out trials beyond its own floor
+   (z beyond the floor > ``Z_MIN``); otherwise "none". Then the candidate with the lowest
+   held-out error among those with ΔBIC < −``BIC_MIN``, z beyond its floor > ``Z_MIN`` and
+   φ ≥ ``EXPLAINED_MIN``; none such → "unexplained". A named cause that still leaves a
+   significant excess gets a note (a second effect?). Positions cannot tell a uniform density
+   change from a change of E (eq. 3: only E/ρ sets the time scale): every diagnosis says so.
 6. The named model (or the baseline) is refitted on all trials for its parameters; their
    SDs are block-sandwich SDs over 50 ms stretches plus a model-error term of RMS
    ``SD_MODEL_FRACTION``·A (:func:`~.fitting.block_sandwich_sd`), calibrated so that ±1 SD
@@ -44,7 +57,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pipeline.config.physics import MaterialConfig
-from pipeline.diagnosis.candidates import CANDIDATES, Candidate, WhiskerScales
+from pipeline.diagnosis.candidates import ABSORBS, CANDIDATES, Candidate, WhiskerScales
 from pipeline.diagnosis.deflection import amplitude, bend
 from pipeline.diagnosis.fitting import Fit, best_start, block_sandwich_sd, fit, matched_start
 from pipeline.diagnosis.objective import RESIDUAL_UNIT_M, FeatureObjective, TrajectoryObjective
@@ -58,6 +71,7 @@ Z_MIN = 3.0
 SIGNIFICANT = 3.0
 EXPLAINED_MIN = 0.5
 FLOOR_FRACTION = 0.03       # model-error floor / RMS deflection (docs/measurements.md §9)
+ABSORB_MARGIN = 2.0         # a candidate's floor / the most it absorbed on calibration draws (§9)
 LINEAR_BEND_MAX = 0.2       # largest tip deflection / S the linear fast simulator follows (§9)
 BLOCK_S = 0.05              # residual blocks of the sandwich SDs (s)
 SD_MODEL_FRACTION = 0.0055  # model-error term of the SDs / RMS deflection (benchmarks/calibrate_sd.py, §9)
@@ -164,7 +178,11 @@ def _candidates(session: _Session, baseline: Fit, chosen: list[Candidate]) -> li
         start = best_start(session.train, session.train_features, baseline.spec, c.starts(scales))
         scores.append(_fit_candidate(session, baseline, c.name, start, BASELINE_NAMES + c.params,
                                      CANDIDATE_ITERATIONS))
-    leaders = sorted((s for s in scores if s.bic_delta < -BIC_MIN), key=lambda s: s.heldout_error)[:LEADERS]
+    strong = [s for s in scores if s.bic_delta < -BIC_MIN]
+    leaders = sorted(strong, key=lambda s: s.heldout_error)[:LEADERS]
+    best_trained = min(strong, key=lambda s: s.bic_delta, default=None)
+    if best_trained is not None and best_trained not in leaders:
+        leaders.append(best_trained)
     for lead in leaders:
         refine = next(c.refine for c in chosen if c.name == lead.name)
         scores[scores.index(lead)] = _fit_candidate(session, baseline, lead.name, lead.fit.spec.with_values(refine),
@@ -186,6 +204,20 @@ def significance(error: float, noise: float, floor: float, n: int) -> float:
     return float((error ** 2 - noise ** 2 - floor ** 2) / (1.5 * noise ** 2 / np.sqrt(n)))
 
 
+def beyond_floor(evidence: dict, floor_fraction: float = None) -> dict[str, float]:
+    """Each candidate's paired z for its held-out gain g = e₀² − e_c² beyond its own floor
+    f_c² (the model error it can take for an effect): z·(g − f_c²)/g, f_c = min(κ,
+    ``ABSORB_MARGIN``·absorbs)·A; a candidate without a gain keeps its z (≤ 0)."""
+    floor_fraction = FLOOR_FRACTION if floor_fraction is None else floor_fraction
+    e0, amplitude = evidence["baseline_m"], evidence["amplitude_m"]
+    result = {}
+    for c in evidence["candidates"]:
+        gain = e0 ** 2 - c["heldout_m"] ** 2
+        absorbed = (min(floor_fraction, ABSORB_MARGIN * c.get("absorbs", ABSORBS[c["name"]])) * amplitude) ** 2
+        result[c["name"]] = float(c["z"] * (gain - absorbed) / gain) if gain > 0 else min(float(c["z"]), 0.0)
+    return result
+
+
 def decide(evidence: dict, floor_fraction: float = None, explained_min: float = None,
            notes: list[str] | None = None) -> tuple[str, dict[str, float]]:
     """(cause, each candidate's share φ of the excess) from the held-out evidence
@@ -195,12 +227,13 @@ def decide(evidence: dict, floor_fraction: float = None, explained_min: float = 
     e0, noise, n = evidence["baseline_m"], evidence["noise_m"], evidence["values"]
     floor = floor_fraction * evidence["amplitude_m"]
     excess = e0 ** 2 - noise ** 2 - floor ** 2
-    shares = {c["name"]: (e0 ** 2 - c["heldout_m"] ** 2) / excess if excess > 0 else 0.0
+    z_beyond = beyond_floor(evidence, floor_fraction)
+    shares = {c["name"]: (e0 ** 2 - c["heldout_m"] ** 2) / excess if excess > 0 else float(z_beyond[c["name"]] > 0)
               for c in evidence["candidates"]}
-    if significance(e0, noise, floor, n) <= SIGNIFICANT:
+    beats = [c for c in evidence["candidates"] if c["bic_delta"] < -BIC_MIN and z_beyond[c["name"]] > Z_MIN]
+    if significance(e0, noise, floor, n) <= SIGNIFICANT and not beats:
         return "none", shares
-    supported = [c for c in evidence["candidates"]
-                 if c["bic_delta"] < -BIC_MIN and c["z"] > Z_MIN and shares[c["name"]] >= explained_min]
+    supported = [c for c in beats if shares[c["name"]] >= explained_min]
     if not supported:
         return "unexplained", shares
     best = min(supported, key=lambda c: c["heldout_m"])
@@ -209,6 +242,10 @@ def decide(evidence: dict, floor_fraction: float = None, explained_min: float = 
                      f"noise {noise * 1e3:.4f} mm and model-error floor {floor * 1e3:.4f} mm): "
                      "a second effect may be present")
     return best["name"], shares
+
+
+E_DENSITY_NOTE = ("positions fix E/ρ only (a uniform density change is exactly a change of E): E is given "
+                  "for the file's nominal density; a whisker k times denser has k times this E")
 
 
 def diagnose(measurement: TimeSeriesMeasurement, material: MaterialConfig | None = None,
@@ -245,9 +282,13 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
     _paired_z(r0, noise, scores)
     evidence = {"baseline_m": e0, "noise_m": noise, "amplitude_m": amplitude(session.test.measurement),
                 "values": int(r0.size), "bend": bend(measurement),
-                "candidates": [{"name": c.name, "heldout_m": c.heldout_error, "bic_delta": c.bic_delta, "z": c.z}
-                               for c in scores]}
+                "candidates": [{"name": c.name, "heldout_m": c.heldout_error, "bic_delta": c.bic_delta, "z": c.z,
+                                "absorbs": ABSORBS[c.name]} for c in scores]}
     cause, shares = decide(evidence, notes=notes)
+    notes.append(E_DENSITY_NOTE)
+    evidence["ambiguous"] = ["E", "density.scale"]
+    for c, z in zip(evidence["candidates"], beyond_floor(evidence).values()):
+        c["z_beyond_floor"] = z
     for c in scores:
         c.score = shares[c.name]
     if evidence["bend"] > LINEAR_BEND_MAX:
