@@ -6,11 +6,13 @@ Run: .venv/bin/python benchmarks/nonlinear_range.py [--draws none:5000 none:5040
 For each draw (cause:seed of tests/truth/cases.py) the truth's four trials are simulated
 without noise or lost frames. Printed:
 
-1. at the true E and ζ₁: the RMS difference to the truth of the linear fast simulator (LIN)
-   and of the MuJoCo engine at steps of 100, 50 and 25 µs (NL), and NL − LIN per trial: how
-   much of the model error the nonlinearity is, and whether the engine's step is converged;
+1. at the true E and ζ₁, per trial, RMS (µm): the linear fast simulator (LIN) − truth; at
+   engine steps of 100, 50 and 25 µs the MuJoCo engine (NL) − truth, the corrected
+   simulator LIN + d − truth and the nonlinear defect d (:func:`~pipeline.diagnosis.
+   nonlinear.defects`); and the defect's linear part D(s·u)/s (the engine's own step and
+   drive interpolation), whose convergence in dt it shows;
 2. E and θ_ζ fitted by the linear simulator, then defect-corrected: RMS misfit / A (A the
-   RMS deflection), E fit / true, iterations, CPU s.
+   RMS deflection) over all trials and per trial (µm), E fit / true, iterations, CPU s.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from pipeline.diagnosis.deflection import amplitude, bend  # noqa: E402
 from pipeline.diagnosis.engine import EngineSimulator  # noqa: E402
 from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial  # noqa: E402
 from pipeline.diagnosis.fitting import fit, matched_start  # noqa: E402
-from pipeline.diagnosis.nonlinear import correct  # noqa: E402
+from pipeline.diagnosis.nonlinear import LINEAR_PROBE, correct, defects, engine_minus_fast, scaled  # noqa: E402
 from pipeline.diagnosis.objective import FeatureObjective, TrajectoryObjective  # noqa: E402
 from pipeline.diagnosis.parameters import BASELINE_NAMES, ModelSpec  # noqa: E402
 from tests.truth import draw_case  # noqa: E402
@@ -56,13 +58,16 @@ def at_truth(case, measurement) -> None:
     prepared = [PreparedTrial(t, measurement.gravity_direction) for t in measurement.trials]
     linear = FastSimulator().simulate(physics, prepared)
     engine = {dt: EngineSimulator("mujoco", dt).simulate(physics, prepared) for dt in STEPS_S}
-    print("  at the true E, ζ₁ (µm RMS): trial, LIN−truth, NL−truth and NL−LIN at "
-          + ", ".join(f"{dt * 1e6:.0f}" for dt in STEPS_S) + " µs")
+    defect = {dt: defects(spec, measurement, dt_s=dt) for dt in STEPS_S}
+    part = {dt: engine_minus_fast(*scaled(spec, measurement, LINEAR_PROBE), dt_s=dt) for dt in STEPS_S}
+    print("  at the true E, ζ₁ (µm RMS): trial, LIN−truth | per step " + ", ".join(
+        f"{dt * 1e6:.0f}" for dt in STEPS_S) + " µs: NL−truth, LIN+d−truth, d, linear part")
     for i, trial in enumerate(measurement.trials):
-        nl = [engine[dt][i] for dt in STEPS_S]
-        print(f"    {trial.name:>10} {_rms(linear[i], trial.positions_m) * 1e6:7.2f}  "
-              + " ".join(f"{_rms(x, trial.positions_m) * 1e6:7.2f}" for x in nl) + "  "
-              + " ".join(f"{_rms(x, linear[i]) * 1e6:6.2f}" for x in nl))
+        truth = trial.positions_m
+        print(f"    {trial.name:>10} {_rms(linear[i], truth) * 1e6:7.2f} |" + " |".join(
+            f"{_rms(engine[dt][i], truth) * 1e6:7.2f} {_rms(linear[i] + defect[dt][trial.name], truth) * 1e6:7.2f}"
+            f" {_rms(defect[dt][trial.name], 0) * 1e6:6.2f} {_rms(part[dt][i] / LINEAR_PROBE, 0) * 1e6:6.2f}"
+            for dt in STEPS_S), flush=True)
 
 
 def fitted(case, measurement) -> None:
@@ -74,8 +79,11 @@ def fitted(case, measurement) -> None:
     corrected = correct(measurement, linear)
     cpu = time.process_time() - start_cpu - linear_cpu
     a = amplitude(measurement)
-    for label, result, seconds in (("linear", linear, linear_cpu), ("corrected", corrected.fit, cpu)):
-        print(f"  {label:>9}: misfit/A {result.error / a:.4f}, E fit/true "
+    for label, result, seconds, simulator in (("linear", linear, linear_cpu, None),
+                                              ("corrected", corrected.fit, cpu, corrected.simulator)):
+        simulated = TrajectoryObjective(measurement, simulator).simulate(result.spec)
+        trials = " ".join(f"{t.name} {_rms(x, t.positions_m) * 1e6:.1f}" for t, x in zip(measurement.trials, simulated))
+        print(f"  {label:>9}: misfit/A {result.error / a:.4f} ({trials}), E fit/true "
               f"{result.values['E'] / case.truth['E']:.3f}, θ_ζ {result.values['zeta']:.3f} "
               f"(ζ₁ true {case.truth['zeta1']:.3f}), {seconds:.1f} CPU-s")
     print(f"  {corrected.note()}")
