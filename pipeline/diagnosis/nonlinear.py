@@ -3,8 +3,8 @@
 The fast simulator LIN(p) (:mod:`.fastsim`) is exact in time but linear in the joint angles;
 the MuJoCo engine NL(p) (:mod:`.engine`) integrates the same joints with the full nonlinear
 multibody dynamics, at about the same cost per run but too slowly for every evaluation of
-a fit. Output-space defect correction uses one NL run per iteration: from a linear fit p₀
-to the data y,
+a fit. Output-space defect correction needs two engine runs per iteration: from a linear
+fit p₀ to the data y,
 
     d_k = D(p_k; u) − D(p_k; s·u)/s,   D = NL − LIN   (per trial: tracked points, every frame, m)
     p_{k+1} = argmin_p |LIN(p) + d_k − y|²          (the usual fit, data shifted by d_k)
@@ -17,10 +17,11 @@ a sampled drive (a pulse's abrupt stop) give ≈ 1.5–2.5 % of the motion at an
 it, leaving the nonlinearity (its O(s) remainder is 5 % of it); the fast simulator, exact in
 time, keeps the linear dynamics.
 
-stopping when p moves less than ``TOLERANCE`` in the optimiser's coordinates (1 % for scale
-parameters) or the corrected misfit stops falling, after at most ``ITERATIONS`` defects.
-At a fixed point LIN(p) + d = NL(p): the residuals are those of the nonlinear model, and
-the parameters zero LIN's Jacobian times them (NL's to first order in the defect).
+The iteration stops when p moves less than ``TOLERANCE`` in the optimiser's coordinates
+(1 % for scale parameters) or the corrected misfit stops falling, after at most
+``ITERATIONS`` defects. At a fixed point LIN(p) + d(p) is the nonlinear model (the linear
+dynamics exact in time, the engine's nonlinearity): its residuals are scored, and the
+parameters zero LIN's Jacobian times them (its own to first order in the defect).
 """
 
 from __future__ import annotations
@@ -32,9 +33,9 @@ import numpy as np
 from pipeline.diagnosis.engine import EngineSimulator
 from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial
 from pipeline.diagnosis.fitting import Fit, fit
+from pipeline.diagnosis.linear import linearise
 from pipeline.diagnosis.objective import TrajectoryObjective
 from pipeline.diagnosis.parameters import ModelSpec, ParameterSpace
-from pipeline.diagnosis.linear import linearise
 from pipeline.measurements.timeseries import ReleaseDrive, TimeSeriesMeasurement
 
 ENGINE = "mujoco"
