@@ -294,7 +294,9 @@ def report(rows: list[dict]) -> str:
               for r in rows]
     cpu = np.array([r["cpu_s"] for r in rows])
     bends = np.array([r["bend"] for r in rows])
-    lines += ["", f"bend: median {np.median(bends):.2f}, max {bends.max():.2f} of S",
+    corrected = sum(r["decision"].get("simulator", "").startswith("nonlinear") for r in rows)
+    lines += ["", f"bend: median {np.median(bends):.2f}, max {bends.max():.2f} of S; "
+                  f"scored with the nonlinear correction: {corrected} of {len(rows)} draws",
               f"CPU per diagnosis: median {np.median(cpu):.1f} s, max {cpu.max():.1f} s"]
     return "\n".join(lines)
 

@@ -43,9 +43,14 @@ Time series (positions of tracked points):
    SDs are block-sandwich SDs over 50 ms stretches plus a model-error term of RMS
    ``SD_MODEL_FRACTION``·A (:func:`~.fitting.block_sandwich_sd`), calibrated so that ±1 SD
    holds the truth on 68 % of independent draws kept apart from the benchmark
-   (benchmarks/calibrate_sd.py, docs/measurements.md §9). Data that bend the whisker beyond
-   ``LINEAR_BEND_MAX`` of its length (largest tip deflection off the rigidly rotated rest
-   shape) get a note: the linear fast simulator does not follow them.
+   (benchmarks/calibrate_sd.py, docs/measurements.md §9).
+
+Data that bend the whisker beyond ``LINEAR_BEND_MAX`` of its length (largest tip deflection
+off the rigidly rotated rest shape), which the linear fast simulator does not follow, switch
+to the nonlinear correction (:mod:`.nonlinear`, MuJoCo): the baseline fit of step 2 and the
+leading candidates' fits of step 3 are defect-corrected, and every later fit and score
+(held-out errors, BIC, the refits of step 6) uses each model's corrected simulator; the
+notes and ``decision.simulator`` say so.
 
 Resonance tables (f1, δ per whisker): see :func:`diagnose_table`.
 """
@@ -60,9 +65,11 @@ from pipeline.config.physics import MaterialConfig
 from pipeline.diagnosis.candidates import ABSORBS, CANDIDATES, Candidate, WhiskerScales
 from pipeline.diagnosis.deflection import amplitude, bend
 from pipeline.diagnosis.fitting import Fit, best_start, block_sandwich_sd, fit, matched_start
+from pipeline.diagnosis.nonlinear import correct
 from pipeline.diagnosis.objective import RESIDUAL_UNIT_M, FeatureObjective, TrajectoryObjective
 from pipeline.diagnosis.parameters import BASELINE_NAMES, ModelSpec
 from pipeline.diagnosis.residuals import analyse, noise_estimate
+from pipeline.errors import SimulationError, UserError
 from pipeline.measurements.timeseries import ReleaseDrive, TimeSeriesMeasurement
 from pipeline.model.extensions import BaseSegment
 
@@ -153,10 +160,10 @@ def _bic(residuals: np.ndarray, params: int) -> float:
 class _Session:
     """Objectives on the training, held-out and all trials of one measurement."""
 
-    def __init__(self, measurement: TimeSeriesMeasurement, train: list[str], test: list[str]):
-        self.measurement = measurement
-        self.train = TrajectoryObjective(measurement.subset(train))
-        self.test = TrajectoryObjective(measurement.subset(test))
+    def __init__(self, measurement: TimeSeriesMeasurement, train: list[str], test: list[str], simulator=None):
+        self.measurement, self.names = measurement, (train, test)
+        self.train = TrajectoryObjective(measurement.subset(train), simulator)
+        self.test = TrajectoryObjective(measurement.subset(test), simulator)
         self.train_features = FeatureObjective(measurement.subset(train))
 
     def heldout(self, spec: ModelSpec) -> np.ndarray:
@@ -178,16 +185,40 @@ def _candidates(session: _Session, baseline: Fit, chosen: list[Candidate]) -> li
         start = best_start(session.train, session.train_features, baseline.spec, c.starts(scales))
         scores.append(_fit_candidate(session, baseline, c.name, start, BASELINE_NAMES + c.params,
                                      CANDIDATE_ITERATIONS))
+    for lead in _leaders(scores):
+        refine = next(c.refine for c in chosen if c.name == lead.name)
+        scores[scores.index(lead)] = _fit_candidate(session, baseline, lead.name, lead.fit.spec.with_values(refine),
+                                                    lead.fit.names + tuple(refine), FINAL_ITERATIONS)
+    return scores
+
+
+def _leaders(scores: list[CandidateScore]) -> list[CandidateScore]:
+    """The ``LEADERS`` candidates with ΔBIC < −``BIC_MIN`` and the lowest held-out errors, and the
+    one with the strongest training evidence (lowest ΔBIC) if it is not among them."""
     strong = [s for s in scores if s.bic_delta < -BIC_MIN]
     leaders = sorted(strong, key=lambda s: s.heldout_error)[:LEADERS]
     best_trained = min(strong, key=lambda s: s.bic_delta, default=None)
     if best_trained is not None and best_trained not in leaders:
         leaders.append(best_trained)
-    for lead in leaders:
-        refine = next(c.refine for c in chosen if c.name == lead.name)
-        scores[scores.index(lead)] = _fit_candidate(session, baseline, lead.name, lead.fit.spec.with_values(refine),
-                                                    lead.fit.names + tuple(refine), FINAL_ITERATIONS)
-    return scores
+    return leaders
+
+
+def _corrected_leaders(session: _Session, baseline: Fit, scores: list[CandidateScore]) -> dict:
+    """Defect-correct the leading candidates' fits with their own defects, rescore them on the
+    held-out trials; {name: corrected simulator}."""
+    simulators = {}
+    for lead in _leaders(scores):
+        try:
+            corrected = correct(session.measurement, lead.fit, session.names[0], FINAL_ITERATIONS)
+        except SimulationError:        # keeps the score with the baseline's defect
+            continue
+        own = _Session(session.measurement, *session.names, corrected.simulator)
+        heldout = own.heldout(corrected.fit.spec)
+        scores[scores.index(lead)] = CandidateScore(
+            lead.name, corrected.fit, own.test.error(heldout),
+            _bic(corrected.fit.residuals, len(corrected.fit.names)) - _bic(baseline.residuals, 2), heldout)
+        simulators[lead.name] = corrected.simulator
+    return simulators
 
 
 def _paired_z(r0: np.ndarray, noise: float, scores: list[CandidateScore]) -> None:
@@ -261,8 +292,6 @@ def diagnose(measurement: TimeSeriesMeasurement, material: MaterialConfig | None
 def _diagnose(measurement, material, candidates) -> Diagnosis:
     unknown = set(candidates or ()) - {c.name for c in CANDIDATES}
     if unknown:
-        from pipeline.errors import UserError
-
         raise UserError(f"unknown candidate(s) {', '.join(sorted(unknown))} "
                         f"(known: {', '.join(c.name for c in CANDIDATES)})")
     chosen = [c for c in CANDIDATES if candidates is None or c.name in candidates]
@@ -274,14 +303,26 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
     session = _Session(measurement, train, test)
     start = matched_start(session.train_features, ModelSpec(material, (BaseSegment(),)))
     baseline = fit(session.train, start, BASELINE_NAMES)
+    simulators, simulator_note = {}, "fast (linear)"
+    if bend(measurement) > LINEAR_BEND_MAX:
+        try:
+            nonlinear = correct(measurement, baseline, train)
+        except (UserError, SimulationError) as exc:
+            simulator_note = f"fast (linear); the nonlinear correction failed: {exc}"
+        else:
+            baseline, simulator_note = nonlinear.fit, nonlinear.note()
+            simulators["baseline"] = nonlinear.simulator
+            session = _Session(measurement, train, test, nonlinear.simulator)
     r0 = session.heldout(baseline.spec)
     e0 = session.test.error(r0)
     scores = _candidates(session, baseline, chosen)
+    if simulators:
+        simulators.update(_corrected_leaders(session, baseline, scores))
     best = min([(e0, baseline.spec)] + [(s.heldout_error, s.fit.spec) for s in scores], key=lambda p: p[0])[1]
     noise = noise_estimate(session.test.measurement, session.test.simulate(best))
     _paired_z(r0, noise, scores)
     evidence = {"baseline_m": e0, "noise_m": noise, "amplitude_m": amplitude(session.test.measurement),
-                "values": int(r0.size), "bend": bend(measurement),
+                "values": int(r0.size), "bend": bend(measurement), "simulator": simulator_note,
                 "candidates": [{"name": c.name, "heldout_m": c.heldout_error, "bic_delta": c.bic_delta, "z": c.z,
                                 "absorbs": ABSORBS[c.name]} for c in scores]}
     cause, shares = decide(evidence, notes=notes)
@@ -291,18 +332,20 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
         c["z_beyond_floor"] = z
     for c in scores:
         c.score = shares[c.name]
-    if evidence["bend"] > LINEAR_BEND_MAX:
+    if simulators:
         notes.append(f"the data bend the whisker by {100 * evidence['bend']:.0f} % of its length, beyond the "
-                     f"{100 * LINEAR_BEND_MAX:.0f} % the linear fast simulator follows: fitted values may be biased")
-    whole = TrajectoryObjective(measurement)
+                     f"{100 * LINEAR_BEND_MAX:.0f} % the linear fast simulator follows: baseline and leading "
+                     f"candidates scored with the {simulator_note}")
     named = next((s for s in scores if s.name == cause), None)
     final_names = BASELINE_NAMES + (named.fit.names[2:] if named else ())
+    whole = TrajectoryObjective(measurement, simulators.get(cause, simulators.get("baseline")))
     final = fit(whole, (named.fit if named else baseline).spec, final_names, max_iterations=FINAL_ITERATIONS)
-    baseline_all = fit(whole, baseline.spec, BASELINE_NAMES, max_iterations=FINAL_ITERATIONS)
+    baseline_whole = TrajectoryObjective(measurement, simulators.get("baseline"))
+    baseline_all = fit(baseline_whole, baseline.spec, BASELINE_NAMES, max_iterations=FINAL_ITERATIONS)
     blocks, model_error = whole.blocks(BLOCK_S), SD_MODEL_FRACTION * amplitude(measurement)
     for result in (final, baseline_all):
         result.sd = block_sandwich_sd(result, blocks, model_error / RESIDUAL_UNIT_M)
-    simulated = {"baseline": whole.simulate(baseline_all.spec), "cause": whole.simulate(final.spec)}
+    simulated = {"baseline": baseline_whole.simulate(baseline_all.spec), "cause": whole.simulate(final.spec)}
     return Diagnosis(
         baseline=baseline_all, baseline_heldout=e0, candidates=scores, cause=cause, final=final,
         gain_after=named.heldout_error if named else e0, noise_m=noise,
