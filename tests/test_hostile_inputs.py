@@ -276,6 +276,8 @@ CASES = {
     "measurement-bit-flipped": _bit_flipped_measurement,
     "measurement-binary-csv": _binary_csv,
     "calibrate-unknown-engine": _simple("calibrate", measurement, "--engine", "physx", names=["physx"]),
+    "calibrate-unknown-method": _simple("calibrate", measurement, "--method", "anneal", names=["anneal"]),
+    "calibrate-unknown-objective": _simple("calibrate", measurement, "--objective", "rms", names=["rms"]),
     "synth-negative-seed": lambda w, t: (["synth", "--config", w.synth_config, "--out", t / "s.h5", "--seed", "-1"],
                                          {}, ["--seed"]),
     "diagnose-report-is-file": _diagnose_report_file,
