@@ -278,8 +278,9 @@ def build_meshes(
     from pipeline.config.project import MESHES_DIR, SCANS_DIR, project_root
     from pipeline.meshes.build import build_meshes as build, load_mesh_config
 
-    scans = scans if scans is not None else project_root() / SCANS_DIR
-    out = out if out is not None else project_root() / MESHES_DIR
+    project = project_root()
+    scans = scans if scans is not None else project / SCANS_DIR
+    out = out if out is not None else project / MESHES_DIR
     _writable_out(out)
     report = build(scans, out, load_mesh_config(config), force=force, progress=not json_output)
     if json_output:

@@ -172,10 +172,15 @@ class _Session:
 
 def _fit_candidate(session: _Session, baseline: Fit, name: str, start: ModelSpec, names,
                    iterations: int) -> CandidateScore:
-    result = fit(session.train, start, names, max_iterations=iterations)
+    return _score(session, baseline, name, fit(session.train, start, names, max_iterations=iterations))
+
+
+def _score(session: _Session, baseline: Fit, name: str, result: Fit) -> CandidateScore:
+    """A candidate's fit scored against the baseline: held-out error on ``session`` and ΔBIC."""
     heldout = session.heldout(result.spec)
     return CandidateScore(name, result, session.test.error(heldout),
-                          _bic(result.residuals, len(result.names)) - _bic(baseline.residuals, 2), heldout)
+                          _bic(result.residuals, len(result.names)) - _bic(baseline.residuals, len(baseline.names)),
+                          heldout)
 
 
 def _candidates(session: _Session, baseline: Fit, chosen: list[Candidate]) -> list[CandidateScore]:
@@ -213,10 +218,7 @@ def _corrected_leaders(session: _Session, baseline: Fit, scores: list[CandidateS
         except SimulationError:        # keeps the score with the baseline's defect
             continue
         own = _Session(session.measurement, *session.names, corrected.simulator)
-        heldout = own.heldout(corrected.fit.spec)
-        scores[scores.index(lead)] = CandidateScore(
-            lead.name, corrected.fit, own.test.error(heldout),
-            _bic(corrected.fit.residuals, len(corrected.fit.names)) - _bic(baseline.residuals, 2), heldout)
+        scores[scores.index(lead)] = _score(own, baseline, lead.name, corrected.fit)
         simulators[lead.name] = corrected.simulator
     return simulators
 
