@@ -2,12 +2,14 @@
 draws of the independent truth (tests/truth/) from a seed range of its own (default 9300–,
 apart from the benchmark's 5000–5099 and the decision floor's 9100–).
 
-Run: .venv/bin/python benchmarks/calibrate_sd.py [--n 30] [--seed 9300] [--cache DIR] [--json out.json]
-     or --from-json ROWS.json to report saved rows (e.g. for another --coverage-of fraction).
+Run: .venv/bin/python benchmarks/calibrate_sd.py [--n 30] [--seed 9300] [--start K] [--cache DIR]
+     [--json out.json], or --from-json ROWS.json ... to report saved rows (e.g. for another
+     --coverage-of fraction).
 
 Draw k has cause CAUSES[k mod 10] and seed seed + k, made as in
 benchmarks/bench_diagnose_independent.py (80 elements; ``--cache`` reuses the files). The
-final fit's SD of each parameter is SD² = S² + (κ·A)²·U², S the block-sandwich SD, A the RMS
+final fit's SD of each parameter is SD² = S² + (κ·A)²·U², S the block-sandwich SD (E's with its
+discretisation term, pipeline/diagnosis/discretisation.py), A the RMS
 deflection of the data and U² = m·(JᵀJ)⁻¹ the model-error term per unit RMS model error
 (:func:`pipeline.diagnosis.fitting.block_sandwich_sd`). A point (a parameter with a known true
 value, on a draw whose cause is named right: E (not under a density scale, which E absorbs),
@@ -33,6 +35,7 @@ from bench_diagnose_independent import prepare  # noqa: E402
 from pipeline.config.physics import MaterialConfig  # noqa: E402
 from pipeline.diagnosis.deflection import amplitude  # noqa: E402
 from pipeline.diagnosis.diagnose import BLOCK_S, diagnose  # noqa: E402
+from pipeline.diagnosis.discretisation import with_modulus_discretisation  # noqa: E402
 from pipeline.diagnosis.fitting import block_sandwich_sd  # noqa: E402
 from pipeline.diagnosis.objective import RESIDUAL_UNIT_M, TrajectoryObjective  # noqa: E402
 from pipeline.measurements import load_measurement  # noqa: E402
@@ -46,7 +49,8 @@ def points(row_meta: dict, diagnosis, measurement) -> list[dict]:
     final = diagnosis.final
     blocks = TrajectoryObjective(measurement).blocks(BLOCK_S)
     scale = amplitude(measurement)
-    sandwich = block_sandwich_sd(final, blocks, 0.0)
+    raw = block_sandwich_sd(final, blocks, 0.0)
+    sandwich = with_modulus_discretisation(raw, final, measurement.geometry)
     unit = block_sandwich_sd(final, blocks, scale / RESIDUAL_UNIT_M)
     truth = row_meta["truth"]
     wanted = {"E": truth["E"]} if row_meta["cause"] != "density_scale" else {}      # E absorbs a density scale
@@ -61,7 +65,7 @@ def points(row_meta: dict, diagnosis, measurement) -> list[dict]:
         error = value - true
         out.append({"name": name, "kind": "E" if name == "E" else "key", "relative": error / true,
                     "error": abs(error), "sandwich": sandwich[name],
-                    "model_unit": float(np.sqrt(max(unit[name] ** 2 - sandwich[name] ** 2, 0.0)))})
+                    "model_unit": float(np.sqrt(max(unit[name] ** 2 - raw[name] ** 2, 0.0)))})
     return out
 
 
@@ -79,7 +83,7 @@ def report(rows: list[dict], kappa: float | None) -> str:
     every = [p for r in rows if r["named"] == r["expected"] for p in r["points"]
              if not (p["kind"] == "E" and r["cause"] == "density_scale")]
     keys = [p for p in every if p["kind"] == "key"]
-    fitted = float(np.percentile([needed(p) for p in every], 68.27))
+    fitted = float(np.percentile([needed(p) for p in every], 68.27)) if every else float("nan")
     lines = [f"{r['seed']} {r['cause']:>18} → {r['named']:<18} " + ", ".join(
         f"{p['name']} {p['relative']:+.3f} (S {p['sandwich'] / max(p['error'], 1e-300):.2f}·|err|, κ_i {needed(p):.4f})"
         for p in r["points"]) for r in rows]
@@ -99,17 +103,18 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=30)
     parser.add_argument("--seed", type=int, default=9300)
+    parser.add_argument("--start", type=int, default=0, help="first draw k (seed + k, cause k mod 10)")
     parser.add_argument("--cache", type=Path, default=Path("/tmp/calibrate_sd"))
     parser.add_argument("--json", type=Path)
-    parser.add_argument("--from-json", type=Path)
+    parser.add_argument("--from-json", type=Path, nargs="+")
     parser.add_argument("--coverage-of", type=float, help="also report the coverage of this κ")
     args = parser.parse_args()
     if args.from_json:
-        print(report(json.loads(args.from_json.read_text()), args.coverage_of))
+        print(report([row for path in args.from_json for row in json.loads(path.read_text())], args.coverage_of))
         return
     args.cache.mkdir(parents=True, exist_ok=True)
     rows = []
-    for k in range(args.n):
+    for k in range(args.start, args.start + args.n):
         path, meta = prepare(k, args.seed, args.cache, ELEMENTS)
         measurement = load_measurement(path)
         result = diagnose(measurement, MaterialConfig())

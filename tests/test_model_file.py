@@ -16,6 +16,7 @@ import yaml
 from pipeline.config.loader import load_config
 from pipeline.config.model_file import read_model_file
 from pipeline.config.physics import MaterialConfig, ModelConfig
+from pipeline.diagnosis.diagnose import CONTINUUM
 from pipeline.config.simulate import SimulateConfig
 from pipeline.errors import UserError
 from pipeline.model.extensions import CompliantFollicle, StiffnessGradient, model_parts
@@ -264,8 +265,9 @@ def test_diagnose_saves_its_final_model_or_the_baseline(tmp_path, measurement):
         assert content.provenance.fit.method == "diagnose" and content.provenance.fit.cause == cause
         assert content.material.youngs_modulus_gpa * 1e9 == pytest.approx(out["params"]["E"]["value"])
         assert content.material_sd.damping_ratio == pytest.approx(out["params"]["zeta"]["sd"])
-        # every diagnose model has the base segment (docs/measurements.md §9)
-        assert set(content.extensions) == {"base_segment"} | ({"follicle"} if cause == "follicle" else set())
+        # every diagnose model has the continuum corrections (docs/measurements.md §9)
+        assert set(content.extensions) == ({e.name for e in CONTINUUM}
+                                           | ({"follicle"} if cause == "follicle" else set()))
         for name, entry in content.extensions.get("follicle", {}).items():
             assert entry.value == pytest.approx(out["params"][f"follicle.{name}"]["value"])
             assert entry.sd == pytest.approx(out["params"][f"follicle.{name}"]["sd"])

@@ -93,6 +93,9 @@ class MaterialConfig(StrictModel):
                              "'kelvin_voigt': c_n = β·k_n with β set so mode 1 has ζ (converges in N)")
     density_base_kg_m3: float = Field(1260.0, gt=100, le=5000)
     density_tip_kg_m3: float = Field(1690.0, gt=100, le=5000)
+    link_density: Literal["proximal", "integrated"] = Field(
+        "proximal", description="each link's density: the ramp at its proximal node ('proximal', the "
+                                "paper) or the ramp integrated across the link ('integrated')")
     links: int = Field(20, ge=2, le=120, description="N, links per whisker")
     gravity: bool = False
     follicle: FollicleConfig = FollicleConfig()

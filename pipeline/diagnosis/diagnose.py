@@ -6,8 +6,12 @@ Time series (positions of tracked points):
    held-out half (a drive type met only once goes to training).
 2. Baseline: fit E and ζ on the training trials (trajectory least squares from a start whose
    FRF and δ match the data); its error on the held-out trials is e₀. Every model fitted here
-   has the base segment (:class:`~pipeline.model.extensions.BaseSegment`): the chain's rigid
-   base half-link would otherwise bias E by ≈ −1.2/N and the base-weighted parameters with it.
+   has the two ``CONTINUUM`` corrections, which make the chain converge to the continuous
+   whisker at second order in 1/N: the base segment
+   (:class:`~pipeline.model.extensions.BaseSegment`; the chain's rigid base half-link would
+   otherwise bias E by ≈ −1.2/N and the base-weighted parameters with it) and the integrated
+   link density (:class:`~pipeline.model.extensions.IntegratedDensity`; the paper's
+   proximal-node density, ≈ −0.5 % on E at N = 20).
 3. Each candidate extension (:mod:`.candidates`): fit E, ζ and its parameters on the training
    trials (best of a few starts), held-out error e_c, and BIC = n·ln(RSS/n) + p·ln(n) on the
    training residuals. The ``LEADERS`` candidates with the lowest held-out error among those
@@ -19,19 +23,18 @@ Time series (positions of tracked points):
    quadratic.
 4. Evidence on the held-out trials: tracking noise σ̂ from the second differences of the
    best model's residuals (:mod:`.residuals`); a model-error floor f = ``FLOOR_FRACTION``·A,
-   A the RMS deflection of the held-out data (:mod:`.deflection`): the misfit even a right
-   model leaves because the chain is not the continuum (measured on effect-free draws of an
-   independent simulator, docs/measurements.md §9); the excess X = e₀² − σ̂² − f² is the
+   A the RMS deflection of the held-out data (:mod:`.deflection`): a cap on the misfit a right
+   model leaves because the chain is not the continuum (the chain without the continuum
+   corrections needed up to 0.03·A on effect-free draws of an independent simulator; with
+   them none of 24 draws needs any, docs/measurements.md §9); the excess X = e₀² − σ̂² − f² is the
    misfit to explain, significant when it exceeds ``SIGNIFICANT`` times its standard error
    ≈ 1.5·σ̂²/√n (n held-out values, white noise). A candidate's gain g = e₀² − e_c², its
    share of the excess φ = g/X (X ≤ 0: 1 if g exceeds the candidate's own floor, else 0); its
    paired held-out z = (Σr₀² − Σr_c²)/(2σ̂·|p₀ − p_c|) (r residuals, p predictions: the shared
    noise cancels), and the same z beyond the candidate's own floor, z·(g − f_c²)/g: f_c =
    min(f, ``ABSORB_MARGIN``·κ_c·A), κ_c the most of the model error that candidate took for
-   an effect on effect-free draws (``Candidate.absorbs``). Most of the model error looks like
-   a compliant follicle or a stiffness gradient (κ_c ≈ 0.025), little of it like a density
-   gradient or drag (≤ 0.006), so a weak effect of the latter kind stands out long before it
-   exceeds f.
+   an effect on effect-free draws (``Candidate.absorbs``, 0.0002–0.0064 with the continuum
+   corrections), so a weak effect stands out long before it exceeds f.
 5. Decision (:func:`decide`): the baseline is inadequate when X is significant or when a
    candidate with ΔBIC < −``BIC_MIN`` beats it on the held-out trials beyond its own floor
    (z beyond the floor > ``Z_MIN``); otherwise "none". Then the candidate with the lowest
@@ -43,7 +46,9 @@ Time series (positions of tracked points):
    SDs are block-sandwich SDs over 50 ms stretches plus a model-error term of RMS
    ``SD_MODEL_FRACTION``·A (:func:`~.fitting.block_sandwich_sd`), calibrated so that ±1 SD
    holds the truth on 68 % of independent draws kept apart from the benchmark
-   (benchmarks/calibrate_sd.py, docs/measurements.md §9).
+   (benchmarks/calibrate_sd.py, docs/measurements.md §9); E's SD also holds the chain's
+   discretisation error, which no residual shows (:mod:`.discretisation`: Richardson from N
+   and 2N links).
 
 Data that bend the whisker beyond ``LINEAR_BEND_MAX`` of its length (largest tip deflection
 off the rigidly rotated rest shape), which the linear fast simulator does not follow, switch
@@ -64,6 +69,7 @@ import numpy as np
 from pipeline.config.physics import MaterialConfig
 from pipeline.diagnosis.candidates import ABSORBS, CANDIDATES, Candidate, WhiskerScales
 from pipeline.diagnosis.deflection import amplitude, bend
+from pipeline.diagnosis.discretisation import with_modulus_discretisation
 from pipeline.diagnosis.fitting import Fit, best_start, block_sandwich_sd, fit, matched_start
 from pipeline.diagnosis.nonlinear import correct
 from pipeline.diagnosis.objective import RESIDUAL_UNIT_M, FeatureObjective, TrajectoryObjective
@@ -71,8 +77,9 @@ from pipeline.diagnosis.parameters import BASELINE_NAMES, ModelSpec
 from pipeline.diagnosis.residuals import analyse, noise_estimate
 from pipeline.errors import SimulationError, UserError
 from pipeline.measurements.timeseries import ReleaseDrive, TimeSeriesMeasurement
-from pipeline.model.extensions import BaseSegment
+from pipeline.model.extensions import BaseSegment, IntegratedDensity
 
+CONTINUUM = (BaseSegment(), IntegratedDensity())   # in every model diagnose fits (step 2)
 BIC_MIN = 10.0             # "very strong" evidence on the Kass–Raftery scale
 Z_MIN = 3.0
 SIGNIFICANT = 3.0
@@ -81,7 +88,7 @@ FLOOR_FRACTION = 0.03       # model-error floor / RMS deflection (docs/measureme
 ABSORB_MARGIN = 2.0         # a candidate's floor / the most it absorbed on calibration draws (§9)
 LINEAR_BEND_MAX = 0.2       # largest tip deflection / S the linear fast simulator follows (§9)
 BLOCK_S = 0.05              # residual blocks of the sandwich SDs (s)
-SD_MODEL_FRACTION = 0.0055  # model-error term of the SDs / RMS deflection (benchmarks/calibrate_sd.py, §9)
+SD_MODEL_FRACTION = 0.0014  # model-error term of the SDs / RMS deflection (benchmarks/calibrate_sd.py, §9)
 METRIC = "heldout_rms_m"
 CANDIDATE_ITERATIONS = 10   # first fits on the training half: enough to rank candidates
 LEADERS = 3                 # candidates whose fits then continue
@@ -303,7 +310,7 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
         notes.append("a single trial per drive type: held-out error = training error")
         test = train
     session = _Session(measurement, train, test)
-    start = matched_start(session.train_features, ModelSpec(material, (BaseSegment(),)))
+    start = matched_start(session.train_features, ModelSpec(material, CONTINUUM))
     baseline = fit(session.train, start, BASELINE_NAMES)
     simulators, simulator_note = {}, "fast (linear)"
     if bend(measurement) > LINEAR_BEND_MAX:
@@ -346,7 +353,8 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
     baseline_all = fit(baseline_whole, baseline.spec, BASELINE_NAMES, max_iterations=FINAL_ITERATIONS)
     blocks, model_error = whole.blocks(BLOCK_S), SD_MODEL_FRACTION * amplitude(measurement)
     for result in (final, baseline_all):
-        result.sd = block_sandwich_sd(result, blocks, model_error / RESIDUAL_UNIT_M)
+        result.sd = with_modulus_discretisation(block_sandwich_sd(result, blocks, model_error / RESIDUAL_UNIT_M),
+                                                result, measurement.geometry)
     simulated = {"baseline": baseline_whole.simulate(baseline_all.spec), "cause": whole.simulate(final.spec)}
     return Diagnosis(
         baseline=baseline_all, baseline_heldout=e0, candidates=scores, cause=cause, final=final,

@@ -66,7 +66,7 @@ def damped_modes(lin: LinearWhisker) -> tuple[np.ndarray, np.ndarray, np.ndarray
     n = len(mod.omega)
     a = np.block([[np.zeros((n, n)), np.diag(mod.omega)], [-np.diag(mod.omega), -mod.damping]])
     values, vectors = np.linalg.eig(a)
-    keep = values.imag > 1e-9
+    keep = values.imag > 1e-6 * np.abs(values)            # an overdamped pair is real up to round-off
     values, vectors = values[keep], vectors[:, keep]
     q = mod.shapes @ vectors[n:]                             # velocity shape in joint space
     in_plane = np.zeros(len(lin.dofs.labels), bool)

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.diagnosis.candidates import CANDIDATE_NAMES, WhiskerScales
+from pipeline.diagnosis.diagnose import CONTINUUM
 from pipeline.diagnosis.synth import SynthConfig
 
 CAUSES = ("none",) + CANDIDATE_NAMES
@@ -83,7 +84,7 @@ def draw(cause: str, seed: int, duration_s: float = 0.25) -> Scenario:
 
     scales = WhiskerScales.of(true_spec(config).physics(config.whisker.geometry()))
     effect = _effect(cause, rng, scales)
-    extensions: dict[str, dict[str, float]] = {"base_segment": {}}      # the model diagnose fits
+    extensions: dict[str, dict[str, float]] = {e.name: {} for e in CONTINUUM}   # the model diagnose fits
     for name, value in effect.items():
         ext, field = name.split(".")
         extensions.setdefault(ext, {})[field] = value

@@ -287,9 +287,24 @@ class BaseSegment(Extension):
         return replace(physics, follicle=CompliantFollicle(float(k), float(c)))
 
 
+@dataclass(frozen=True)
+class IntegratedDensity(Extension):
+    """Each link's mass, centre of mass and inertia from the density ramp ρ(s) integrated across
+    the link, ∫ρ(s)·πr(s)² ds, instead of the paper's ρ at the link's proximal node. With the
+    ramp rising toward the tip (docs/model.md §2) the paper's rule makes every link light by
+    ≈ ½·l·dρ/ds, a first-order error: f1 of a tapered whisker ≈ +0.25 % at N = 20 with the base
+    segment, and a modulus fitted with it ≈ −0.5 % (tests/test_base_segment.py). No parameters;
+    ``pipeline diagnose`` fits with it (docs/measurements.md §9)."""
+
+    name: ClassVar[str] = "integrated_density"
+
+    def material(self, material: MaterialConfig) -> MaterialConfig:
+        return material.model_copy(update={"link_density": "integrated"})
+
+
 EXTENSIONS: dict[str, type[Extension]] = {
     cls.name: cls for cls in (CompliantFollicle, StiffnessGradient, DampingGradient, DensityChange,
-                              ArcLength, AirDrag, Gravity, Twist, BaseSegment)
+                              ArcLength, AirDrag, Gravity, Twist, BaseSegment, IntegratedDensity)
 }
 
 

@@ -94,7 +94,8 @@ def build_physics(geometry: WhiskerGeometry, material: MaterialConfig,
     for ext in extensions:
         geometry = ext.geometry(geometry)
     chain = build_chain(geometry, material.links, material.youngs_modulus_gpa * 1e9,
-                        material.density_base_kg_m3, material.density_tip_kg_m3, _NoDamping())
+                        material.density_base_kg_m3, material.density_tip_kg_m3, _NoDamping(),
+                        integrated_density=material.link_density == "integrated")
     for ext in extensions:
         chain = ext.chain(chain)
     coefficients = damping_model(material.damping_model, material.damping_ratio).coefficients(chain)

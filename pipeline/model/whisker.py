@@ -65,17 +65,20 @@ def rest_nodes(geometry: WhiskerGeometry, links: int) -> np.ndarray:
     return np.stack([xs, a * xs ** 2, np.zeros_like(xs)], axis=1)
 
 
-def frustum_mass_properties(r1: float, r2: float, length: float, density: float):
+def frustum_mass_properties(r1: float, r2: float, length: float, density: float,
+                            density_end: float | None = None):
     """Mass (kg), centre of mass along the axis from the r1 end (m), and the principal inertia
-    (axial, transverse, transverse) about the centre of mass (kg·m²) of a solid conical frustum."""
+    (axial, transverse, transverse) about the centre of mass (kg·m²) of a solid conical frustum
+    of density ``density`` (kg/m³), or ramping linearly from it to ``density_end`` at the r2 end."""
     z = 0.5 * length * (_GL_X + 1)
     w = 0.5 * length * _GL_W
     r = r1 + (r2 - r1) * z / length
-    area = np.pi * r ** 2
-    mass = density * np.sum(w * area)
-    com = density * np.sum(w * area * z) / mass
-    axial = density * np.sum(w * 0.5 * area * r ** 2)
-    transverse = density * np.sum(w * area * (r ** 2 / 4 + (z - com) ** 2))
+    rho = density + ((density if density_end is None else density_end) - density) * z / length
+    dm = w * rho * np.pi * r ** 2
+    mass = np.sum(dm)
+    com = np.sum(dm * z) / mass
+    axial = np.sum(dm * 0.5 * r ** 2)
+    transverse = np.sum(dm * (r ** 2 / 4 + (z - com) ** 2))
     return mass, com, np.array([axial, transverse, transverse])
 
 
@@ -114,22 +117,25 @@ class WhiskerChain:
 
 
 def build_chain(geometry: WhiskerGeometry, links: int, youngs_modulus_pa: float,
-                density_base: float, density_tip: float, damping) -> WhiskerChain:
+                density_base: float, density_tip: float, damping,
+                integrated_density: bool = False) -> WhiskerChain:
     """Discretise ``geometry`` into ``links`` frustums (eq. 1 radii, density ramp, eq. 2 stiffness).
 
     ``damping`` is a :class:`pipeline.model.damping.DampingModel` mapping the undamped chain
-    to joint damping coefficients.
+    to joint damping coefficients. Each link's density is the ramp's value at its proximal
+    node (the paper), or with ``integrated_density`` the ramp itself across the link.
     """
     if links < 2:
         raise UserError("a whisker needs at least 2 links")
     n = np.arange(links + 1)
     radii = geometry.base_radius_m - (n / links) * (geometry.base_radius_m - geometry.tip_radius_m)
-    density = density_base - (n[:-1] / links) * (density_base - density_tip)
+    density = density_base - (n / links) * (density_base - density_tip)
     nodes = rest_nodes(geometry, links)
     chords = np.diff(nodes, axis=0)
     lengths = np.linalg.norm(chords, axis=1)
     angles = np.arctan2(chords[:, 1], chords[:, 0])
-    props = [frustum_mass_properties(radii[i], radii[i + 1], lengths[i], density[i])
+    props = [frustum_mass_properties(radii[i], radii[i + 1], lengths[i], density[i],
+                                     density[i + 1] if integrated_density else None)
              for i in range(links)]
     link_length = geometry.arc_length_m / links
     second_moment = np.pi * radii[1:links] ** 4 / 4          # I_n at nodes 2..N

@@ -1,0 +1,38 @@
+"""How far a fitted modulus is off because the chain has N links and the whisker is continuous.
+
+The chain with the continuum corrections converges at second order in 1/N (docs/model.md §2),
+so its relative error in the first frequency is, by Richardson extrapolation from N and 2N
+links, ε₁ ≈ (f₁(N) − f₁(2N))·4/3 / f₁(N). Frequencies scale with √E, so a modulus fitted with
+the N-link chain is off by ≈ −2·ε₁ (a chain too stiff by ε₁ takes an E low by 2·ε₁): an error
+the residuals cannot show (the fit absorbs it) and the SD of E carries as a term of its own.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.diagnosis.fastsim import damped_modes
+from pipeline.diagnosis.linear import linearise
+from pipeline.diagnosis.parameters import ModelSpec
+from pipeline.model.whisker import WhiskerGeometry
+
+
+def first_frequency_hz(spec: ModelSpec, geometry: WhiskerGeometry, links: int) -> float:
+    """The first in-plane damped frequency (Hz) of ``spec`` built with ``links`` links."""
+    with_links = ModelSpec(spec.material.model_copy(update={"links": links}), spec.extensions)
+    freqs, _, in_plane = damped_modes(linearise(with_links.physics(geometry)))
+    return float(freqs[in_plane][0])
+
+
+def modulus_discretisation(spec: ModelSpec, geometry: WhiskerGeometry) -> float:
+    """Relative error of E fitted with ``spec``'s chain, −2·ε₁ (see the module docstring)."""
+    links = spec.material.links
+    coarse, fine = first_frequency_hz(spec, geometry, links), first_frequency_hz(spec, geometry, 2 * links)
+    return -2.0 * (coarse - fine) * 4.0 / 3.0 / coarse
+
+
+def with_modulus_discretisation(sd: dict[str, float], fitted, geometry: WhiskerGeometry) -> dict[str, float]:
+    """``sd`` (of the :class:`~.fitting.Fit` ``fitted``) with E's discretisation error added in
+    quadrature."""
+    error = modulus_discretisation(fitted.spec, geometry) * fitted.values["E"]
+    return {**sd, "E": float(np.hypot(sd["E"], error))}
