@@ -40,9 +40,9 @@ class Candidate:
     """``refine``: parameters (with their start) added only when the candidate's fit continues
     among the leaders (quadratic drag: the nonlinear force makes every simulation ≈ 3× dearer).
     ``absorbs``: the largest held-out gain √(e₀² − e_c²)/A the candidate made on effect-free
-    draws of the independent truth by the model diagnose fits (with its continuum corrections;
-    benchmarks/calibrate_floor.py, seeds 9100–9123, rounded up; A the RMS deflection): how much of the model's own error it can take for an effect
-    (docs/measurements.md §9)."""
+    draws of the independent truth, fitted as diagnose fits (continuum corrections included;
+    benchmarks/calibrate_floor.py, seeds 9100–9123, rounded up; A the RMS deflection): how
+    much of the model's own error it can take for an effect (docs/measurements.md §9)."""
 
     name: str
     params: tuple[str, ...]
