@@ -169,6 +169,24 @@ def test_synthetic_file_carries_no_trace_of_the_truth(tmp_path):
     assert 0.05 < missing < 0.15
 
 
+def test_synth_says_when_linear_data_bend_beyond_the_linear_range(tmp_path):
+    """The fast simulator is linear: a synth whose drives bend the whisker beyond
+    LINEAR_BEND_MAX of its length says so; a gentle one does not."""
+    from pipeline.diagnosis.diagnose import LINEAR_BEND_MAX
+    from pipeline.diagnosis.synth import SynthConfig, synth
+
+    def summary(amplitude_deg):
+        config = SynthConfig.model_validate({
+            "whisker": {"arc_length_mm": 45, "base_diameter_um": 120, "tip_diameter_um": 10},
+            "duration_s": 0.1, "tracking": {"noise_mm": 0.0},
+            "trials": [{"pulse": {"amplitude_deg": amplitude_deg, "sigma_s": 0.008, "stop_s": 0.04}}]})
+        return synth(config, tmp_path / f"{amplitude_deg}.h5")
+
+    strong, gentle = summary(90), summary(5)
+    assert strong["bend"] > LINEAR_BEND_MAX and "engine: mujoco" in strong["note"]
+    assert gentle["bend"] < LINEAR_BEND_MAX and "note" not in gentle
+
+
 def _paper_pulse(rate_hz, stop_s=0.128, sigma_s=0.025):
     t = np.arange(0, 0.25 + 0.5 / rate_hz, 1 / rate_hz)
     angles = np.zeros((len(t), 3))

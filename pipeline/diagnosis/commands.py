@@ -207,7 +207,7 @@ def _check_on_engine(data: dict, lines: list[str], model, objective, engine: str
 
 
 def run_synth(config: Path, out: Path, seed: int | None, model_file: str | None = None) -> dict:
-    """The summary of the synthetic measurement written to ``out`` (file, whisker, trials, samples, engine)."""
+    """The summary of the synthetic measurement written to ``out`` (:func:`~.synth.synth`)."""
     from pipeline.diagnosis.synth import load_synth_config, synth
     from pipeline.diagnosis.threads import single_threaded_blas
 

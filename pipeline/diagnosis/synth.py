@@ -184,8 +184,19 @@ def synthesise(config: SynthConfig) -> TimeSeriesMeasurement:
 
 
 def synth(config: SynthConfig, out: str | Path) -> dict:
-    """Write the synthetic measurement to ``out``; returns a summary (no truth in the file)."""
+    """Write the synthetic measurement to ``out``; returns a summary (no truth in the file):
+    file, whisker, trials, samples, engine, ``bend`` (largest tip deflection / arc length) and,
+    when the linear fast simulator made data bent beyond what it follows, a ``note``."""
+    from pipeline.diagnosis.deflection import bend
+    from pipeline.diagnosis.diagnose import LINEAR_BEND_MAX
+
     measurement = synthesise(config)
     path = write_timeseries(out, measurement)
-    return {"file": str(path), "whisker": measurement.whisker, "trials": len(measurement.trials),
-            "samples": int(sum(t.samples for t in measurement.trials)), "engine": config.engine}
+    summary = {"file": str(path), "whisker": measurement.whisker, "trials": len(measurement.trials),
+               "samples": int(sum(t.samples for t in measurement.trials)), "engine": config.engine,
+               "bend": bend(measurement)}
+    if config.engine == "fast" and summary["bend"] > LINEAR_BEND_MAX:
+        summary["note"] = (f"the drives bend the whisker by {100 * summary['bend']:.0f} % of its length; the fast "
+                           f"simulator is linear (follows ≈ {100 * LINEAR_BEND_MAX:.0f} %), so these data are not "
+                           "what a real whisker would do: set engine: mujoco in the config for large bends")
+    return summary
