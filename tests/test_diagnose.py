@@ -183,11 +183,13 @@ def test_diagnose_paper_table_says_what_it_can_and_cannot_identify():
 # -- hidden effects -----------------------------------------------------------------------------
 # Seeds are the draws' only input. Damping and density gradients are not always detectable
 # (benchmarks/bench_diagnose.py: recall 58 % and 75 %, misses named "none"); their seeds here are
-# draws inside the detectable range (seed 22 of damping_gradient, for one, is not). Follicle seeds
+# draws inside the detectable range (seed 22 of damping_gradient, for one, is not; nor is seed 23
+# of density: deflection RMS only 3 noise σ, ΔBIC −61 on the training trials but held-out z 0.6,
+# so "none" since the decision counts held-out evidence; seed 31, 14 σ, is). Follicle seeds
 # 12, 15 and 16 leave a baseline excess (e₀/σ̂ ≈ 1.01) inside the model-error floor the decision
 # allows for measured data (docs/measurements.md §9): "none"; seed 17 (e₀/σ̂ ≈ 3.1) is named.
 CI_DRAWS = [("none", 11), ("follicle", 17), ("length", 13)]
-SLOW_DRAWS = [("stiffness_gradient", 21), ("damping_gradient", 28), ("density", 23), ("drag", 24),
+SLOW_DRAWS = [("stiffness_gradient", 21), ("damping_gradient", 28), ("density", 31), ("drag", 24),
               ("twist", 26), ("none", 27)]
 
 
