@@ -334,6 +334,10 @@ CASES = {
     "save-model-of-library": _simple("diagnose", "--library", "--save-model", lambda w, t: t / "m.yaml",
                                      names=["--save-model"]),
     "calibrate-nothing": _simple("calibrate", names=["calibrate"]),
+    # the link density rule (issue 15)
+    "link-density-unknown": lambda w, t: (["simulate", "--config", write_yaml(t / "run.yaml", run_config(
+        t, model={"whiskers": "RC1", "material": {"link_density": "midpoint"}}))], {},
+        ["model.material.link_density", "midpoint"]),
 }
 
 
