@@ -312,8 +312,8 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
     session = _Session(measurement, train, test)
     start = matched_start(session.train_features, ModelSpec(material, CONTINUUM))
     baseline = fit(session.train, start, BASELINE_NAMES)
-    simulators, simulator_note = {}, "fast (linear)"
-    if bend(measurement) > LINEAR_BEND_MAX:
+    simulators, simulator_note, bent = {}, "fast (linear)", bend(measurement)
+    if bent > LINEAR_BEND_MAX:
         try:
             nonlinear = correct(measurement, baseline, train)
         except (UserError, SimulationError) as exc:
@@ -331,7 +331,7 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
     noise = noise_estimate(session.test.measurement, session.test.simulate(best))
     _paired_z(r0, noise, scores)
     evidence = {"baseline_m": e0, "noise_m": noise, "amplitude_m": amplitude(session.test.measurement),
-                "values": int(r0.size), "bend": bend(measurement), "simulator": simulator_note,
+                "values": int(r0.size), "bend": bent, "simulator": simulator_note,
                 "candidates": [{"name": c.name, "heldout_m": c.heldout_error, "bic_delta": c.bic_delta, "z": c.z,
                                 "absorbs": ABSORBS[c.name]} for c in scores]}
     cause, shares = decide(evidence, notes=notes)
