@@ -14,6 +14,8 @@ from pipeline.model.extensions import BaseSegment, CompliantFollicle, Integrated
 from pipeline.model.physics import build_physics
 from pipeline.model.whisker import WhiskerGeometry
 
+PAPER_CHAIN = {"base_segment": False, "link_density": "proximal"}   # the corrections added explicitly below
+
 ALPHA = WhiskerGeometry(29.6e-3, 60e-6, 17.5e-6)
 
 
@@ -32,7 +34,7 @@ def test_uniform_cantilever_converges_at_second_order():
     exact = np.array([1.875104, 4.694091]) ** 2 / (2 * np.pi) * np.sqrt(modulus * radius ** 2 / 4 / (density * length ** 4))
     plain, based = [], []
     for links in (10, 20, 40):
-        material = MaterialConfig(youngs_modulus_gpa=modulus / 1e9, links=links, damping_ratio=0.0,
+        material = MaterialConfig(youngs_modulus_gpa=modulus / 1e9, links=links, damping_ratio=0.0, **PAPER_CHAIN,
                                   density_base_kg_m3=density, density_tip_kg_m3=density)
         plain.append(_in_plane(geometry, material)[:2] / exact - 1)
         based.append(_in_plane(geometry, material, (BaseSegment(),))[:2] / exact - 1)
@@ -48,7 +50,7 @@ def test_tapered_whisker_within_the_density_rule_of_the_beam():
     what is left is the paper's proximal-node density per link (first order, ≈ 0.3 %: see
     the integrated density below)."""
     reference = cantilever_frequencies(ALPHA.arc_length_m, ALPHA.base_radius_m, ALPHA.tip_radius_m, 5e9)[:2]
-    material = MaterialConfig(youngs_modulus_gpa=5.0, links=20, damping_ratio=0.0)
+    material = MaterialConfig(youngs_modulus_gpa=5.0, links=20, damping_ratio=0.0, **PAPER_CHAIN)
     plain = _in_plane(ALPHA, material)[:2] / reference - 1
     based = _in_plane(ALPHA, material, (BaseSegment(),))[:2] / reference - 1
     assert plain[0] == pytest.approx(0.030, abs=0.002)
@@ -62,7 +64,7 @@ def test_with_the_integrated_density_a_tapered_whisker_converges_at_second_order
     reference = cantilever_frequencies(ALPHA.arc_length_m, ALPHA.base_radius_m, ALPHA.tip_radius_m, 5e9)[:2]
     errors = []
     for links in (10, 20, 40):
-        material = MaterialConfig(youngs_modulus_gpa=5.0, links=links, damping_ratio=0.0)
+        material = MaterialConfig(youngs_modulus_gpa=5.0, links=links, damping_ratio=0.0, **PAPER_CHAIN)
         errors.append(_in_plane(ALPHA, material, (BaseSegment(), IntegratedDensity()))[:2] / reference - 1)
     errors = np.array(errors)
     assert np.abs(errors[1]).max() < 0.0025
@@ -76,7 +78,7 @@ def test_integrated_density_gives_the_whisker_its_mass():
     s = np.linspace(0, 0.03, 200001)
     radius, density = 80e-6 - 70e-6 * s / 0.03, 1260 + 430 * s / 0.03
     exact = np.trapezoid(density * np.pi * radius ** 2, s)
-    material = MaterialConfig(links=20)
+    material = MaterialConfig(links=20, **PAPER_CHAIN)
     integrated = build_physics(geometry, material, (IntegratedDensity(),)).chain.mass_kg
     proximal = build_physics(geometry, material).chain.mass_kg
     assert integrated == pytest.approx(exact, rel=1e-8)
@@ -84,7 +86,7 @@ def test_integrated_density_gives_the_whisker_its_mass():
 
 
 def test_in_series_with_a_follicle_whatever_the_order():
-    material = MaterialConfig(links=20)
+    material = MaterialConfig(links=20, **PAPER_CHAIN)
     alone = build_physics(ALPHA, material, (BaseSegment(),)).follicle
     chain = build_physics(ALPHA, material).chain
     k1, c1 = chain.stiffness_nm_per_rad[0], chain.damping_nms_per_rad[0]
@@ -103,7 +105,7 @@ def test_richardson_estimate_of_the_modulus_error_matches_the_beam():
     actual f₁ error (−0.10 % at N = 20 → E +0.2 %), and a quarter of it at N = 40."""
     reference = cantilever_frequencies(ALPHA.arc_length_m, ALPHA.base_radius_m, ALPHA.tip_radius_m, 5e9)[0]
     for links in (20, 40):
-        spec = ModelSpec(MaterialConfig(youngs_modulus_gpa=5.0, links=links, damping_ratio=0.0),
+        spec = ModelSpec(MaterialConfig(youngs_modulus_gpa=5.0, links=links, damping_ratio=0.0, **PAPER_CHAIN),
                          (BaseSegment(), IntegratedDensity()))
         actual = -2 * (_in_plane(ALPHA, spec.material, spec.extensions)[0] / reference - 1)
         assert modulus_discretisation(spec, ALPHA) == pytest.approx(actual, rel=0.15)

@@ -21,7 +21,7 @@ RING_START_S = 0.133          # 5 ms after the pulse stops
 
 
 def _ra4():
-    material = MaterialConfig()
+    material = MaterialConfig(base_segment=False)     # a rigid base: the chain the step plan analyses
     return build_array(load_morphology("model_rat").select("RA4"), material).whiskers[0], material
 
 

@@ -52,7 +52,9 @@ def test_conditions_are_validated(tmp_path):
 
 def test_presets_fill_only_unset_fields():
     trimmed = MaterialConfig(preset="trimmed")
-    assert trimmed.youngs_modulus_gpa == 7.45 and trimmed.damping_model == "paper"
+    assert trimmed.youngs_modulus_gpa == 7.91 and trimmed.damping_model == "paper" and trimmed.base_segment
+    paper = MaterialConfig(preset="paper")
+    assert paper.youngs_modulus_gpa == 7.45 and not paper.base_segment and paper.link_density == "proximal"
     assert MaterialConfig(preset="trimmed", youngs_modulus_gpa=5.0).youngs_modulus_gpa == 5.0
     untrimmed = MaterialConfig(preset="untrimmed", follicle={"kind": "compliant"})
     assert untrimmed.follicle.kind == "compliant"

@@ -37,26 +37,34 @@ class FollicleConfig(StrictModel):
 # Named material presets (``material: {preset: NAME}`` in a config, ``--preset NAME`` on the CLI):
 # the preset's values fill every material field the config does not set itself.
 MATERIAL_PRESETS = {
-    # the paper's two trimmed, motor-driven whiskers (α, B1; Table 1): E and θ_ζ refitted with eq. 3
-    # at N = 20 (pipeline.analysis.material_fit: E = 7.45 GPa, θ_ζ = 0.118, MSA 0.048), and the
-    # stiff follicle used with them
-    "trimmed": {"youngs_modulus_gpa": 7.45, "damping_ratio": 0.118, "damping_model": "paper",
+    # the paper's two trimmed, motor-driven whiskers (α, B1; Table 1): E and θ_ζ of eq. 3 fitted on
+    # the continuum chain at N = 20 (pipeline.analysis.material_fit: E = 7.91 GPa, θ_ζ = 0.134,
+    # MSA 0.072), and the stiff follicle used with them
+    "trimmed": {"youngs_modulus_gpa": 7.91, "damping_ratio": 0.134, "damping_model": "paper",
+                "link_density": "integrated", "base_segment": True,
                 "follicle": {"stiffness_nm_per_rad": 1e-4, "damping_nms_per_rad": 1e-7}},
     # untrimmed whiskers, isolated and glued at the base (Hartmann et al. 2003 D row, both methods):
-    # joint fit of E and the Kelvin–Voigt ζ1 (`pipeline calibrate --library --where trimmed=no`,
-    # D2 and D4 held out): E = 3.39 ± 0.16 GPa (tensile tests: 3.34 ± 1.48, Quist et al. 2011),
-    # ζ1 = 0.139 ± 0.06 (measured 0.11-0.17), the same at any N. Compliant follicle: k_f = 5e-7
-    # N·m/rad, 0.4× the original WHISKiT code's 1.25e-6 (the paper's in-vivo fit is unpublished)
-    # and 0.4× the RB1 whisker's own base stiffness E·I/S, the largest round value giving
-    # Fig. 4's rigid/compliant base-force ratio ≥ 5 (5.6 at 6e-7, 3.1 at 1.25e-6); c_f for a
-    # follicle damping ratio 0.2 on RB1 (c_f = 2·0.2·√(k_f·J), J = 5.7e-11 kg·m²). Uncertain
-    # to a factor ≈ 2: only that ratio constrains them.
-    "untrimmed": {"youngs_modulus_gpa": 3.39, "damping_ratio": 0.139, "damping_model": "kelvin_voigt",
+    # joint fit of E and the Kelvin–Voigt ζ on the continuum chain (`pipeline calibrate --library
+    # --where trimmed=no`, D2 and D4 held out): E = 3.59 ± 0.17 GPa (tensile tests: 3.34 ± 1.48,
+    # Quist et al. 2011), ζ = 0.142 ± 0.064 (the whisker's ζ1 with its base segment: 0.138;
+    # measured 0.11-0.17), the same at any N. Compliant follicle: k_f = 5e-7 N·m/rad, 0.4× the
+    # original WHISKiT code's 1.25e-6 (the paper's in-vivo fit is unpublished) and 0.4× the RB1
+    # whisker's own base stiffness E·I/S, the largest round value giving Fig. 4's rigid/compliant
+    # base-force ratio ≥ 5; c_f for a follicle damping ratio 0.2 on RB1 (c_f = 2·0.2·√(k_f·J),
+    # J = 5.7e-11 kg·m²). Uncertain to a factor ≈ 2: only that ratio constrains them.
+    "untrimmed": {"youngs_modulus_gpa": 3.59, "damping_ratio": 0.142, "damping_model": "kelvin_voigt",
+                  "link_density": "integrated", "base_segment": True,
                   "follicle": {"stiffness_nm_per_rad": 5e-7, "damping_nms_per_rad": 2.1e-9}},
+    # the paper's own chain and fit, to reproduce the original and its published numbers: link 1
+    # rigid with the follicle, each link's density at its proximal node, E = 7.45 GPa and
+    # θ_ζ = 0.118 fitted on α/B1 with that chain (MSA 0.048)
+    "paper": {"youngs_modulus_gpa": 7.45, "damping_ratio": 0.118, "damping_model": "paper",
+              "link_density": "proximal", "base_segment": False,
+              "follicle": {"stiffness_nm_per_rad": 1e-4, "damping_nms_per_rad": 1e-7}},
 }
 
 
-PresetName = Literal["trimmed", "untrimmed"]     # the keys of MATERIAL_PRESETS
+PresetName = Literal["trimmed", "untrimmed", "paper"]     # the keys of MATERIAL_PRESETS
 
 
 def _apply_preset(data):
@@ -82,20 +90,25 @@ class MaterialConfig(StrictModel):
 
     # Defaults: the 'untrimmed' preset (MATERIAL_PRESETS), fitted on the measured untrimmed
     # whiskers the array has (Hartmann et al. 2003 D row, vibration table and pluck; D2, D4 held
-    # out): E = 3.39 ± 0.16 GPa, Kelvin–Voigt damping with first-mode ζ1 = 0.139 ± 0.06 at any N
-    # (measured 0.11-0.17). The former defaults, fitted on the paper's trimmed α and B1 (E = 7.45
-    # GPa, eq. 3 with θ_ζ = 0.118), are the 'trimmed' preset.
-    youngs_modulus_gpa: float = Field(3.39, gt=0.1, le=20.0, description="E, GPa")
-    damping_ratio: float = Field(0.139, ge=0.0, le=2.0,
+    # out) with the continuum chain: E = 3.59 ± 0.17 GPa, Kelvin–Voigt damping with ζ = 0.142 ±
+    # 0.064 at any N (measured 0.11-0.17). The paper's trimmed α and B1 are the 'trimmed' preset,
+    # the paper's own chain and fit (E = 7.45 GPa, eq. 3 with θ_ζ = 0.118) the 'paper' preset.
+    youngs_modulus_gpa: float = Field(3.59, gt=0.1, le=20.0, description="E, GPa")
+    damping_ratio: float = Field(0.142, ge=0.0, le=2.0,
                                  description="θ_ζ of eq. 3 ('paper') or the first mode's ζ1 ('kelvin_voigt')")
     damping_model: Literal["paper", "kelvin_voigt"] = Field(
         "kelvin_voigt", description="'paper': eq. 3 per joint (depends on N); "
                              "'kelvin_voigt': c_n = β·k_n with β set so mode 1 has ζ (converges in N)")
     density_base_kg_m3: float = Field(1260.0, gt=100, le=5000)
     density_tip_kg_m3: float = Field(1690.0, gt=100, le=5000)
+    # The continuum corrections (docs/model.md §2): the chain converges to the continuous beam at
+    # second order in N with both; the 'paper' preset switches both off (the paper's chain).
     link_density: Literal["proximal", "integrated"] = Field(
-        "proximal", description="each link's density: the ramp at its proximal node ('proximal', the "
-                                "paper) or the ramp integrated across the link ('integrated')")
+        "integrated", description="each link's density: the ramp at its proximal node ('proximal', the "
+                                  "paper) or the ramp integrated across the link ('integrated')")
+    base_segment: bool = Field(
+        True, description="the bending compliance of the base half-link as a spring at the base point "
+                          "(pipeline.model.extensions.BaseSegment); false: that arc is rigid (the paper)")
     links: int = Field(20, ge=2, le=120, description="N, links per whisker")
     gravity: bool = False
     follicle: FollicleConfig = FollicleConfig()
@@ -176,8 +189,8 @@ class ModelConfig(StrictModel):
 
     @model_validator(mode="after")
     def _fits_engine(self) -> "ModelConfig":
-        compliant = (self.material.follicle.kind == "compliant" or "follicle" in self.extensions
-                     or "base_segment" in self.extensions)
+        compliant = (self.material.follicle.kind == "compliant" or self.material.base_segment
+                     or "follicle" in self.extensions or "base_segment" in self.extensions)
         hinges = 3 if "twist" in self.extensions else 2
         limit = bullet_max_links(compliant, hinges)
         if self.engine.name == "bullet" and self.material.links > limit:

@@ -15,7 +15,7 @@ import numpy as np
 
 from pipeline.config.physics import MaterialConfig
 from pipeline.model.damping import damping_model
-from pipeline.model.extensions import CompliantFollicle, Extension, Gravity
+from pipeline.model.extensions import BaseSegment, CompliantFollicle, Extension, Gravity
 from pipeline.model.joints import JointLayout, joint_layout
 from pipeline.model.loads import DragLoad, GravityLoad
 from pipeline.model.whisker import WhiskerChain, WhiskerGeometry, build_chain
@@ -59,13 +59,16 @@ class WhiskerPhysics:
 
 
 def material_extensions(material: MaterialConfig) -> tuple[Extension, ...]:
-    """The extensions a material config switches on: its compliant follicle and gravity."""
+    """The extensions a material config switches on: its compliant follicle, gravity and the
+    base segment."""
     implied: list[Extension] = []
     if material.follicle.kind == "compliant":
         implied.append(CompliantFollicle(material.follicle.stiffness_nm_per_rad,
                                          material.follicle.damping_nms_per_rad))
     if material.gravity:
         implied.append(Gravity())
+    if material.base_segment:
+        implied.append(BaseSegment())
     return tuple(implied)
 
 
@@ -83,12 +86,14 @@ def build_physics(geometry: WhiskerGeometry, material: MaterialConfig,
     :mod:`pipeline.model.extensions`).
 
     The damping model of ``material`` (eq. 3 or Kelvin–Voigt) sees the final masses and
-    stiffnesses. The follicle and gravity that ``material`` switches on come first, so a
-    ``follicle`` or ``gravity`` extension given here overrides them; a ``base_segment`` comes
-    last, whatever its place in ``extensions``.
+    stiffnesses. An extension given here replaces the one of the same name that ``material``
+    switches on (follicle, gravity, base segment); a ``base_segment`` comes last, whatever its
+    place in ``extensions``.
     """
+    given = {e.name for e in extensions}
+    implied = tuple(e for e in material_extensions(material) if e.name not in given)
     # a base segment's spring goes in series with the follicle: its hooks run after the follicle's
-    extensions = sorted(material_extensions(material) + tuple(extensions), key=lambda e: e.name == "base_segment")
+    extensions = sorted(implied + tuple(extensions), key=lambda e: e.name == "base_segment")
     for ext in extensions:
         material = ext.material(material)
     for ext in extensions:
