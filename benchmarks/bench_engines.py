@@ -119,11 +119,11 @@ def cost_table(engines, tolerances, mesh_path: Path, runs: int, duration: float)
 
 
 # -- accuracy ---------------------------------------------------------------------------
-def damped_f1_hz(chain) -> float:
-    """Damped first in-plane mode (Hz) of the chain in continuous time (rigid base)."""
+def damped_f1_hz(physics) -> float:
+    """Damped first in-plane mode (Hz) of a whisker in continuous time (its base spring included)."""
     from pipeline.engines.stepping import damped_first_mode
 
-    return float(damped_first_mode(chain).imag / (2 * np.pi))
+    return float(damped_first_mode(physics).imag / (2 * np.pi))
 
 
 def ringing_f1_hz(engine_name: str, geometry, material) -> tuple[float, float]:
@@ -158,7 +158,7 @@ def accuracy_table(engines, selection: str) -> None:
     errors = {e: {} for e in engines}
     for whisker in sorted(array.whiskers, key=lambda w: -w.chain.geometry.arc_length_m):
         geometry = whisker.chain.geometry
-        reference = damped_f1_hz(whisker.chain)
+        reference = damped_f1_hz(whisker.physics)
         row = []
         for engine_name in engines:
             f1, dt = ringing_f1_hz(engine_name, geometry, material)

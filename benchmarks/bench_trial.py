@@ -13,7 +13,7 @@ import numpy as np
 
 from pipeline.config.physics import EngineConfig, ModelConfig
 from pipeline.model.kinematics import Pose
-from pipeline.model.whisker import WhiskerGeometry, planar_modes
+from pipeline.model.whisker import WhiskerGeometry
 from pipeline.engines.stepping import refinement_levels
 from pipeline.model.array import single_whisker
 from pipeline.model.physics import build_physics
@@ -62,7 +62,7 @@ def accuracy_table():
     print(f"{'whisker':>14} | " + " | ".join(f"{h:>8.0e}" for h in steps) + " | planned")
     for name, geometry in whiskers.items():
         config = ModelConfig()
-        chain_f1 = planar_modes(build_physics(geometry, config.material).chain)[0][0]
+        chain_f1 = build_physics(geometry, config.material).planar_modes()[0][0]
         def error_percent(engine: EngineConfig) -> float:
             result = run_resonance(geometry, config.model_copy(update={"engine": engine}))
             zeta = result.damping_ratio if np.isfinite(result.damping_ratio) else 0.0

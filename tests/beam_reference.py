@@ -45,9 +45,10 @@ def cantilever_tip_deflection(length, r_base, r_tip, youngs_modulus, load, sampl
     return float(np.trapezoid(load * (length - x) ** 2 / ei, x))
 
 
-def chain_tip_deflection(chain, load: float) -> float:
+def chain_tip_deflection(chain, load: float, base_stiffness_nm_per_rad: float = np.inf) -> float:
     """Exact small-deflection tip displacement of a straight chain under a transverse tip load:
-    joint j turns by P·(x_tip − x_j)/k_j."""
+    joint j turns by P·(x_tip − x_j)/k_j; a spring at the base point (follicle, base segment)
+    of ``base_stiffness_nm_per_rad`` turns by P·x_tip/k_0."""
     x = chain.nodes_m[:, 0]
     turn = load * (x[-1] - x[1:-1]) / chain.stiffness_nm_per_rad
-    return float(np.sum(turn * (x[-1] - x[1:-1])))
+    return float(np.sum(turn * (x[-1] - x[1:-1])) + load * x[-1] ** 2 / base_stiffness_nm_per_rad)

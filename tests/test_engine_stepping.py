@@ -28,15 +28,15 @@ def _ra4():
 def test_folded_step_rings_at_the_f1_its_update_matrix_predicts():
     """RA4 (14 mm, f1 150 Hz) at 10⁻⁴ s: predicted −0.60 % folded, −1.03 % linearly implicit."""
     whisker, material = _ra4()
-    chain = whisker.chain
-    folded, implicit = (scheme_f1_error(chain, 1e-4, folded=f) for f in (True, False))
+    physics = whisker.physics
+    folded, implicit = (scheme_f1_error(physics, 1e-4, folded=f) for f in (True, False))
     assert implicit - folded < -0.003          # the two schemes are told apart by the test
     config = ModelConfig(material=material, engine=EngineConfig(name="mujoco", dt_s=1e-4, f1_tolerance=0.0,
                                                                 output_rate_hz=RATE_HZ))
-    with create_engine(config, single_whisker(chain.geometry, material)) as engine:
+    with create_engine(config, single_whisker(physics.chain.geometry, material)) as engine:
         out = engine.run(empty(), Pose(), pulse_drive(duration_s=DURATION_S), DURATION_S)
     tip_y = out.node_positions_m[out.time_s > RING_START_S, 0, -1, 1].astype(float)
-    measured = spectral_peak(tip_y, RATE_HZ)[0] / (damped_first_mode(chain).imag / (2 * np.pi)) - 1
+    measured = spectral_peak(tip_y, RATE_HZ)[0] / (damped_first_mode(physics).imag / (2 * np.pi)) - 1
     assert measured == pytest.approx(folded, abs=5e-4)       # measured −0.60 %
 
 

@@ -16,7 +16,7 @@ from pipeline.config.physics import ModelConfig
 from pipeline.model.physics import build_physics
 from pipeline.model.morphology import model_rat
 from pipeline.model.outputs import TrialOutput
-from pipeline.model.whisker import WhiskerGeometry, planar_modes
+from pipeline.model.whisker import WhiskerGeometry
 from pipeline.reports import published as P
 from pipeline.reports.array_checks import slip_off
 from pipeline.reports.checks import Check, Section, linear_fit
@@ -146,8 +146,8 @@ def test_array_resonance_section_and_report_json(tmp_path):
     s = section.summary
     spec = model_rat()["RC1"]
     k = s["whiskers"].index("RC1")
-    chain = planar_modes(build_physics(WhiskerGeometry(spec.arc_length_m, spec.base_radius_m, spec.tip_radius_m),
-                                    config.material).chain)[0][0]
+    chain = build_physics(WhiskerGeometry(spec.arc_length_m, spec.base_radius_m, spec.tip_radius_m),
+                          config.material).planar_modes()[0][0]
     assert s["f1_hz"][k] == pytest.approx(chain)
     assert s["fit_f1_hz"][k] == pytest.approx(8963 * (spec.arc_length_m * 1e3) ** -1.4 - 3.8)
     assert len(s["whiskers"]) == 60

@@ -17,7 +17,6 @@ import numpy as np
 from pipeline.config.physics import EngineConfig
 from pipeline.errors import UserError
 from pipeline.model.array import ArrayModel
-from pipeline.model.whisker import planar_mass_matrix, planar_modes
 
 
 def steps_per_sample(config: EngineConfig) -> int:
@@ -30,8 +29,8 @@ def steps_per_sample(config: EngineConfig) -> int:
 
 
 def first_frequency_hz(array: ArrayModel) -> np.ndarray:
-    """[W] f1 of each whisker's chain with a rigid base (linearised, undamped), Hz."""
-    return np.array([planar_modes(w.chain)[0][0] for w in array.whiskers])
+    """[W] f1 of each whisker on its base spring, if any (linearised, undamped), Hz."""
+    return np.array([w.physics.planar_modes()[0][0] for w in array.whiskers])
 
 
 def refinement_levels(array: ArrayModel, config: EngineConfig) -> np.ndarray:
@@ -49,30 +48,31 @@ def damping_folds(whisker, dt_s: float) -> bool:
     return all(j.damping_nms_per_rad >= 0.25 * dt_s * j.stiffness_nm_per_rad for j in whisker.layout.joints)
 
 
-def damped_first_mode(chain) -> complex:
-    """The first oscillating root λ = −σ + iω_d (1/s) of the chain's in-plane joints with a rigid
-    base in continuous time (λ²M + λD + K singular); NaN if no mode oscillates."""
-    mass = planar_mass_matrix(chain)
+def damped_first_mode(physics) -> complex:
+    """The first oscillating root λ = −σ + iω_d (1/s) of the whisker's in-plane joints (its base
+    spring included, :class:`~pipeline.model.physics.WhiskerPhysics`) in continuous time
+    (λ²M + λD + K singular); NaN if no mode oscillates."""
+    mass = physics.planar_mass_matrix()
     n = len(mass)
-    stiffness, damping = np.diag(chain.stiffness_nm_per_rad), np.diag(chain.damping_nms_per_rad)
+    stiffness, damping = np.diag(physics.planar_stiffness_nm_per_rad), np.diag(physics.planar_damping_nms_per_rad)
     roots = np.linalg.eigvals(np.block([[np.zeros((n, n)), np.eye(n)],
                                         [-np.linalg.solve(mass, stiffness), -np.linalg.solve(mass, damping)]]))
     oscillating = roots[roots.imag > 1e-9]
     return oscillating[np.argmin(np.abs(oscillating))] if oscillating.size else complex(np.nan, np.nan)
 
 
-def scheme_f1_error(chain, dt_s: float, folded: bool) -> float:
-    """Relative error of the first damped in-plane mode of ``chain`` (rigid base) integrated at
+def scheme_f1_error(physics, dt_s: float, folded: bool) -> float:
+    """Relative error of the first damped in-plane mode of a whisker (``physics``) integrated at
     ``dt_s`` by the engines' step, against :func:`damped_first_mode`. The step is
     (M + h·D + h²·K)·a = −K·q − D·v (``folded`` False: linearly implicit) or
     (M + h·D)·a = −K·q − D·v (``folded``), then v ← v + h·a, q ← q + h·v; its modes are the
     logarithms of the eigenvalues of that update, divided by h. NaN if no mode oscillates
     (an overdamped chain)."""
-    first = damped_first_mode(chain)
+    first = damped_first_mode(physics)
     if np.isnan(first.imag):
         return float("nan")
-    mass = planar_mass_matrix(chain)
-    stiffness, damping = np.diag(chain.stiffness_nm_per_rad), np.diag(chain.damping_nms_per_rad)
+    mass = physics.planar_mass_matrix()
+    stiffness, damping = np.diag(physics.planar_stiffness_nm_per_rad), np.diag(physics.planar_damping_nms_per_rad)
     n, h = len(mass), dt_s
     metric = mass + h * damping + (0.0 if folded else h * h) * stiffness
     acceleration = -np.linalg.solve(metric, np.hstack([stiffness, damping]))      # a = A·[q; v]
@@ -107,7 +107,7 @@ def _folded_step_fits(whisker, config: EngineConfig, level: int) -> bool:
         return False
     if config.f1_tolerance == 0:
         return level == 0
-    return abs(scheme_f1_error(whisker.chain, dt_s, folded=True)) <= config.f1_tolerance
+    return abs(scheme_f1_error(whisker.physics, dt_s, folded=True)) <= config.f1_tolerance
 
 
 def step_groups(levels: np.ndarray, dt_s: float) -> list[tuple[np.ndarray, float]]:

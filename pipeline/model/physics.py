@@ -18,7 +18,7 @@ from pipeline.model.damping import damping_model
 from pipeline.model.extensions import BaseSegment, CompliantFollicle, Extension, Gravity
 from pipeline.model.joints import JointLayout, joint_layout
 from pipeline.model.loads import DragLoad, GravityLoad
-from pipeline.model.whisker import WhiskerChain, WhiskerGeometry, build_chain
+from pipeline.model.whisker import WhiskerChain, WhiskerGeometry, build_chain, planar_mass_matrix, planar_modes
 
 
 @dataclass(frozen=True)
@@ -47,6 +47,28 @@ class WhiskerPhysics:
     def layout(self) -> JointLayout:
         """The spring joints, in the order every engine and the linear model use."""
         return joint_layout(self)
+
+    @property
+    def planar_stiffness_nm_per_rad(self) -> np.ndarray:
+        """[J] k of the in-plane joints from the base out: the base spring (compliant follicle
+        and base segment), if any, then the chain's N−1 joints."""
+        chain = self.chain.stiffness_nm_per_rad
+        return chain if self.follicle is None else np.concatenate([[self.follicle.k_f], chain])
+
+    @property
+    def planar_damping_nms_per_rad(self) -> np.ndarray:
+        """[J] c of the same joints."""
+        chain = self.chain.damping_nms_per_rad
+        return chain if self.follicle is None else np.concatenate([[self.follicle.c_f], chain])
+
+    def planar_mass_matrix(self) -> np.ndarray:
+        """[J, J] in-plane mass matrix of the same joints at the rest shape (kg·m²)."""
+        return planar_mass_matrix(self.chain, base_joint=self.follicle is not None)
+
+    def planar_modes(self):
+        """Undamped in-plane frequencies (Hz, ascending) and mode shapes of the whisker on its
+        base spring (:func:`~pipeline.model.whisker.planar_modes`)."""
+        return planar_modes(self.chain, self.planar_stiffness_nm_per_rad)
 
     def loads(self) -> tuple:
         """The per-link loads of this whisker (gravity along world −z, air drag)."""

@@ -162,18 +162,21 @@ def link_centres_of_mass(chain: WhiskerChain) -> np.ndarray:
     return chain.nodes_m[:-1] + direction * chain.link_com_m[:, None]
 
 
-def planar_mass_matrix(chain: WhiskerChain) -> np.ndarray:
-    """[N-1, N-1] mass matrix of the in-plane bending joints at the rest shape, rigid base.
+def planar_mass_matrix(chain: WhiskerChain, base_joint: bool = False) -> np.ndarray:
+    """[J, J] mass matrix of the in-plane bending joints at the rest shape: J = N−1 joints at
+    nodes 1..N−1 (rigid base), or with ``base_joint`` J = N, a first joint at the base point
+    (a compliant follicle or base segment) that turns every link.
 
-    Joint j rotates every link distal to it about z through node j+1; a link's COM moves
+    Joint j rotates every link distal to it about z through its node; a link's COM moves
     with ω × (c − p_j). Used for modal quantities of the linearised chain.
     """
     com = link_centres_of_mass(chain)
-    pivots = chain.nodes_m[1:-1]
-    dof = chain.links - 1
+    first = 0 if base_joint else 1
+    pivots = chain.nodes_m[first:-1]
+    dof = chain.links - first
     mass = np.zeros((dof, dof))
     for i in range(chain.links):
-        active = np.arange(min(i, dof))                  # joints proximal to link i
+        active = np.arange(min(i + 1 - first, dof))      # joints proximal to link i
         if active.size == 0:
             continue
         arm = com[i, :2] - pivots[active, :2]
@@ -185,12 +188,14 @@ def planar_mass_matrix(chain: WhiskerChain) -> np.ndarray:
 
 def planar_modes(chain: WhiskerChain, stiffness: np.ndarray | None = None):
     """Undamped in-plane natural frequencies (Hz, ascending) and mode shapes of the chain
-    (normalised to unit modal mass, φᵀ·M·φ = 1).
+    (normalised to unit modal mass, φᵀ·M·φ = 1). ``stiffness`` [J]: the joints' k (default the
+    chain's, rigid base); N values add a joint at the base point (base spring first).
 
     The generalised problem K·φ = ω²·M·φ is reduced with M = L·Lᵀ to the symmetric
     L⁻¹·K·L⁻ᵀ·ψ = ω²·ψ, φ = L⁻ᵀ·ψ (what LAPACK's sygv does; numpy only, no scipy at start-up)."""
-    k = chain.stiffness_nm_per_rad if stiffness is None else stiffness
-    cholesky_inverse = np.linalg.inv(np.linalg.cholesky(planar_mass_matrix(chain)))
+    k = chain.stiffness_nm_per_rad if stiffness is None else np.asarray(stiffness, float)
+    mass = planar_mass_matrix(chain, base_joint=len(k) == chain.links)
+    cholesky_inverse = np.linalg.inv(np.linalg.cholesky(mass))
     omega_sq, reduced = np.linalg.eigh(cholesky_inverse @ np.diag(k) @ cholesky_inverse.T)
     shapes = cholesky_inverse.T @ reduced
     return np.sqrt(np.maximum(omega_sq, 0)) / (2 * np.pi), shapes

@@ -19,7 +19,7 @@ from pipeline.config.physics import ModelConfig, with_preset
 from pipeline.model.extensions import model_parts
 from pipeline.model.physics import build_physics
 from pipeline.model.morphology import load_morphology
-from pipeline.model.whisker import WhiskerGeometry, planar_modes
+from pipeline.model.whisker import WhiskerGeometry
 from pipeline.protocols.resonance import ResonanceResult, run_resonance
 from pipeline.reports import published as P
 from pipeline.reports.checks import Section, check, rigid
@@ -119,7 +119,7 @@ def array_resonance(config: ModelConfig, engine_runs) -> Section:
     """Section ``fig2`` from the chains of every whisker and the engine runs ``[(name, result)]``."""
     specs = list(load_morphology(config.morphology))
     material, extensions = model_parts(config)
-    f1 = np.array([planar_modes(build_physics(straight_geometry(s), material, extensions).chain)[0][0]
+    f1 = np.array([build_physics(straight_geometry(s), material, extensions).planar_modes()[0][0]
                    for s in specs])
     arc = np.array([s.arc_length_m for s in specs])
     fit = published_f1(arc)
