@@ -139,7 +139,8 @@ class BulletWhisker:
         self.link_com = chain.link_com_m * U.LENGTH
         self.link1_com = self.link_com[0]
         self.link1_angle = chain.link_angles_rad[0]
-        self.tip_offset = chain.link_lengths_m[-1] * U.LENGTH
+        self.link_lengths = chain.link_lengths_m * U.LENGTH
+        self.tip_offset = self.link_lengths[-1]
         self.local_link = {link: i for i, link in enumerate(self.whisker_links)}
         self._lhs_inverse, self._factorised_at = None, None
 
@@ -255,6 +256,15 @@ class BulletWhisker:
             for axis, state in zip(reversed(self.follicle_axes), reversed(states)):
                 rotation = axis_rotation(axis, state[0]) @ rotation
         return np.concatenate([rotation @ force / U.FORCE, rotation @ moment / U.TORQUE])
+
+    def link_nodes(self, i: int) -> np.ndarray:
+        """[2, 3] proximal and distal node of whisker link i, world frame, mm (internal units)."""
+        import pybullet as p
+
+        state = p.getLinkState(self.body, self.whisker_links[i], computeForwardKinematics=True,
+                               physicsClientId=self.client)
+        proximal = np.asarray(state[4])
+        return np.stack([proximal, proximal + matrix_from_xyzw(state[5])[:, 0] * self.link_lengths[i]])
 
     def node_positions(self) -> np.ndarray:
         """[N+1, 3] node positions, world frame, m."""

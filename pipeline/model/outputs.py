@@ -27,6 +27,10 @@ class TrialOutput:
     node_positions_m: np.ndarray     # [T, W, N+1, 3] float32, world frame
     whisker_names: list[str]
     metadata: dict = field(default_factory=dict)   # engine, dt, timings, counts
+    # [T, W] float32, point of contact: arc length fraction of S (0 base … 1 tip) of the most
+    # proximal contact point at the last step of the sample interval that had a contact, each
+    # point taken as the closest point of its link (engines.common.ContactFlags); NaN: none
+    point_of_contact: np.ndarray = field(kw_only=True)
 
     @property
     def sample_rate_hz(self) -> float:
@@ -41,12 +45,6 @@ class TrialOutput:
         from pipeline.model.morphology import canonical_name
 
         return self.whisker_names.index(canonical_name(name))
-
-    def point_of_contact(self) -> np.ndarray:
-        """[T, W] most proximal link in contact / N (0 base … 1 tip); NaN without contact."""
-        touching = self.contact.any(axis=2)
-        first = np.argmax(self.contact, axis=2).astype(np.float32) / self.links
-        return np.where(touching, first, np.nan).astype(np.float32)
 
     def whiskers_in_contact(self) -> int:
         """How many whiskers touched something at least once during the trial."""
