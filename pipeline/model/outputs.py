@@ -46,6 +46,21 @@ class TrialOutput:
 
         return self.whisker_names.index(canonical_name(name))
 
+    def contact_points_m(self) -> np.ndarray:
+        """[T, W, 3] where the point of contact is on the node polyline (world frame, m): the
+        point at that arc length fraction of the links; NaN without contact."""
+        nodes = self.node_positions_m.astype(np.float64)
+        lengths = np.linalg.norm(np.diff(nodes, axis=2), axis=-1)                # [T, W, N]
+        ends = np.cumsum(lengths, axis=2)
+        arc = np.nan_to_num(self.point_of_contact, nan=-1.0)[..., None] * ends[..., -1:]
+        link = np.minimum((arc > ends).sum(axis=2, keepdims=True), self.links - 1)   # [T, W, 1]
+        start = np.take_along_axis(ends - lengths, link, axis=2)
+        along = (arc - start) / np.take_along_axis(lengths, link, axis=2)
+        proximal = np.take_along_axis(nodes, link[..., None], axis=2)[:, :, 0]
+        distal = np.take_along_axis(nodes, link[..., None] + 1, axis=2)[:, :, 0]
+        points = proximal + along * (distal - proximal)
+        return np.where(np.isnan(self.point_of_contact)[..., None], np.nan, points)
+
     def whiskers_in_contact(self) -> int:
         """How many whiskers touched something at least once during the trial."""
         return int(self.contact.any(axis=(0, 2)).sum())
