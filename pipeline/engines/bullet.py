@@ -261,7 +261,7 @@ class BulletWorld(World):
                 link = self.bodies[k].local_link.get(point[4])
                 if link is not None and (point[8] <= 0.0 or point[9] > 0.0):
                     links.append(k * flags.touching.shape[1] + link)
-                    points.append(np.add(point[5], point[6]) / 2)
+                    points.append([0.5 * (a + b) for a, b in zip(point[5], point[6])])
                     segments.append(self.bodies[k].link_nodes(link))
         if links:
             segments = np.array(segments)

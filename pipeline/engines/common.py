@@ -127,8 +127,8 @@ def arc_fraction_on_link(points: np.ndarray, proximal: np.ndarray, distal: np.nd
     (current positions, any one length unit), clamped to the link; ``start``, ``end`` [P] the
     nodes' arc fractions (a link is straight: s = s_i + t·l_i)."""
     axis = distal - proximal
-    t = np.einsum("ij,ij->i", points - proximal, axis) / np.einsum("ij,ij->i", axis, axis)
-    return start + np.clip(t, 0.0, 1.0) * (end - start)
+    t = ((points - proximal) * axis).sum(axis=1) / (axis * axis).sum(axis=1)
+    return start + np.minimum(np.maximum(t, 0.0), 1.0) * (end - start)     # np.clip: 2× the time
 
 
 class ContactFlags:

@@ -582,13 +582,13 @@ class MujocoWorld(World):
         d = self.data
         contact = d.contact
         pressed = contact.dist <= 0.0
-        links = self.link_of_geom[contact.geom[pressed]]          # [P, 2]: one is the whisker's
-        row, side = np.nonzero(links >= 0)
-        links = links[row, side]
+        links = self.link_of_geom[contact.geom[pressed]].max(axis=1)   # the pair's whisker link, or −1
+        mine = links >= 0
+        links = links[mine]
         bodies = self.link_bodies.ravel()[links]
         proximal = d.xpos[bodies]
         distal = proximal + d.xmat[bodies][:, 0::3] * self.link_lengths_mm.ravel()[links, None]
-        return links, contact.pos[pressed][row], proximal, distal
+        return links, contact.pos[pressed][mine], proximal, distal
 
     def _apply_loads(self, loads, loaded: list[int]) -> None:
         """The loads' per-link forces on members ``loaded`` at the current state, as wrenches
