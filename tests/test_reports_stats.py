@@ -92,6 +92,7 @@ def test_report_files_exist(report):
     assert pngs == sorted(Path(p).name for p in summary["figures"]) and len(pngs) == 8
     text = (out / "report.md").read_text()
     assert all(f"]({name})" in text for name in pngs)
+    assert "bins of 2 % of S" in text
     assert stats["trials"] == 6 and stats["trials_ok"] == 4 and stats["trials_failed"] == 1
     assert stats["trials_pending"] == 1
 
