@@ -36,11 +36,12 @@ def layout(trials=5, node_every=10) -> Layout:
 def fake_output(seed: int, samples: int = T) -> TrialOutput:
     rng = np.random.default_rng(seed)
     w = len(NAMES)
-    return TrialOutput(np.arange(1, samples + 1) / 1000.0,
-                       (rng.normal(size=(samples, w, 6)) * 1e-4).astype(np.float32),
-                       rng.uniform(size=(samples, w, LINKS)) > 0.95,
-                       rng.normal(size=(samples, w, LINKS + 1, 3)).astype(np.float32), NAMES,
-                       {"cpu_seconds": 0.5, "engine": "fake"})
+    wrench = (rng.normal(size=(samples, w, 6)) * 1e-4).astype(np.float32)
+    contact = rng.uniform(size=(samples, w, LINKS)) > 0.95
+    nodes = rng.normal(size=(samples, w, LINKS + 1, 3)).astype(np.float32)
+    poc = np.where(contact.any(axis=2), rng.uniform(size=(samples, w)), np.nan).astype(np.float32)
+    return TrialOutput(np.arange(1, samples + 1) / 1000.0, wrench, contact, nodes, NAMES,
+                       {"cpu_seconds": 0.5, "engine": "fake"}, point_of_contact=poc)
 
 
 def write_trials(path: Path, indices, plan=None) -> dict[int, TrialOutput]:
@@ -62,7 +63,7 @@ def test_layout_attributes_and_chunks(tmp_path):
     path = tmp_path / "d.h5"
     write_trials(path, [0])
     with h5py.File(path, "r") as f:
-        assert f.attrs["schema"] == "whisker-pipeline/dataset" and f.attrs["schema_version"] == 2
+        assert f.attrs["schema"] == "whisker-pipeline/dataset" and f.attrs["schema_version"] == 3
         assert f.attrs["sampling_rate_hz"] == 1000.0
         wrench = f["base_wrench"]
         assert wrench.shape == (5, T, 3, 6) and wrench.dtype == np.float32
@@ -94,7 +95,8 @@ def test_round_trip_with_named_axes(tmp_path):
         assert contact.dims == ("time", "whisker", "link")
         assert np.array_equal(contact.values[:30].astype(bool), outputs[1].contact)
         poc = ds.point_of_contact.values[0]
-        assert np.allclose(poc, outputs[0].point_of_contact(), equal_nan=True)
+        assert np.array_equal(poc, outputs[0].point_of_contact, equal_nan=True)
+        assert ds.point_of_contact.attrs["units"] == "1"
         assert ds.trials["scene"][0] == "mesh:rock" and ds.trials["samples"][1] == 30
         assert np.allclose(ds.trials["pose_position_m"].loc[3], [0.01, 0.02, 0.03])
         assert ds.whiskers["name"].tolist() == NAMES and ds.whiskers["side"].tolist() == [1, 1, -1]
@@ -222,6 +224,7 @@ def test_trial_arrays_refuse_whiskers_not_in_the_table_order():
     theta = np.zeros(T)
     trial_arrays(output, theta, layout())
     swapped = TrialOutput(output.time_s, output.base_wrench[:, ::-1], output.contact[:, ::-1],
-                          output.node_positions_m[:, ::-1], NAMES[::-1], output.metadata)
+                          output.node_positions_m[:, ::-1], NAMES[::-1], output.metadata,
+                          point_of_contact=output.point_of_contact[:, ::-1])
     with pytest.raises(ValueError, match="not the dataset's whisker table RC1,RC2,LA0"):
         trial_arrays(swapped, theta, layout())

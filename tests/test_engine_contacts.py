@@ -1,4 +1,5 @@
-"""Contacts with rough meshes: step size per whisker, jammed whiskers re-simulated alone."""
+"""Contacts with rough meshes: step size per whisker, jammed whiskers re-simulated alone; the
+point of contact where the whisker touches a peg."""
 
 import numpy as np
 import pytest
@@ -58,6 +59,8 @@ def test_a_jammed_whisker_is_simulated_again_alone_with_a_finer_step():
     out = run_trial(coarse, scene, Pose(), 0.1, "RD3,RB3")
     assert out.metadata["jam_refined"].get("RD3", 0) >= 1
     assert out.contact[:, out.index("RD3")].any()
+    # the re-simulation's points of contact came along: one wherever a link touched
+    assert np.array_equal(np.isfinite(out.point_of_contact), out.contact.any(axis=2))
     moments = out.moment_magnitude()
     assert np.all(np.isfinite(moments)) and moments.max() < 1e-4     # whiskers break near 1e-4 N·m
     # the other whisker is untouched by its neighbour's refinement
@@ -117,3 +120,86 @@ def test_impossible_pose_exits_2_on_the_command_line(pipeline_cli):
                           "--whiskers", "RC1", "--duration-s", "0.01")
     assert result.returncode == 2, result.stderr
     assert result.stderr.startswith("error: impossible head pose") and "Traceback" not in result.stderr
+
+
+def test_contact_flags_keep_the_most_proximal_point_of_the_last_step_with_contacts():
+    """Straight links of 1 along x (two whiskers of 3 links): a point projects onto its link."""
+    from pipeline.engines.common import ContactFlags
+
+    flags = ContactFlags(np.array([[0.0, 0.25, 0.5, 1.0], [0.0, 1 / 3, 2 / 3, 1.0]]))
+
+    def ends(*links):                                  # proximal and distal node of link i: x = i, i + 1
+        x = np.array(links, float)[:, None]
+        return x * [1.0, 0, 0], (x + 1) * [1.0, 0, 0]
+
+    # step 1: whisker 0 on link 2 half along it, and on link 1 beyond its distal end (clamped)
+    flags.add(np.array([2, 1]), np.array([[2.5, 0.3, 0.0], [2.7, -0.2, 0.0]]), *ends(2, 1))
+    # step 2: whisker 1 only, a quarter along link 0 (flat index 1·3 + 0)
+    flags.add(np.array([3]), np.array([[0.25, 0.1, 0.0]]), *ends(0))
+    flags.add(np.array([], np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)))
+    touching, poc = flags.take()
+    assert touching.tolist() == [[False, True, True], [True, False, False]]
+    np.testing.assert_allclose(poc, [0.5, 0.25 / 3])      # whisker 0: link 1 clamped to its end
+    # a later step with contacts replaces an earlier one; a new interval starts empty
+    flags.add(np.array([0]), np.array([[0.5, 0, 0]]), *ends(0))
+    flags.add(np.array([2]), np.array([[2.9, 0, 0]]), *ends(2))
+    assert flags.take()[1][0] == pytest.approx(0.5 + 0.9 * 0.5)
+    touching, poc = flags.take()
+    assert not touching.any() and np.isnan(poc).all()
+
+
+def closest_arc_fraction(nodes: np.ndarray, axis_point: np.ndarray) -> np.ndarray:
+    """[T] arc length fraction of the point of the node polyline [T, N+1, 3] closest to a
+    vertical line through ``axis_point`` (distances in the horizontal plane)."""
+    a, b = nodes[:, :-1, :2], nodes[:, 1:, :2]
+    d = b - a
+    t = np.clip(((axis_point[:2] - a) * d).sum(-1) / (d * d).sum(-1), 0.0, 1.0)
+    distance = np.linalg.norm(a + t[..., None] * d - axis_point[:2], axis=-1)
+    lengths = np.linalg.norm(np.diff(nodes, axis=1), axis=-1)
+    starts = np.cumsum(lengths, axis=1) - lengths
+    i = np.argmin(distance, axis=1)[:, None]
+    arc = np.take_along_axis(starts + t * lengths, i, axis=1)[:, 0]
+    return arc / lengths.sum(axis=1)
+
+
+@pytest.mark.parametrize("engine", ["bullet", "mujoco"])
+def test_point_of_contact_is_where_the_whisker_touches_a_peg(engine):
+    """A vertical peg across the sweep of a curved whisker at 60 % of its arc length (2° ahead
+    of its rest shape; 60 % is a node of the 20 links, where the link-index POC read 0.55). The
+    whisker turns at 180 °/s, touches and bends around the peg; the stored POC is the arc
+    length fraction of the closest point of the whisker (stored nodes) to the peg's axis."""
+    from pipeline.model.array import single_whisker
+    from pipeline.model.extensions import model_parts
+    from pipeline.model.kinematics import ProtractionDrive
+    from pipeline.model.rotations import rot_z
+    from pipeline.model.whisker import WhiskerGeometry
+    from pipeline.scenes.obstacles import Cylinder
+
+    model = ModelConfig()
+    model = model.model_copy(update={"engine": model.engine.model_copy(update={"name": engine})})
+    material, extensions = model_parts(model)
+    array = single_whisker(WhiskerGeometry(0.03, 5e-5, 5e-6, 10.0), material, extensions=extensions)
+    chain = array.whiskers[0].chain
+    assert chain.links == 20
+    rest = array.whiskers[0].rest_nodes_head(0.0)
+    node = 12                                                     # 12/20 = 60 % of S
+    tangent = (rest[node + 1] - rest[node - 1]) / np.linalg.norm(rest[node + 1] - rest[node - 1])
+    peg_radius = 5e-4
+    centre = rot_z(np.radians(2.0)) @ (rest[node] + np.cross([0, 0, 1.0], tangent)
+                                       * (peg_radius + chain.node_radii_m[node]))
+    scene = Scene("peg", (Cylinder(peg_radius, 0.01, tuple(centre)),))
+    duration = 0.04
+    drive = ProtractionDrive(np.array([0, duration]), np.radians(180.0) * np.array([0, duration]),
+                             interpolation="linear")
+    from pipeline.engines import create_engine
+
+    with create_engine(model, array) as simulator:
+        out = simulator.run(scene, Pose(), drive, duration)
+    touching = out.contact[:, 0].any(axis=1)
+    poc = out.point_of_contact[:, 0]
+    assert np.array_equal(np.isfinite(poc), touching) and touching.sum() >= 20
+    truth = closest_arc_fraction(out.node_positions_m[touching, 0].astype(float), centre)
+    assert np.all(np.abs(truth - 0.6) < 0.01)                     # it did touch near 60 % of S
+    link_index = out.contact[touching, 0].argmax(axis=1) / chain.links
+    assert np.all(truth - link_index > 0.04)                      # where "first link / N" read 0.55
+    np.testing.assert_allclose(poc[touching], truth, rtol=0, atol=0.005)   # within 0.5 % of S

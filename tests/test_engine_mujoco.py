@@ -97,6 +97,7 @@ def test_whiskers_out_of_reach_reuse_their_free_motion():
     assert not fresh.contact[:, k].any() and fresh.contact.any()
     np.testing.assert_array_equal(reused.base_wrench, fresh.base_wrench)
     np.testing.assert_allclose(reused.node_positions_m, fresh.node_positions_m, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(reused.point_of_contact, fresh.point_of_contact)   # NaN where reused
 
 
 @pytest.mark.parametrize("speed_deg_s", [90, 540])

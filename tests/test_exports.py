@@ -55,6 +55,9 @@ def test_nwb_export_reads_back_with_the_datasets_values(dataset, tmp_path):
         contact = np.concatenate([ds.trial(i)["contact"] for i in range(3)])
         assert np.array_equal(nwb.acquisition["contact"].data[:], contact)
         assert contact.any()                                        # the pegs are touched: a real test
+        poc = np.concatenate([ds.trial(i)["point_of_contact"] for i in range(3)])
+        assert np.array_equal(nwb.acquisition["point_of_contact"].data[:], poc, equal_nan=True)
+        assert np.array_equal(np.isfinite(poc), contact.any(axis=2))    # one wherever a link touched
         trials = nwb.trials.to_dataframe()
         assert list(trials["dataset_trial"]) == [0, 1, 2]
         assert list(trials["scene"]) == list(ds.trials["scene"]) == ["pegs-active", "wall", "pegs-active"]

@@ -29,6 +29,7 @@ RERUN = Path(sys.executable).parent / "rerun"
 CHROMIUM = Path("/usr/bin/chromium")
 T, W, N = 50, 3, 6                     # samples, whiskers, links
 CONTACT = slice(20, 30)                # samples in which whisker 1 touches with links 3–4
+POC = 0.5                              # ... at half its arc length: node 3, where link 3 starts
 PEG_VELOCITY = (0.0, -0.4, 0.0)
 
 
@@ -38,6 +39,8 @@ def small_trial() -> TrialOutput:
     wrench = (rng.normal(size=(T, W, 6)) * [1e-3, 1e-3, 1e-3, 1e-6, 1e-6, 1e-6]).astype(np.float32)
     contact = np.zeros((T, W, N), bool)
     contact[CONTACT, 1, 3:5] = True
+    poc = np.full((T, W), np.nan, np.float32)
+    poc[CONTACT, 1] = POC
     arc = np.linspace(0.0, 0.03, N + 1)
     nodes = np.zeros((T, W, N + 1, 3), np.float32)
     for w in range(W):
@@ -45,7 +48,7 @@ def small_trial() -> TrialOutput:
         nodes[:, w, :, 0] = arc * np.cos(angle)
         nodes[:, w, :, 1] = arc * np.sin(angle)
         nodes[:, w, :, 2] = 0.002 * w
-    return TrialOutput(time_s, wrench, contact, nodes, ["RC1", "RC2", "RD1"])
+    return TrialOutput(time_s, wrench, contact, nodes, ["RC1", "RC2", "RD1"], point_of_contact=poc)
 
 
 def small_scene() -> Scene:
@@ -115,12 +118,14 @@ def test_recording_content_reads_back(recording):
     assert all(len(step) == W and all(len(s) == N + 1 for s in step) for step in strips)
     np.testing.assert_allclose(np.array(strips[7][2]), output.node_positions_m[7, 2], atol=1e-7)
 
-    # contact points only while touching (two links of whisker 1)
+    # the point of contact only while touching (whisker 1), at node 3 (half the arc length)
     _, points = temporal_column(entities["/world/contact/points"], "Points3D:positions")
     counts = np.array([len(p) for p in points])
     expected = np.zeros(T, int)
-    expected[CONTACT] = 2
+    expected[CONTACT] = 1
     np.testing.assert_array_equal(counts, expected)
+    np.testing.assert_allclose(np.array(points[CONTACT.start][0]), output.node_positions_m[CONTACT.start, 1, 3],
+                               atol=1e-7)
 
     # the moving peg is translated by velocity·t
     times, translation = temporal_column(entities["/world/scene/cylinder_0"],
@@ -209,11 +214,12 @@ def test_write_time_of_a_full_array_trial(tmp_path):
     """60 whiskers × 250 samples × 21 nodes: well under a second (measured ≈ 0.07 s)."""
     rng = np.random.default_rng(0)
     t, w, links = 250, 60, 20
+    contact = rng.random((t, w, links)) < 0.01
     output = TrialOutput(np.arange(t) / 1000.0,
-                         rng.normal(size=(t, w, 6)).astype(np.float32) * 1e-4,
-                         rng.random((t, w, links)) < 0.01,
+                         rng.normal(size=(t, w, 6)).astype(np.float32) * 1e-4, contact,
                          rng.normal(size=(t, w, links + 1, 3)).astype(np.float32) * 0.01,
-                         [f"W{i}" for i in range(w)])
+                         [f"W{i}" for i in range(w)],
+                         point_of_contact=np.where(contact.any(axis=2), 0.5, np.nan).astype(np.float32))
     write_recording(tmp_path / "warmup.rrd", small_trial(), small_scene(), POSE, "warmup")
     start = time.perf_counter()
     write_recording(tmp_path / "full.rrd", output, small_scene(), POSE, "full")

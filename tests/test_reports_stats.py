@@ -17,8 +17,8 @@ from pipeline.datasets.writer import DatasetWriter, Layout, trial_arrays, whiske
 from pipeline.errors import UserError
 from pipeline.model.morphology import model_rat
 from pipeline.model.outputs import TrialOutput
-from pipeline.reports.stats import (FORCE_BINS_N, MOMENT_BINS_NM, Histogram, RunningCovariance, contact_runs,
-                                    poc_bins, stats_report)
+from pipeline.reports.stats import (FORCE_BINS_N, MOMENT_BINS_NM, POC_BINS, Histogram, RunningCovariance,
+                                    contact_runs, stats_report)
 
 REPO = Path(__file__).resolve().parents[1]
 NAMES = ["RA0", "RC2", "RB1", "LA0", "LE3", "LC1"]        # both sides, not in row/column order
@@ -40,7 +40,9 @@ def synthetic_output(rng: np.random.Generator, samples: int) -> TrialOutput:
     first = rng.integers(0, LINKS, size=(samples, w))
     contact = touching[..., None] & (np.arange(LINKS) >= first[..., None])
     nodes = rng.normal(size=(samples, w, LINKS + 1, 3)).astype(np.float32)
-    return TrialOutput(np.arange(1, samples + 1) / 1000.0, wrench.astype(np.float32), contact, nodes, NAMES)
+    poc = np.where(touching, (first + rng.uniform(size=(samples, w))) / LINKS, np.nan).astype(np.float32)
+    return TrialOutput(np.arange(1, samples + 1) / 1000.0, wrench.astype(np.float32), contact, nodes, NAMES,
+                       point_of_contact=poc)
 
 
 @pytest.fixture(scope="module")
@@ -90,6 +92,7 @@ def test_report_files_exist(report):
     assert pngs == sorted(Path(p).name for p in summary["figures"]) and len(pngs) == 8
     text = (out / "report.md").read_text()
     assert all(f"]({name})" in text for name in pngs)
+    assert "bins of 2 % of S" in text
     assert stats["trials"] == 6 and stats["trials_ok"] == 4 and stats["trials_failed"] == 1
     assert stats["trials_pending"] == 1
 
@@ -110,7 +113,7 @@ def test_histograms_match_numpy(dataset, report):
     _, stats, _ = report
     wrench = np.concatenate([o.base_wrench for o in outputs.values()])
     touching = np.concatenate([o.contact.any(axis=2) for o in outputs.values()])
-    poc = np.concatenate([o.point_of_contact() for o in outputs.values()])
+    poc = np.concatenate([o.point_of_contact for o in outputs.values()])
     m, ft = moment(wrench), transverse(wrench)
     assert stats["moment_magnitude"]["bin_edges_nm"] == MOMENT_BINS_NM.tolist()
     assert stats["transverse_force"]["bin_edges_n"] == FORCE_BINS_N.tolist()
@@ -122,8 +125,11 @@ def test_histograms_match_numpy(dataset, report):
             assert data["counts_in_contact"][w] == np.histogram(values[touching[:, w], w], edges)[0].tolist()
             assert data["underflow"][w] == int((values[:, w] < edges[0]).sum())
             assert data["overflow"][w] == int((values[:, w] > edges[-1]).sum())
-        expected = np.histogram(poc[touching[:, w], w], poc_bins(LINKS))[0]
+        expected = np.histogram(poc[touching[:, w], w], POC_BINS)[0]      # the stored POC, not the flags
         assert stats["point_of_contact"]["counts"][w] == expected.tolist()
+    assert stats["point_of_contact"]["bin_edges"] == np.linspace(0, 1, 51).tolist()
+    np.testing.assert_allclose(stats["point_of_contact"]["mean"],
+                               [poc[touching[:, w], w].astype(float).mean() for w in range(len(NAMES))], rtol=1e-12)
     assert sum(stats["moment_magnitude"]["underflow"]) > 0                   # the exact zeros
     np.testing.assert_allclose(stats["moment_magnitude"]["mean_nm"], m.mean(axis=0), rtol=1e-12)
 
@@ -184,7 +190,7 @@ def test_reads_one_trial_at_a_time(dataset, tmp_path, monkeypatch):
 
     monkeypatch.setattr(lazy, "read", guarded)
     assert stats_report(path, tmp_path, tmp_path / "out")["trials_used"] == 4
-    assert len(reads) == 2 * 4                     # base wrench and contacts of each ok trial
+    assert len(reads) == 3 * 4                     # base wrench, contacts and POC of each ok trial
 
 
 def test_a_dataset_without_ok_trials_is_refused(tmp_path):

@@ -44,7 +44,9 @@ def wave_outputs(speed_m_s: float, arc_length_m: float = 0.04, links: int = 20, 
     contact = np.zeros((samples, 1, links), bool)
     contact[contact_sample:, 0, contact_link] = True
     wrench = np.zeros((samples, 1, 6), np.float32)
-    make = lambda positions, touching: TrialOutput(time_s, wrench, touching, positions, ["W"])  # noqa: E731
+    make = lambda positions, touching: TrialOutput(  # noqa: E731
+        time_s, wrench, touching, positions, ["W"],
+        point_of_contact=np.where(touching.any(axis=2), contact_link / links, np.nan).astype(np.float32))
     return make(moved, contact), make(nodes, np.zeros_like(contact)), arc
 
 

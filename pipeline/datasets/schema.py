@@ -7,7 +7,8 @@ Every array and column names its dimensions; the file holds a coordinate variabl
 dimension (an HDF5 dimension scale, :data:`COORDINATES`), so netCDF readers (xarray with
 h5netcdf) see named dims. Bump ``SCHEMA_VERSION`` on any change a reader would notice;
 version 1 (no dimension scales, ``time_s``/``node_time_s`` for the time axes, no frames in the
-tables) is still read.
+tables) and version 2 (``point_of_contact`` = most proximal link in contact / links) are still
+read.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from pipeline.config.simulate import POSE_REJECTION_REASONS
 from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS
 
 SCHEMA = "whisker-pipeline/dataset"
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 DATA_FILE = "data.h5"
 CONFIG_FILE = "config.yaml"
 MANIFEST_FILE = "manifest.json"
@@ -48,7 +49,10 @@ ARRAYS: dict[str, ArraySpec] = {
         "1 if the link touched an obstacle during the sample interval (link 0 at the base)"),
     "point_of_contact": ArraySpec(
         ("trial", "time", "whisker"), "f4", "1", float("nan"),
-        "index of the most proximal link in contact / links (0 base ... 1 tip); NaN: no contact"),
+        "point of contact: arc length from the base to the closest point of the touching link to "
+        "the contact, as a fraction of the whisker's arc length S (0 base ... 1 tip; times "
+        "whiskers/arc_length_m: m); the most proximal contact at the last step of the sample "
+        "interval that had one; NaN: no contact"),
     "protraction_rad": ArraySpec(
         ("trial", "time"), "f4", "rad", float("nan"), "protraction angle theta(t) of the drive"),
     "node_positions_m": ArraySpec(

@@ -114,7 +114,7 @@ def trial_arrays(output: TrialOutput, protraction_rad: np.ndarray, layout: Layou
 
     arrays = {"base_wrench": padded("base_wrench", output.base_wrench),
               "contact": padded("contact", output.contact),
-              "point_of_contact": padded("point_of_contact", output.point_of_contact()),
+              "point_of_contact": padded("point_of_contact", output.point_of_contact),
               "protraction_rad": padded("protraction_rad", protraction_rad)}
     if layout.node_every:
         arrays["node_positions_m"] = padded("node_positions_m",

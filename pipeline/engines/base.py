@@ -46,18 +46,18 @@ class WorldResult:
 
     wrench: np.ndarray            # [T, w, 6] N and N·m, whisker frame
     contact: np.ndarray           # [T, w, N] link in penetrating contact during the sample
+    point_of_contact: np.ndarray  # [T, w] arc length fraction of S, NaN: none (ContactFlags)
     nodes: np.ndarray             # [T, w, N+1, 3] m, world frame
     touched: np.ndarray           # [w] any contact at all, even one not flagged
     jammed: dict[int, str] = field(default_factory=dict)     # whisker index → why
 
     @classmethod
     def zeros(cls, samples: int, whiskers: int, links: int) -> "WorldResult":
-        wrench, contact, nodes = empty_signals(samples, whiskers, links)
-        return cls(wrench, contact, nodes, np.zeros(whiskers, bool))
+        return cls(*empty_signals(samples, whiskers, links), np.zeros(whiskers, bool))
 
     def put(self, whiskers, other: "WorldResult", columns=slice(None)) -> None:
         """Copy ``other``'s whiskers ``columns`` into this result's ``whiskers``."""
-        for name in ("wrench", "contact", "nodes", "touched"):
+        for name in ("wrench", "contact", "point_of_contact", "nodes", "touched"):
             target = getattr(self, name)
             if target.ndim == 1:
                 target[whiskers] = getattr(other, name)[columns]
@@ -178,7 +178,8 @@ class Engine(ABC):
                     "wall_seconds": time.perf_counter() - start_wall,
                     "cpu_seconds": time.process_time() - start_cpu,
                     "build_seconds": self.build_seconds}
-        return TrialOutput(times, result.wrench, result.contact, result.nodes, self.array.names, metadata)
+        return TrialOutput(times, result.wrench, result.contact, result.nodes, self.array.names, metadata,
+                           point_of_contact=result.point_of_contact)
 
     def _refine(self, k: int, dt_s: float, message: str, setup: TrialSetup) -> tuple[WorldResult, int, int]:
         """Whisker k alone with half the step, again while it jams: (its result, halvings, steps)."""

@@ -139,7 +139,8 @@ class BulletWhisker:
         self.link_com = chain.link_com_m * U.LENGTH
         self.link1_com = self.link_com[0]
         self.link1_angle = chain.link_angles_rad[0]
-        self.tip_offset = chain.link_lengths_m[-1] * U.LENGTH
+        self.link_lengths = (chain.link_lengths_m * U.LENGTH).tolist()
+        self.tip_offset = self.link_lengths[-1]
         self.local_link = {link: i for i, link in enumerate(self.whisker_links)}
         self._lhs_inverse, self._factorised_at = None, None
 
@@ -255,6 +256,18 @@ class BulletWhisker:
             for axis, state in zip(reversed(self.follicle_axes), reversed(states)):
                 rotation = axis_rotation(axis, state[0]) @ rotation
         return np.concatenate([rotation @ force / U.FORCE, rotation @ moment / U.TORQUE])
+
+    def link_nodes(self, i: int) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """Proximal and distal node of whisker link i, world frame, mm (internal units). Plain
+        floats: it runs for every contact point of every step (numpy's call overhead tripled it)."""
+        import pybullet as p
+
+        state = p.getLinkState(self.body, self.whisker_links[i], computeForwardKinematics=True,
+                               physicsClientId=self.client)
+        (px, py, pz), (x, y, z, w) = state[4], state[5]
+        length = self.link_lengths[i]              # along the link frame's x axis, R(q)·(1, 0, 0):
+        return (px, py, pz), (px + length * (1 - 2 * (y * y + z * z)), py + length * 2 * (x * y + w * z),
+                              pz + length * 2 * (x * z - w * y))
 
     def node_positions(self) -> np.ndarray:
         """[N+1, 3] node positions, world frame, m."""

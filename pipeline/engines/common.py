@@ -1,10 +1,10 @@
 """Checks and bookkeeping shared by the engines (SI at the interface).
 
 Every engine validates a trial the same way (:func:`start_trial`), flags the same whiskers
-as non-physical (:func:`implausible`, :func:`jam_message`) and ORs per-step contacts into
-per-sample flags the same way (:class:`ContactFlags`). What a whisker can reach
-(:func:`link_reach_m`, :func:`clearance_m`) lets an engine skip the collision tests of links
-that cannot touch anything and reuse the motion of whiskers that touch nothing
+as non-physical (:func:`implausible`, :func:`jam_message`) and turns per-step contacts into
+per-sample flags and points of contact the same way (:class:`ContactFlags`). What a whisker
+can reach (:func:`link_reach_m`, :func:`clearance_m`) lets an engine skip the collision tests
+of links that cannot touch anything and reuse the motion of whiskers that touch nothing
 (:class:`FreeMotion`).
 """
 
@@ -88,10 +88,12 @@ def output_samples(duration_s: float, output_rate_hz: float) -> int:
     return samples
 
 
-def empty_signals(samples: int, whiskers: int, links: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Zeroed outputs of a trial: base wrench [T, W, 6] float32, contact flags [T, W, N] bool,
-    node positions [T, W, N+1, 3] float32."""
+def empty_signals(samples: int, whiskers: int, links: int) -> tuple[np.ndarray, ...]:
+    """Outputs of a trial before any step: base wrench [T, W, 6] float32 (zeros), contact flags
+    [T, W, N] bool (False), point of contact [T, W] float32 (NaN: none), node positions
+    [T, W, N+1, 3] float32 (zeros)."""
     return (np.zeros((samples, whiskers, 6), np.float32), np.zeros((samples, whiskers, links), bool),
+            np.full((samples, whiskers), np.nan, np.float32),
             np.zeros((samples, whiskers, links + 1, 3), np.float32))
 
 
@@ -110,21 +112,65 @@ def jam_message(name: str, wrench: np.ndarray, time_s: float) -> str:
     return f"non-physical base moment {moment:.3g} N·m on {name} at t = {time_s:.4f} s"
 
 
+def node_arc_fractions(whiskers) -> np.ndarray:
+    """[W, N+1] arc length from the base point to each node as a fraction of the whisker's
+    (the chain's cumulative link lengths over their sum: 0 at the base, 1 at the tip)."""
+    lengths = np.array([w.chain.link_lengths_m for w in whiskers], float)
+    cumulative = np.concatenate([np.zeros((len(lengths), 1)), np.cumsum(lengths, axis=1)], axis=1)
+    return cumulative / cumulative[:, -1:]
+
+
+def arc_fraction_on_link(points: np.ndarray, proximal: np.ndarray, distal: np.ndarray,
+                         start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """[P] arc length fraction of the point of a link closest to each contact point: ``points``
+    [P, 3] projected onto the axis from the link's ``proximal`` to its ``distal`` node [P, 3]
+    (current positions, any one length unit), clamped to the link; ``start``, ``end`` [P] the
+    nodes' arc fractions (a link is straight: s = s_i + t·l_i)."""
+    axis = distal - proximal
+    t = ((points - proximal) * axis).sum(axis=1) / (axis * axis).sum(axis=1)
+    return start + np.minimum(np.maximum(t, 0.0), 1.0) * (end - start)     # np.clip: 2× the time
+
+
 class ContactFlags:
-    """Per-link contact flags of W whiskers × N links, ORed over the steps of one output interval."""
+    """What W whiskers × N links touched during one output interval: per-link flags ORed over
+    the interval's steps, and each whisker's point of contact (POC).
 
-    def __init__(self, whiskers: int, links: int):
+    POC: the arc length fraction (0 base … 1 tip) of the most proximal of the whisker's contact
+    points at the last step of the interval that had any, each point taken as the closest point
+    of its link to it (:func:`arc_fraction_on_link`); NaN without contact. The last step, not a
+    mean over the interval: the sample's base wrench and node positions are read at its end,
+    so the POC describes the same instant (a slip toward the tip shows in the sample it ends
+    in), and it is never a position between two contacts that no step had.
+    """
+
+    def __init__(self, node_fractions: np.ndarray):
+        """``node_fractions`` [W, N+1]: :func:`node_arc_fractions` of the whiskers."""
+        self.node_fractions = node_fractions
+        whiskers, links = node_fractions.shape[0], node_fractions.shape[1] - 1
         self.touching = np.zeros((whiskers, links), bool)
+        self.point_of_contact = np.full(whiskers, np.nan)
 
-    def add(self, flat_links: np.ndarray) -> None:
-        """Mark links (flat indices whisker·N + link) touched during the current step."""
+    def add(self, flat_links: np.ndarray, points: np.ndarray, proximal: np.ndarray,
+            distal: np.ndarray) -> None:
+        """The contacts of the current step: per contact its link (flat index whisker·N + link),
+        its contact point and its link's proximal and distal node [P, 3] (one length unit)."""
+        if not len(flat_links):
+            return
         self.touching.flat[flat_links] = True
+        whisker, link = np.divmod(flat_links, self.touching.shape[1])
+        fraction = arc_fraction_on_link(points, proximal, distal, self.node_fractions[whisker, link],
+                                        self.node_fractions[whisker, link + 1])
+        proximal_most = np.full(len(self.point_of_contact), np.inf)
+        np.minimum.at(proximal_most, whisker, fraction)
+        this_step = np.isfinite(proximal_most)
+        self.point_of_contact[this_step] = proximal_most[this_step]
 
-    def take(self) -> np.ndarray:
-        """The flags of the interval that just ended; starts a new interval."""
-        flags = self.touching.copy()
+    def take(self) -> tuple[np.ndarray, np.ndarray]:
+        """The flags [W, N] and POC [W] (float32) of the interval that just ended; starts a new one."""
+        flags, poc = self.touching.copy(), self.point_of_contact.astype(np.float32)
         self.touching[:] = False
-        return flags
+        self.point_of_contact[:] = np.nan
+        return flags, poc
 
 
 def link_reach_m(whiskers) -> np.ndarray:

@@ -81,6 +81,11 @@ are computed every step from the links' current state (MuJoCo's kinematics and c
 velocities, recomputed before the step) and applied as ``xfrc_applied`` at the links' centres
 of mass, so the implicit step sees them.
 
+Point of contact. At a step with contacts, each penetrating contact's point (``contact.pos``,
+midway between the surfaces) is projected onto its link's axis between the link's nodes at
+the step's start and turned into an arc length fraction of S; a sample keeps the most
+proximal one of its last step with contacts (:class:`~pipeline.engines.common.ContactFlags`).
+
 Independence. Each whisker is its own kinematic tree and, touching a static obstacle, its own
 constraint island: its result does not depend on which others are simulated with it (bit for
 bit, for pegs and edges; with a mesh the cropped face set, hence the contact order, depends on
@@ -96,7 +101,8 @@ import numpy as np
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, TrialSetup, World, WorldResult
-from pipeline.engines.common import ContactFlags, implausible, jam_message, link_reach_m, path_distance_m
+from pipeline.engines.common import (ContactFlags, implausible, jam_message, link_reach_m, node_arc_fractions,
+                                     path_distance_m)
 from pipeline.engines.stepping import damping_folds, folded_refinement_levels
 from pipeline.errors import SimulationError
 from pipeline.model.array import ArrayModel, WhiskerModel
@@ -230,6 +236,7 @@ class MujocoWorld(World):
         super().__init__(whiskers, config, dt_s)
         self.links = whiskers[0].chain.links
         self.link_reach_m = link_reach_m(whiskers)                 # [w, N]
+        self.node_fractions = node_arc_fractions(whiskers)         # [w, N+1]
         self._prisms = prisms
         self._built_key: object = None
         self._build([], np.arange(len(whiskers)))
@@ -382,6 +389,7 @@ class MujocoWorld(World):
                           for j in self.whiskers[k].layout.at_node(0)] for k in members]
         self.link_bodies = np.array([[named(body, f"w{k}/l{i}") for i in range(self.links)]
                                      for k in members])
+        self.link_lengths_mm = np.array([self.whiskers[k].chain.link_lengths_m for k in members]) * U.LENGTH
 
         def joints(b):
             return np.arange(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
@@ -520,7 +528,7 @@ class MujocoWorld(World):
         slide_rate = np.concatenate([np.zeros(self.n_driven), self.obstacle_velocity])
         targets = offset + theta_rate * thetas[1:, None] + slide_rate * times[1:, None]   # [step, kinematic]
         result = WorldResult.zeros(setup.samples, n_w, self.links)
-        flags = ContactFlags(n_w, self.links)
+        flags = ContactFlags(self.node_fractions[self.members])
         held = np.zeros(n_w, bool)
         loaded = [k for k in range(n_w) if setup.loads[k]]
         sensor_bit = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
@@ -543,9 +551,9 @@ class MujocoWorld(World):
             if bad_acceleration.number:
                 self._blown_up(step * h)
             if records:
-                self._record(result, sample - 1, flags.take(), time_s=step * h)
+                self._record(result, sample - 1, *flags.take(), time_s=step * h)
             if d.ncon:
-                flags.add(self._touched())
+                flags.add(*self._touched())
                 links = self.link_of_geom[d.contact.geom]
                 result.touched[links[links >= 0] // self.links] = True
                 if setup.hold_on_contact:
@@ -567,11 +575,20 @@ class MujocoWorld(World):
         raise _Jam({int(self.members[j]): f"non-finite acceleration on {self.whiskers[self.members[j]].name} "
                     f"at t = {time_s:.4f} s" for j in members[members >= 0]})
 
-    def _touched(self) -> np.ndarray:
-        """Flat link indices (whisker·N + link) in penetrating contact at the current step."""
-        contact = self.data.contact
-        links = self.link_of_geom[contact.geom[contact.dist <= 0.0]]
-        return links[links >= 0]
+    def _touched(self) -> tuple[np.ndarray, ...]:
+        """The penetrating contacts of the current step: their links (flat indices whisker·N +
+        link), contact points (midway between the surfaces) and their links' proximal and
+        distal nodes (mm; MuJoCo's contacts and positions are both those at the step's start)."""
+        d = self.data
+        contact = d.contact
+        pressed = contact.dist <= 0.0
+        links = self.link_of_geom[contact.geom[pressed]].max(axis=1)   # the pair's whisker link, or −1
+        mine = links >= 0
+        links = links[mine]
+        bodies = self.link_bodies.ravel()[links]
+        proximal = d.xpos[bodies]
+        distal = proximal + d.xmat[bodies][:, 0::3] * self.link_lengths_mm.ravel()[links, None]
+        return links, contact.pos[pressed][mine], proximal, distal
 
     def _apply_loads(self, loads, loaded: list[int]) -> None:
         """The loads' per-link forces on members ``loaded`` at the current state, as wrenches
@@ -598,8 +615,10 @@ class MujocoWorld(World):
             d.xfrc_applied[bodies, :3] = force * U.FORCE
             d.xfrc_applied[bodies, 3:] = torque * U.TORQUE
 
-    def _record(self, result: WorldResult, sample: int, contact: np.ndarray, time_s: float) -> None:
-        """Base wrench (SI, whisker frame), node positions (m) and contact flags of one sample."""
+    def _record(self, result: WorldResult, sample: int, contact: np.ndarray, point_of_contact: np.ndarray,
+                time_s: float) -> None:
+        """Base wrench (SI, whisker frame), node positions (m), contact flags and points of
+        contact of one sample."""
         d = self.data
         wrench = d.sensordata.reshape(-1, 2, 3).copy()          # [w, (force, torque), 3], site frame
         for k, hinges in enumerate(self.follicle):
@@ -612,6 +631,7 @@ class MujocoWorld(World):
         nodes = np.concatenate([d.xpos[self.link_bodies], d.site_xpos[self.tip_sites][:, None]], axis=1)
         result.nodes[sample] = nodes / U.LENGTH
         result.contact[sample] = contact
+        result.point_of_contact[sample] = point_of_contact
         bad = implausible(result.wrench[sample])
         if bad.size:
             raise _Jam({int(self.members[j]): jam_message(self.whiskers[self.members[j]].name,

@@ -1,5 +1,5 @@
-"""A dataset version as one NWB file (pynwb): base signals, contacts and drive as time series,
-the whisker and trial tables, and the run's provenance.
+"""A dataset version as one NWB file (pynwb): base signals, contacts, points of contact and
+drive as time series, the whisker and trial tables, and the run's provenance.
 
 One file per dataset, not per trial: NWB's unit is the session, and its tools (pynwb's
 ``nwbfile.trials``, NWB widgets, DANDI) expect the trials of a session as rows of the trials
@@ -129,6 +129,13 @@ def build_nwbfile(data: DatasetTrials):
         description="1 if the link touched an obstacle during the sample interval, else 0; time × whisker × "
                     "link (link 0 at the base … N-1 at the tip); whiskers in the order of the 'whiskers' table"))
     nwbfile.add_acquisition(TimeSeries(
+        name="point_of_contact", data=H5DataIO(_concatenated(data.point_of_contact), compression="gzip"),
+        unit="1", rate=rate, starting_time=float(data.time_s[0]),
+        description="point of contact: arc length from the base to the closest point of the touching link to "
+                    "the contact, as a fraction of the whisker's arc length S (0 base … 1 tip; times the "
+                    "'whiskers' table's arc_length_m: m), the most proximal contact at the last simulation "
+                    "step of the sample interval that had one; NaN without contact; time × whisker"))
+    nwbfile.add_acquisition(TimeSeries(
         name="protraction", data=H5DataIO(_concatenated(data.protraction_rad), compression="gzip"), unit="rad",
         rate=rate, starting_time=float(data.time_s[0]),
         description="protraction angle θ(t) of the whisk drive, rad (docs/model.md §4)"))
@@ -151,7 +158,7 @@ def write_nwb(data: DatasetTrials, path: str | Path) -> dict[str, Any]:
         io.write(build_nwbfile(data))
     return {"dataset": data.label, "nwb": str(path), "trials": len(data.indices),
             "whiskers": len(data.whisker_names), "sampling_rate_hz": data.sampling_rate_hz,
-            "series": [*SIGNALS, "contact", "protraction"], "size_mb": round(path.stat().st_size / 1e6, 3)}
+            "series": [*SIGNALS, "contact", "point_of_contact", "protraction"], "size_mb": round(path.stat().st_size / 1e6, 3)}
 
 
 def export_nwb(target: str | Path, root: str | Path | None = None, trials: Optional[str] = None,

@@ -35,6 +35,7 @@ class DatasetTrials:
     time_s: np.ndarray                # [T] s, sample i at (i+1)/rate
     base_wrench: np.ndarray           # [K, T, W, 6] float32, N and N·m, whisker frame (Fx Fy Fz Mx My Mz)
     contact: np.ndarray               # [K, T, W, N] uint8, link touched during the sample interval
+    point_of_contact: np.ndarray      # [K, T, W] float32, arc length fraction of S (NaN: no contact)
     protraction_rad: np.ndarray       # [K, T] float32, rad, drive angle θ(t)
     node_positions_m: Optional[np.ndarray]   # [K, Tn, W, N+1, 3] float32, m, world frame, or None
     node_every: int                   # node positions every k-th sample (0: not stored)
@@ -106,6 +107,7 @@ def read_trials(target: str | Path, root: str | Path | None = None,
             sampling_rate_hz=float(ds.attrs["sampling_rate_hz"]), time_s=np.asarray(ds.time_s),
             base_wrench=np.stack([t["base_wrench"] for t in picked]),
             contact=np.stack([t["contact"] for t in picked]),
+            point_of_contact=np.stack([t["point_of_contact"] for t in picked]),
             protraction_rad=np.stack([t["protraction_rad"] for t in picked]),
             node_positions_m=np.stack([t["node_positions_m"] for t in picked]) if node_every else None,
             node_every=node_every,

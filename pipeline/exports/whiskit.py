@@ -26,6 +26,8 @@ wrote Bullet's joint feedback on its base body (the reaction, in its world frame
 the two therefore agree only up to that rotation and sign; the magnitudes |F| and |M| compare
 directly. Link centres come from the dataset's world-frame node positions and are written only
 when the dataset stores them at every sample (``dataset.node_positions_every: 1``).
+The layout has no point of contact (the original derived it from ``c``), so the dataset's
+``point_of_contact`` is not written; ``c`` carries the same per-link flags as the dataset.
 """
 
 from __future__ import annotations

@@ -27,6 +27,10 @@ class TrialOutput:
     node_positions_m: np.ndarray     # [T, W, N+1, 3] float32, world frame
     whisker_names: list[str]
     metadata: dict = field(default_factory=dict)   # engine, dt, timings, counts
+    # [T, W] float32, point of contact: arc length fraction of S (0 base … 1 tip) of the most
+    # proximal contact point at the last step of the sample interval that had a contact, each
+    # point taken as the closest point of its link (engines.common.ContactFlags); NaN: none
+    point_of_contact: np.ndarray = field(kw_only=True)
 
     @property
     def sample_rate_hz(self) -> float:
@@ -42,11 +46,20 @@ class TrialOutput:
 
         return self.whisker_names.index(canonical_name(name))
 
-    def point_of_contact(self) -> np.ndarray:
-        """[T, W] most proximal link in contact / N (0 base … 1 tip); NaN without contact."""
-        touching = self.contact.any(axis=2)
-        first = np.argmax(self.contact, axis=2).astype(np.float32) / self.links
-        return np.where(touching, first, np.nan).astype(np.float32)
+    def contact_points_m(self) -> np.ndarray:
+        """[T, W, 3] where the point of contact is on the node polyline (world frame, m): the
+        point at that arc length fraction of the links; NaN without contact."""
+        nodes = self.node_positions_m.astype(np.float64)
+        lengths = np.linalg.norm(np.diff(nodes, axis=2), axis=-1)                # [T, W, N]
+        ends = np.cumsum(lengths, axis=2)
+        arc = np.nan_to_num(self.point_of_contact, nan=-1.0)[..., None] * ends[..., -1:]
+        link = np.minimum((arc > ends).sum(axis=2, keepdims=True), self.links - 1)   # [T, W, 1]
+        start = np.take_along_axis(ends - lengths, link, axis=2)
+        along = (arc - start) / np.take_along_axis(lengths, link, axis=2)
+        proximal = np.take_along_axis(nodes, link[..., None], axis=2)[:, :, 0]
+        distal = np.take_along_axis(nodes, link[..., None] + 1, axis=2)[:, :, 0]
+        points = proximal + along * (distal - proximal)
+        return np.where(np.isnan(self.point_of_contact)[..., None], np.nan, points)
 
     def whiskers_in_contact(self) -> int:
         """How many whiskers touched something at least once during the trial."""

@@ -6,7 +6,8 @@ Entity layout (all positions in metres, world frame, timeline ``sim_time`` in se
   translation ``velocity·t``),
 - ``world/head``: head pose (transform, axes, an ellipsoid standing for the snout),
 - ``world/whiskers``: one line strip per whisker per sample, orange while touching,
-- ``world/contact/links`` and ``world/contact/points``: links in contact and their midpoints,
+- ``world/contact/links`` and ``world/contact/points``: links in contact and each touching
+  whisker's point of contact (``TrialOutput.contact_points_m``),
 - ``signals/<whisker>/force`` (Fx, Fy, Fz in N), ``signals/<whisker>/moment`` (Mx, My, Mz in
   N·m, whisker frame) and ``signals/<whisker>/moment_magnitude`` (|M| in N·m).
 
@@ -225,7 +226,7 @@ def _log_whiskers(rec, output: TrialOutput) -> None:
                                         colors=colours.reshape(-1)).partition([W] * T),
         strict=True)
 
-    # Links in contact, drawn over the whiskers, and their midpoints.
+    # Links in contact, drawn over the whiskers, and the points of contact.
     t_idx, w_idx, l_idx = np.nonzero(contact)                              # sorted by time
     per_step = np.bincount(t_idx, minlength=T)
     segments = np.stack([nodes[t_idx, w_idx, l_idx], nodes[t_idx, w_idx, l_idx + 1]], axis=1)
@@ -238,9 +239,11 @@ def _log_whiskers(rec, output: TrialOutput) -> None:
     rec.log("world/contact/points", rr.Points3D.from_fields(radii=[rr.Radius.ui_points(4.0)],
                                                            colors=[CONTACT_LINK_COLOUR]),
             static=True, strict=True)
+    points = output.contact_points_m()                                     # [T, W, 3]
+    shown = ~np.isnan(points[..., 0])
     rec.send_columns("world/contact/points", indexes=[times],
-                     columns=rr.Points3D.columns(positions=segments.mean(axis=1).reshape(-1, 3))
-                     .partition(per_step), strict=True)
+                     columns=rr.Points3D.columns(positions=points[shown].astype(np.float32))
+                     .partition(shown.sum(axis=1)), strict=True)
 
 
 def _series_names(kind: slice) -> list[str]:

@@ -99,7 +99,7 @@ def run_scenes(config: ModelConfig, quick: bool, mesh: Path | None,
         order = display_order(output.whisker_names)
         runs[key] = {"scene": scene.name, "note": note, "time_s": output.time_s,
                      "names": [output.whisker_names[i] for i in order],
-                     "touching": output.contact.any(axis=2)[:, order], "poc": output.point_of_contact()[:, order],
+                     "touching": output.contact.any(axis=2)[:, order], "poc": output.point_of_contact[:, order],
                      "moment": output.moment_magnitude()[:, order], "signal_whisker": SIGNAL_WHISKER,
                      "signals": output.base_wrench[:, output.index(SIGNAL_WHISKER)]
                      if SIGNAL_WHISKER in output.whisker_names else None}

@@ -1,12 +1,14 @@
 """Natural tactile statistics of a dataset (``pipeline stats``), streamed one ok trial at a time.
 
-Each ok trial's valid samples are read (base wrench and contact flags; the POC follows from
-the flags, as stored), folded into running sums (:class:`Tally`: counts, log-binned histograms,
+Each ok trial's valid samples are read (base wrench, contact flags and the stored point of
+contact), folded into running sums (:class:`Tally`: counts, log-binned histograms,
 a merged covariance) per scene and then dropped, so memory does not grow with the number of
 trials. Per-scene tallies merge into the
 scene classes (the part of the scene name before ``:``) and into the whole dataset.
 
-A whisker is *in contact* at a sample when any of its links is. Moment magnitude
+A whisker is *in contact* at a sample when any of its links is; its point of contact (POC,
+arc length fraction of S, docs/dataset.md) is binned on :data:`POC_BINS` whatever the number
+of links. Moment magnitude
 M = √(Mx² + My² + Mz²) (eq. 10), transverse force F_t = √(Fy² + Fz²) (eq. 7); both are binned
 on fixed log-spaced edges (10 per decade) so that reports of different datasets compare;
 values below the first edge (M = 0 included) count as underflow, above the last as overflow.
@@ -26,12 +28,8 @@ from pipeline.errors import UserError
 
 MOMENT_BINS_NM = np.logspace(-12, -3, 91)
 FORCE_BINS_N = np.logspace(-10, -1, 91)
+POC_BINS = np.linspace(0.0, 1.0, 51)       # 2 % of the arc length S per bin
 DEFAULT_OUT = Path("reports/stats")
-
-
-def poc_bins(links: int) -> np.ndarray:
-    """Edges centred on the POC values k/N (k = 0 … N−1) of a whisker with ``links`` links."""
-    return (np.arange(links + 1) - 0.5) / links
 
 
 def moment_magnitude(wrench: np.ndarray) -> np.ndarray:
@@ -132,7 +130,6 @@ class Tally:
     """Running sums of the statistics over the trials of one scene (or merged over several)."""
 
     whiskers: int
-    links: int
     samples: int                  # longest trial: bound of a contact run
     trials: int = 0
     valid_samples: int = 0
@@ -142,6 +139,7 @@ class Tally:
     runs_per_whisker: np.ndarray = field(init=False)
     run_samples_per_whisker: np.ndarray = field(init=False)
     moment_in_contact_sum: np.ndarray = field(init=False)   # Σ M over in-contact samples
+    poc_sum: np.ndarray = field(init=False)                 # Σ POC over in-contact samples
     force_sum: np.ndarray = field(init=False)
 
     def __post_init__(self):
@@ -152,16 +150,18 @@ class Tally:
         self.runs_per_whisker = np.zeros(w, np.int64)
         self.run_samples_per_whisker = np.zeros(w, np.int64)
         self.moment_in_contact_sum = np.zeros(w)
+        self.poc_sum = np.zeros(w)
         self.force_sum = np.zeros(w)
         self.moment = Histogram.empty(MOMENT_BINS_NM, w)
         self.moment_contact = Histogram.empty(MOMENT_BINS_NM, w)
         self.force = Histogram.empty(FORCE_BINS_N, w)
         self.force_contact = Histogram.empty(FORCE_BINS_N, w)
-        self.poc = Histogram.empty(poc_bins(self.links), w)
+        self.poc = Histogram.empty(POC_BINS, w)
         self.moment_cov = RunningCovariance.empty(w)
 
     def add_trial(self, wrench: np.ndarray, touching: np.ndarray, poc: np.ndarray) -> None:
-        """One trial's valid samples: wrench [T, W, 6], touching [T, W], POC [T, W] (NaN: none)."""
+        """One trial's valid samples: wrench [T, W, 6], touching [T, W], POC [T, W] (NaN: none;
+        counted where touching)."""
         m, ft = moment_magnitude(wrench), transverse_force(wrench)
         self.trials += 1
         self.valid_samples += len(touching)
@@ -177,12 +177,14 @@ class Tally:
         self.moment_contact.add(np.where(touching, m, np.nan))
         self.force.add(ft)
         self.force_contact.add(np.where(touching, ft, np.nan))
-        self.poc.add(np.where(touching, poc, np.nan))
+        poc = np.where(touching, np.asarray(poc, np.float64), np.nan)
+        self.poc.add(poc)
+        self.poc_sum += np.nansum(poc, axis=0)
         self.moment_cov.add(m)
 
     def __iadd__(self, other: "Tally") -> "Tally":
         for name in ("trials", "valid_samples", "contact_samples", "in_contact", "runs", "runs_per_whisker",
-                     "run_samples_per_whisker", "moment_in_contact_sum", "force_sum"):
+                     "run_samples_per_whisker", "moment_in_contact_sum", "poc_sum", "force_sum"):
             setattr(self, name, getattr(self, name) + getattr(other, name))
         for name in ("moment", "moment_contact", "force", "force_contact", "poc", "moment_cov"):
             mine = getattr(self, name)
@@ -226,26 +228,23 @@ def array_order(rows: np.ndarray, cols: np.ndarray, sides: np.ndarray) -> np.nda
 def read_tallies(ds) -> dict[str, Tally]:
     """One :class:`Tally` per scene over the ok trials of the open dataset ``ds``, read one trial
     at a time (only its valid samples)."""
-    names, links = ds.whiskers["name"], int(ds.attrs["links"])
-    samples = int(ds.attrs["samples"])
-    wrench, contact = ds.base_wrench, ds.contact
+    names, samples = ds.whiskers["name"], int(ds.attrs["samples"])
+    wrench, contact, point_of_contact = ds.base_wrench, ds.contact, ds.point_of_contact
     tallies: dict[str, Tally] = {}
     for i in ds.ok:
         i = int(i)
         n = int(ds.trials["samples"][i]) or samples
         window = dict(trial=i, time=slice(0, n))
-        links_touching = contact.isel(**window).values.astype(bool)
-        touching = links_touching.any(axis=2)
-        poc = np.where(touching, np.argmax(links_touching, axis=2) / links, np.nan)
+        touching = contact.isel(**window).values.astype(bool).any(axis=2)
         scene = str(ds.trials["scene"][i])
-        tally = tallies.setdefault(scene, Tally(len(names), links, samples))
-        tally.add_trial(wrench.isel(**window).values, touching, poc)
+        tally = tallies.setdefault(scene, Tally(len(names), samples))
+        tally.add_trial(wrench.isel(**window).values, touching, point_of_contact.isel(**window).values)
     return tallies
 
 
 def merged(tallies) -> Tally:
     tallies = list(tallies)
-    total = Tally(tallies[0].whiskers, tallies[0].links, tallies[0].samples)
+    total = Tally(tallies[0].whiskers, tallies[0].samples)
     for tally in tallies:
         total += tally
     return total
@@ -259,11 +258,11 @@ def statistics(tallies: dict[str, Tally], whiskers: dict, rate_hz: float) -> dic
     corr = total.moment_cov.correlation()
     classes: dict[str, Tally] = {}
     for scene, tally in tallies.items():
-        classes.setdefault(scene_class(scene), Tally(tally.whiskers, tally.links, tally.samples))
+        classes.setdefault(scene_class(scene), Tally(tally.whiskers, tally.samples))
         classes[scene_class(scene)] += tally
     with np.errstate(invalid="ignore", divide="ignore"):
         mean_run = total.run_samples_per_whisker / total.runs_per_whisker / rate_hz
-        poc_mean = (total.poc.counts @ (np.arange(total.links) / total.links)) / total.poc.counts.sum(axis=1)
+        poc_mean = total.poc_sum / total.poc.counts.sum(axis=1)
     all_probability = total.contact_probability
     return {
         "valid_samples": total.valid_samples, "sampling_rate_hz": rate_hz,

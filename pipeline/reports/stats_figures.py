@@ -109,7 +109,7 @@ def poc_figure(stats: dict, path: Path) -> Path:
                                False)
     fig.colorbar(image, ax=axes[0], label="log10 fraction of the whisker's contacts", shrink=0.6)
     axes[1].bar((edges[:-1] + edges[1:]) / 2, np.asarray(data["counts"]).sum(axis=0), width=np.diff(edges))
-    axes[1].set_xlabel("POC")
+    axes[1].set_xlabel("POC (fraction of the arc length S)")
     axes[1].set_ylabel("in-contact samples, all whiskers")
     fig.suptitle("point of contact")
     return _save(fig, path)
@@ -233,7 +233,9 @@ def write_report(stats: dict, figures: list[Path], path: Path) -> Path:
                   f"{_top(stats['contact_probability'], names)}.")
     doc.image("contact probability", figure["contact_probability"])
     doc.heading("Point of contact")
-    doc.paragraph("POC = most proximal link in contact / N (0 base, 1 tip), over in-contact steps. Mean POC: "
+    doc.paragraph("POC = arc length fraction of S where the whisker touches (0 base, 1 tip; docs/dataset.md), "
+                  f"over in-contact samples, bins of {100 * np.diff(stats['point_of_contact']['bin_edges'])[0]:.3g} % "
+                  "of S. Mean POC: "
                   f"{_top(stats['point_of_contact']['mean'], names)} (highest).")
     doc.image("point of contact", figure["point_of_contact"])
     for key, unit, suffix, name in (("moment_magnitude", "N·m", "nm", "moment_histograms"),
