@@ -26,7 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.diagnosis.drives import base_motion
-from pipeline.diagnosis.linear import PAIRS, LinearWhisker, linearise
+from pipeline.diagnosis.linear import LinearWhisker, linearise
+from pipeline.model.base_motion import PAIRS
 from pipeline.measurements.timeseries import ReleaseDrive, Trial
 
 MAX_SUBSTEPS = 10

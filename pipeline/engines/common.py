@@ -32,6 +32,17 @@ def start_trial(array, scene, pose: Pose, drive, duration_s: float, output_rate_
     return output_samples(duration_s, output_rate_hz), initial
 
 
+def start_rate(drive, dt_s: float) -> float:
+    """The drive's rate θ̇ (rad/s) to start the driven joints with in the engines' step of size
+    ``dt_s`` (v ← v + h·a, q ← q + h·v: a velocity is the mean over the step before it, and a
+    driven joint lands on θ(t + h) with a = ((θ(t + h) − q)/h − v)/h): the drive's cubic at t = 0
+    differenced over the step before, θ̇ − h·θ̈/2 + h²·θ⃛/6. Started with θ̇(0) instead, the first
+    step accelerates the base by half the drive's θ̈(0) and the next by 1.5 times it, a kick
+    that short whiskers ring with (≈ h·ω₁/2 of their quasi-steady bend)."""
+    rate, acceleration, jerk = (float(drive(0.0, d)) for d in (1, 2, 3))
+    return rate - dt_s * acceleration / 2 + dt_s ** 2 * jerk / 6
+
+
 def check_pose(pose: Pose) -> None:
     """Raise :class:`UserError` for a head pose with non-finite values."""
     if not (np.all(np.isfinite(pose.position_m)) and np.all(np.isfinite(pose.euler_zyx_rad))):
