@@ -9,6 +9,10 @@ for a whisker that touches nothing, the largest change between consecutive sampl
 moment (or force) vector that touches the first or the last two samples — ‖x₁ − x₀‖, ‖x₂ − x₁‖,
 ‖x_{T−2} − x_{T−3}‖, ‖x_{T−1} − x_{T−2}‖ — is at most :data:`EDGE_JUMP_LIMIT` times the largest
 change elsewhere (:func:`edge_jump_ratios`).
+
+The writer refuses ``ok`` to a trial with non-finite values (:class:`~pipeline.datasets.writer.
+DatasetWriter`); ``pipeline datasets show --verify`` reports both checks over a dataset
+(:func:`scan`).
 """
 
 from __future__ import annotations
@@ -59,3 +63,25 @@ def non_finite(arrays: dict[str, np.ndarray], samples: int, node_every: int) -> 
     rows = {"node_positions_m": samples // node_every if node_every else 0}
     return [name for name in CHECKED_ARRAYS if name in arrays
             and not np.isfinite(np.asarray(arrays[name])[:rows.get(name, samples)]).all()]
+
+
+def scan(ds) -> dict:
+    """Non-finite values and edge jumps of every ok trial of an open
+    :class:`~pipeline.datasets.reader.DatasetFile` (``pipeline datasets show --verify``):
+    ``non_finite_ok_trials`` (trial indices), ``edge_jumps`` (trials with one, (trial, free
+    whisker) pairs, the trials with the most)."""
+    node_every = int(ds.attrs.get("node_every", 0) or 0)
+    samples = ds.trial_columns["samples"]
+    bad, jumps = [], {}
+    for index in ds.ok:
+        n = int(samples[index])
+        arrays = {name: ds.file[name][index] for name in CHECKED_ARRAYS if name in ds.file}
+        if non_finite(arrays, n, node_every):
+            bad.append(int(index))
+        count = edge_jumps(arrays["base_wrench"][:n], ds.file["contact"][index][:n])
+        if count:
+            jumps[int(index)] = count
+    worst = sorted(jumps, key=lambda i: (-jumps[i], i))[:5]
+    return {"non_finite_ok_trials": bad,
+            "edge_jumps": {"trials": len(jumps), "whiskers": sum(jumps.values()),
+                           "worst_trials": {str(i): jumps[i] for i in worst}}}
