@@ -8,6 +8,12 @@ dataset. Over (trial, whisker that touched nothing) pairs it prints the 95th per
 largest of edge jump / largest jump elsewhere (:mod:`pipeline.datasets.checks`; the limit is 2)
 for the base moment and force, whether every ok trial is finite, and physics CPU-s per trial
 (the first trial, which builds the engine, left out).
+
+Measured (this machine, 2 cores shared; moment / force, 95th percentile of the ratio):
+before issue 24 (drive clipped at the trial's end, whiskers started at rest shape) MuJoCo
+379 / 972 over 265 pairs of 5 trials, Bullet 4.85 / 4.54 over 161 pairs of 3 trials; after
+(drive continued, quasi-steady start) MuJoCo 0.994 / 0.998, Bullet 0.997 / 0.999, no pair
+above 2, every ok trial finite.
 """
 
 from __future__ import annotations

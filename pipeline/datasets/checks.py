@@ -68,8 +68,9 @@ def non_finite(arrays: dict[str, np.ndarray], samples: int, node_every: int) -> 
 def scan(ds) -> dict:
     """Non-finite values and edge jumps of every ok trial of an open
     :class:`~pipeline.datasets.reader.DatasetFile` (``pipeline datasets show --verify``):
-    ``non_finite_ok_trials`` (trial indices), ``edge_jumps`` (trials with one, (trial, free
-    whisker) pairs, the trials with the most)."""
+    ``non_finite_ok_trials`` (trial indices), ``edge_jump_trials`` and ``edge_jump_pairs`` (how
+    many trials and (trial, free whisker) pairs have one) and ``edge_jump_worst`` (up to 5
+    trials with the most)."""
     node_every = int(ds.attrs.get("node_every", 0) or 0)
     samples = ds.trial_columns["samples"]
     bad, jumps = [], {}
@@ -81,7 +82,5 @@ def scan(ds) -> dict:
         count = edge_jumps(arrays["base_wrench"][:n], ds.file["contact"][index][:n])
         if count:
             jumps[int(index)] = count
-    worst = sorted(jumps, key=lambda i: (-jumps[i], i))[:5]
-    return {"non_finite_ok_trials": bad,
-            "edge_jumps": {"trials": len(jumps), "whiskers": sum(jumps.values()),
-                           "worst_trials": {str(i): jumps[i] for i in worst}}}
+    return {"non_finite_ok_trials": bad, "edge_jump_trials": len(jumps), "edge_jump_pairs": sum(jumps.values()),
+            "edge_jump_worst": sorted(jumps, key=lambda i: (-jumps[i], i))[:5]}
