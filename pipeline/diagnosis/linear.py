@@ -25,10 +25,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pipeline.model.base_motion import BaseInertia, joint_jacobian, link_frames
-from pipeline.model.joints import JointLayout
+from pipeline.model.joints import JointLayout, bent_chain
 from pipeline.model.loads import AIR_DENSITY_KG_M3
 from pipeline.model.physics import WhiskerPhysics
-from pipeline.model.rotations import axis_rotation, rotation_zyx, skew
+from pipeline.model.rotations import skew
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(3)
 
@@ -72,31 +72,10 @@ class LinearWhisker:
 
     def points(self, q: np.ndarray, fractions: np.ndarray) -> np.ndarray:
         """[T, K, 3] positions (m, base frame) of the points at ``fractions`` for joint angles
-        q [T, n]: the chain's exact forward kinematics."""
-        chain = self.physics.chain
-        q = np.atleast_2d(q)
-        t = q.shape[0]
+        q [T, n]: the chain's exact forward kinematics (:func:`~pipeline.model.joints.bent_chain`)."""
         links, along = self.locate(fractions)
-        column = {label: i for i, label in enumerate(self.dofs.labels)}
-        zero = np.zeros(t)
-
-        def angle(label):
-            return q[:, column[label]] if label in column else zero
-
-        frame = rotation_zyx(angle("follicle_z"), angle("follicle_y"), zero) \
-            @ axis_rotation(2, chain.link_angles_rad[0])
-        node = np.zeros((t, 3))
-        result = np.zeros((t, len(links), 3))
-        bend = chain.rest_bend_rad
-        for link in range(links.max() + 1):
-            if link > 0:
-                frame = frame @ rotation_zyx(bend[link - 1] + angle(f"z{link}"), angle(f"y{link}"),
-                                             angle(f"x{link}"))
-            on = links == link
-            if on.any():
-                result[:, on] = node[:, None, :] + frame[:, None, :, 0] * along[on][None, :, None]
-            node = node + frame[:, :, 0] * chain.link_lengths_m[link]
-        return result
+        frames, nodes = bent_chain(self.physics, q)
+        return nodes[:, links] + frames[:, links][..., 0] * along[None, :, None]
 
 
 def _quadrature(physics: WhiskerPhysics, tangent: np.ndarray):

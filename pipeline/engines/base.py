@@ -23,7 +23,8 @@ x per bending node); ``initial_joint_angles_rad`` are given in that order.
 A trial's edges. Every whisker starts moving with its drive: its spring joints at the drive's
 quasi-steady state at t = 0 (bent by the inertial load of the base's motion, with its rate;
 :meth:`~pipeline.model.base_motion.BaseInertia.quasi_steady`), unless the trial is a release
-from ``initial_joint_angles_rad`` (then at rest). The engines step with the drive continued
+from ``initial_joint_angles_rad`` (then at rest) or that bent shape would pass through an
+obstacle its rest shape clears (then from rest: it meets the obstacle from outside). The engines step with the drive continued
 smoothly past the trial's end (:meth:`~pipeline.model.kinematics.ProtractionDrive.continued`),
 so that the steps that integrate the last sample do not stop the base.
 """
@@ -37,7 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pipeline.config.physics import EngineConfig
-from pipeline.engines.common import FreeMotion, empty_signals, start_trial
+from pipeline.engines.common import FreeMotion, blocked_at_start, empty_signals, start_trial
 from pipeline.engines.stepping import refinement_levels, step_groups, steps_per_sample
 from pipeline.errors import SimulationError
 from pipeline.model.array import ArrayModel, WhiskerModel
@@ -162,10 +163,8 @@ class Engine(ABC):
         interval = 1.0 / self.config.output_rate_hz
         times = np.arange(1, samples + 1) * interval
         driven = initial_joint_angles_rad is None          # not a release: starts with the drive
-        rates = [np.zeros_like(angles) for angles in initial]
-        if driven:
-            initial, rates = zip(*(inertia.quasi_steady(w, drive)
-                                   for inertia, w in zip(self.inertia, self.array.whiskers)))
+        initial, rates = self._drive_start(scene, pose, drive) if driven else \
+            (initial, [np.zeros_like(angles) for angles in initial])
         setup = TrialSetup(scene, pose, drive.continued(times[-1], interval), samples, tuple(initial),
                            tuple(rates), tuple(loads), stop_drive_on_contact)
         started_by_drive = np.full(len(self.array.whiskers), driven)
@@ -198,6 +197,16 @@ class Engine(ABC):
                     "cpu_seconds": time.process_time() - start_cpu,
                     "build_seconds": self.build_seconds}
         return TrialOutput(times, result.wrench, result.contact, result.nodes, self.array.names, metadata)
+
+    def _drive_start(self, scene: Scene, pose: Pose, drive: ProtractionDrive) -> tuple[list, list]:
+        """Per whisker its free-joint angles (rad) and rates (rad/s) at t = 0: the drive's
+        quasi-steady state, or rest where that bent shape would pass through an obstacle (the
+        whisker then meets it from outside)."""
+        angles, rates = map(list, zip(*(inertia.quasi_steady(w, drive)
+                                        for inertia, w in zip(self.inertia, self.array.whiskers))))
+        for k in np.flatnonzero(blocked_at_start(self.array, scene, pose, float(drive(0.0)), angles).any(axis=0)):
+            angles[k], rates[k] = np.zeros_like(angles[k]), np.zeros_like(rates[k])
+        return angles, rates
 
     def _refine(self, k: int, dt_s: float, message: str, setup: TrialSetup) -> tuple[WorldResult, int, int]:
         """Whisker k alone with half the step, again while it jams: (its result, halvings, steps)."""

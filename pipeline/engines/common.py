@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.errors import UserError
+from pipeline.model.joints import bent_chain
 from pipeline.model.kinematics import Pose
 
 # A base moment above this is no whisker's (they break near 10⁻⁴ N·m): the contact solver has
@@ -77,18 +78,29 @@ def check_start_clear(array, scene, pose: Pose, theta0_rad: float) -> None:
     ``pose``, protraction ``theta0_rad``) passes through an obstacle (a node inside a peg or a
     box, a link crossing a mesh surface): no simulator can start from there (the contact
     solver jams or, with the whole whisker inside a solid, reports nothing)."""
-    if not scene.obstacles:
-        return
-    nodes = np.array([pose.apply(w.rest_nodes_head(theta0_rad)) for w in array.whiskers])
-    for index, obstacle in enumerate(scene.obstacles):
-        blocked = obstacle.chains_through(nodes)
+    for index, blocked in enumerate(blocked_at_start(array, scene, pose, theta0_rad)):
         if blocked.any():
             names = [array.whiskers[k].name for k in np.flatnonzero(blocked)]
             more = f" and {len(names) - 1} more" if len(names) > 1 else ""
             raise UserError(f"impossible head pose {pose}: at the start of the trial whisker "
                             f"{names[0]}{more} passes through obstacle {index} "
-                            f"({type(obstacle).__name__}) of scene '{scene.name}'; move the head "
+                            f"({type(scene.obstacles[index]).__name__}) of scene '{scene.name}'; move the head "
                             "or the obstacle")
+
+
+def blocked_at_start(array, scene, pose: Pose, theta0_rad: float, angles=None) -> np.ndarray:
+    """[O, W] whether whisker w passes through obstacle o at the start of the trial (head ``pose``,
+    protraction ``theta0_rad``) in its rest shape, or bent by its free-joint ``angles`` (per
+    whisker, rad, the layout's order)."""
+    if not scene.obstacles:
+        return np.zeros((0, len(array.whiskers)), bool)
+    if angles is None:
+        nodes = [w.rest_nodes_head(theta0_rad) for w in array.whiskers]
+    else:
+        nodes = [w.base_point_m + bent_chain(w.physics, q)[1][0] @ w.frame(theta0_rad).T
+                 for w, q in zip(array.whiskers, angles)]
+    nodes = np.array([pose.apply(n) for n in nodes])
+    return np.array([obstacle.chains_through(nodes) for obstacle in scene.obstacles])
 
 
 def output_samples(duration_s: float, output_rate_hz: float) -> int:
