@@ -38,8 +38,8 @@ def start_rate(drive, dt_s: float) -> float:
     ``dt_s`` (v ← v + h·a, q ← q + h·v: a velocity is the mean over the step before it, and a
     driven joint lands on θ(t + h) with a = ((θ(t + h) − q)/h − v)/h): the drive's cubic at t = 0
     differenced over the step before, θ̇ − h·θ̈/2 + h²·θ⃛/6. Started with θ̇(0) instead, the first
-    step accelerates the base by half the drive's θ̈(0) and the next by 1.5 times it, a kick
-    that short whiskers ring with (≈ h·ω₁/2 of their quasi-steady bend)."""
+    step accelerates the base by only half the drive's θ̈(0), a kick that short whiskers ring
+    with (≈ h·ω₁/2 of their quasi-steady bend)."""
     rate, acceleration, jerk = (float(drive(0.0, d)) for d in (1, 2, 3))
     return rate - dt_s * acceleration / 2 + dt_s ** 2 * jerk / 6
 
@@ -82,10 +82,10 @@ def check_start_clear(array, scene, pose: Pose, theta0_rad: float) -> None:
         if blocked.any():
             names = [array.whiskers[k].name for k in np.flatnonzero(blocked)]
             more = f" and {len(names) - 1} more" if len(names) > 1 else ""
+            kind = type(scene.obstacles[index]).__name__
             raise UserError(f"impossible head pose {pose}: at the start of the trial whisker "
-                            f"{names[0]}{more} passes through obstacle {index} "
-                            f"({type(scene.obstacles[index]).__name__}) of scene '{scene.name}'; move the head "
-                            "or the obstacle")
+                            f"{names[0]}{more} passes through obstacle {index} ({kind}) of scene "
+                            f"'{scene.name}'; move the head or the obstacle")
 
 
 def blocked_at_start(array, scene, pose: Pose, theta0_rad: float, angles=None) -> np.ndarray:
