@@ -385,7 +385,8 @@ def datasets_list(root: Optional[Path] = _ROOT_OPTION,
 @datasets_app.command("show")
 def datasets_show(target: str = typer.Argument(..., help="NAME, NAME/vK, a version folder or a data file."),
                   root: Optional[Path] = _ROOT_OPTION,
-                  verify: bool = typer.Option(False, "--verify", help="Re-hash files against the manifest."),
+                  verify: bool = typer.Option(False, "--verify", help="Re-hash files against the manifest; "
+                                              "scan ok trials for non-finite values and edge jumps."),
                   json_output: bool = _JSON) -> None:
     """Summary of one dataset version (trials, scenes, arrays, provenance)."""
     from pipeline.datasets.catalog import describe

@@ -6,6 +6,7 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
+from pipeline.datasets.checks import scan
 from pipeline.datasets.manifest import read_manifest, verify
 from pipeline.datasets.reader import DatasetFile
 from pipeline.datasets.schema import ARRAYS, DATA_FILE
@@ -31,7 +32,8 @@ def _size_mb(folder: Path) -> float:
 
 def describe(target: str | Path, root: Path | None = None, check: bool = False) -> dict[str, Any]:
     """What a dataset version (or a one-trial file of ``pipeline trial --out``) holds; ``check``
-    also re-hashes a version's files against its manifest."""
+    also re-hashes a version's files against its manifest and scans every ok trial for
+    non-finite values and edge jumps (:func:`pipeline.datasets.checks.scan`)."""
     data_file = resolve(target, root)
     folder = data_file.parent
     if data_file.name != DATA_FILE:                        # a standalone file, not a version
@@ -53,6 +55,8 @@ def describe(target: str | Path, root: Path | None = None, check: bool = False) 
             "created_utc": provenance.get("created_utc"), "git_commit": provenance.get("git_commit"),
             "engine": provenance.get("engine"),
         }
+        if check:
+            info.update(scan(ds))
     if data_file.name == DATA_FILE:
         run = (read_manifest(folder) or {}).get("summary", {})
         info.update({key: run[key] for key in RUN_FIGURES if key in run})

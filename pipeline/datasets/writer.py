@@ -16,15 +16,16 @@ import os
 import socket
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from pipeline.datasets.checks import non_finite
 from pipeline.datasets.dimensions import attach_dimensions, describe, storage_dtype, write_coordinates
-from pipeline.datasets.schema import (ARRAYS, OK, PENDING, POSE_REJECTION_REASONS, SCHEMA, SCHEMA_VERSION,
-                                      TRIAL_COLUMNS, WHISKER_COLUMNS, TrialRecord)
+from pipeline.datasets.schema import (ARRAYS, FAILED, OK, PENDING, POSE_REJECTION_REASONS, SCHEMA,
+                                      SCHEMA_VERSION, TRIAL_COLUMNS, WHISKER_COLUMNS, TrialRecord)
 from pipeline.errors import UserError
 from pipeline.model.outputs import SIGNALS, TrialOutput
 from pipeline.model.rotations import rotation_zyx
@@ -307,12 +308,18 @@ class DatasetWriter:
                                             "reach the file", str(self.path))
 
     def write(self, index: int, record: TrialRecord, arrays: dict[str, np.ndarray] | None) -> bool:
-        """Write trial ``index``; False (and nothing written) if it was written before.
+        """Write trial ``index``; False (and nothing written) if it was written before. An ``ok``
+        trial with non-finite values within its samples is written as failed, without arrays.
 
         OSError(ENOSPC) before anything is written if the trial may not fit on the disk.
         """
         if self._status[index] != PENDING.encode():
             return False
+        if record.status == OK and arrays:
+            bad = non_finite(arrays, record.samples, int(self.file.attrs["node_every"]))
+            if bad:                       # a trial with NaN or inf is not ok (pipeline.datasets.checks)
+                record = replace(record, status=FAILED, error=f"non-finite values in {', '.join(bad)}")
+                arrays = None
         size = sum(np.asarray(value).nbytes for value in (arrays or {}).values())
         require_free_space(self.path.parent, 2 * size + TRIAL_SPACE_MARGIN_BYTES, f"trial {index}")
         for name, value in (arrays or {}).items():

@@ -26,8 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.diagnosis.drives import base_motion
-from pipeline.diagnosis.linear import PAIRS, LinearWhisker, linearise
+from pipeline.diagnosis.linear import LinearWhisker, linearise
 from pipeline.measurements.timeseries import ReleaseDrive, Trial
+from pipeline.model.base_motion import PAIRS
 
 MAX_SUBSTEPS = 10
 QUADRATIC_DRAG_SUBSTEPS = 4

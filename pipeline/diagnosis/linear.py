@@ -24,14 +24,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pipeline.model.joints import JointLayout
+from pipeline.model.base_motion import BaseInertia, joint_jacobian, link_frames
+from pipeline.model.joints import JointLayout, bent_chain
 from pipeline.model.loads import AIR_DENSITY_KG_M3
 from pipeline.model.physics import WhiskerPhysics
-from pipeline.model.rotations import axis_rotation, rotation_zyx, skew
+from pipeline.model.rotations import skew
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(3)
-# the six products ω_a·ω_b (a ≤ b) that centrifugal and gyroscopic loads depend on
-PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
 
 
 @dataclass(frozen=True)
@@ -56,7 +55,7 @@ class LinearWhisker:
 
     # -- kinematics ------------------------------------------------------------------------
     def jacobian(self, points: np.ndarray, links: np.ndarray) -> np.ndarray:
-        return _jacobian(self.dofs, points, links)
+        return joint_jacobian(self.dofs, points, links)
 
     def locate(self, fractions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Link index and distance along its chord (m) of points at arc fractions in [0, 1]."""
@@ -73,48 +72,10 @@ class LinearWhisker:
 
     def points(self, q: np.ndarray, fractions: np.ndarray) -> np.ndarray:
         """[T, K, 3] positions (m, base frame) of the points at ``fractions`` for joint angles
-        q [T, n]: the chain's exact forward kinematics."""
-        chain = self.physics.chain
-        q = np.atleast_2d(q)
-        t = q.shape[0]
+        q [T, n]: the chain's exact forward kinematics (:func:`~pipeline.model.joints.bent_chain`)."""
         links, along = self.locate(fractions)
-        column = {label: i for i, label in enumerate(self.dofs.labels)}
-        zero = np.zeros(t)
-
-        def angle(label):
-            return q[:, column[label]] if label in column else zero
-
-        frame = rotation_zyx(angle("follicle_z"), angle("follicle_y"), zero) \
-            @ axis_rotation(2, chain.link_angles_rad[0])
-        node = np.zeros((t, 3))
-        result = np.zeros((t, len(links), 3))
-        bend = chain.rest_bend_rad
-        for link in range(links.max() + 1):
-            if link > 0:
-                frame = frame @ rotation_zyx(bend[link - 1] + angle(f"z{link}"), angle(f"y{link}"),
-                                             angle(f"x{link}"))
-            on = links == link
-            if on.any():
-                result[:, on] = node[:, None, :] + frame[:, None, :, 0] * along[on][None, :, None]
-            node = node + frame[:, :, 0] * chain.link_lengths_m[link]
-        return result
-
-
-def _jacobian(dofs: JointLayout, points: np.ndarray, links: np.ndarray) -> np.ndarray:
-    """[P, 3, n] velocity Jacobian at rest of ``points`` (whisker frame) on ``links``."""
-    arms = points[:, None, :] - dofs.pivots[None, :, :]
-    jac = np.cross(dofs.axes[None, :, :], arms) * (dofs.first_link[None, :] <= links[:, None])[..., None]
-    return np.transpose(jac, (0, 2, 1))
-
-
-def _link_frames(physics: WhiskerPhysics):
-    chain = physics.chain
-    a = chain.link_angles_rad
-    tangent = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=1)
-    com = chain.nodes_m[:-1] + tangent * chain.link_com_m[:, None]
-    rot = axis_rotation(2, a)
-    inertia = rot @ (chain.link_inertia_kg_m2[:, :, None] * np.eye(3)) @ np.transpose(rot, (0, 2, 1))
-    return tangent, com, inertia
+        frames, nodes = bent_chain(self.physics, q)
+        return nodes[:, links] + frames[:, links][..., 0] * along[None, :, None]
 
 
 def _quadrature(physics: WhiskerPhysics, tangent: np.ndarray):
@@ -134,27 +95,11 @@ def linearise(physics: WhiskerPhysics) -> LinearWhisker:
     """Assemble the matrices of the module docstring for ``physics`` at its rest shape."""
     chain = physics.chain
     dofs = physics.layout
-    tangent, com, inertia = _link_frames(physics)
-    links = np.arange(chain.links)
-    jv = _jacobian(dofs, com, links)                                    # [N, 3, n]
-    jw = dofs.axes.T[None, :, :] * (dofs.first_link[None, :] <= links[:, None])[:, None, :]
-    m = chain.link_mass_kg
-    mass = np.einsum("l,lai,laj->ij", m, jv, jv) + np.einsum("lai,lab,lbj->ij", jw, inertia, jw)
-    base_v = -skew(com)                                                # ω × c = −[c]× ω
-    coupling = np.einsum("l,lai,lab->ib", m, jv, base_v) + np.einsum("lai,lab->ib", jw, inertia)
-    centrifugal = np.zeros((dofs.n, len(PAIRS)))
-    for k, (a, b) in enumerate(PAIRS):
-        e_a, e_b = np.eye(3)[a], np.eye(3)[b]
-        if a == b:   # ω_a² terms of ω×(ω×c) = (ωωᵀ − |ω|²)c and of ω × Iω
-            linear = e_a[None, :] * com[:, a:a + 1] - com
-            gyro = np.cross(e_a, inertia @ e_a)
-        else:
-            linear = e_a[None, :] * com[:, b:b + 1] + e_b[None, :] * com[:, a:a + 1]
-            gyro = np.cross(e_a, inertia @ e_b) + np.cross(e_b, inertia @ e_a)
-        centrifugal[:, k] = np.einsum("l,lai,la->i", m, jv, linear) + np.einsum("lai,la->i", jw, gyro)
-    gravity = np.einsum("l,lai->ia", m, jv)
+    tangent, com, _ = link_frames(chain)
+    inertial = BaseInertia.of(physics)
+    gravity = np.einsum("l,lai->ia", chain.link_mass_kg, joint_jacobian(dofs, com, np.arange(chain.links)))
     points, weight, diameter, plinks, ptangent = _quadrature(physics, tangent)
-    jp = _jacobian(dofs, points, plinks)                                 # [P, 3, n]
+    jp = joint_jacobian(dofs, points, plinks)                            # [P, 3, n]
     normal = np.eye(3)[None] - ptangent[:, :, None] * ptangent[:, None, :]
     c_lin = physics.drag_linear_ns_per_m2
     drag_q = c_lin * np.einsum("p,pai,pab,pbj->ij", weight, jp, normal, jp)
@@ -162,5 +107,5 @@ def linearise(physics: WhiskerPhysics) -> LinearWhisker:
     damping = np.diag(dofs.damping) + drag_q
     drag_points = {"points": points, "jacobian": jp, "normal": normal,
                    "coefficient": 0.5 * AIR_DENSITY_KG_M3 * physics.drag_coefficient * diameter * weight}
-    return LinearWhisker(physics, dofs, mass, np.diag(dofs.stiffness), damping, coupling,
-                         centrifugal, gravity, drag_base, drag_points)
+    return LinearWhisker(physics, dofs, inertial.mass, np.diag(dofs.stiffness), damping, inertial.coupling,
+                         inertial.centrifugal, gravity, drag_base, drag_points)

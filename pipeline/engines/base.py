@@ -19,6 +19,14 @@ A backend implements :meth:`Engine.make_world` and :class:`World` (build the joi
 Free joints. Besides the three driven base joints, a whisker has the spring joints of its
 :class:`~pipeline.model.joints.JointLayout` (follicle z, y if compliant; z, y and, with twist,
 x per bending node); ``initial_joint_angles_rad`` are given in that order.
+
+A trial's edges. Every whisker starts moving with its drive: its spring joints at the drive's
+quasi-steady state at t = 0 (bent by the inertial load of the base's motion, with its rate;
+:meth:`~pipeline.model.base_motion.BaseInertia.quasi_steady`), unless the trial is a release
+from ``initial_joint_angles_rad`` (then at rest) or that bent shape would pass through an
+obstacle its rest shape clears (then from rest: it meets the obstacle from outside). The engines step with the drive continued
+smoothly past the trial's end (:meth:`~pipeline.model.kinematics.ProtractionDrive.continued`),
+so that the steps that integrate the last sample do not stop the base.
 """
 
 from __future__ import annotations
@@ -30,10 +38,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pipeline.config.physics import EngineConfig
-from pipeline.engines.common import FreeMotion, empty_signals, start_trial
+from pipeline.engines.common import FreeMotion, blocked_at_start, empty_signals, start_trial
 from pipeline.engines.stepping import refinement_levels, step_groups, steps_per_sample
 from pipeline.errors import SimulationError
 from pipeline.model.array import ArrayModel, WhiskerModel
+from pipeline.model.base_motion import BaseInertia
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.loads import TipForce
 from pipeline.model.outputs import TrialOutput
@@ -67,16 +76,17 @@ class WorldResult:
 
 @dataclass(frozen=True)
 class TrialSetup:
-    """What a world needs to run one trial: the scene, head pose and drive, the number of
-    output samples, per whisker of the world its free-joint angles at t = 0 (rad) and its
-    loads (:mod:`pipeline.model.loads`), and whether a whisker's base holds still from its
-    first contact on."""
+    """What a world needs to run one trial: the scene, head pose and drive (continued past the
+    trial's end), the number of output samples, per whisker of the world its free-joint angles
+    (rad) and rates (rad/s) at t = 0 and its loads (:mod:`pipeline.model.loads`), and whether a
+    whisker's base holds still from its first contact on."""
 
     scene: Scene
     pose: Pose
     drive: ProtractionDrive
     samples: int
     initial: tuple
+    initial_rates: tuple
     loads: tuple
     hold_on_contact: bool = False
 
@@ -85,6 +95,7 @@ class TrialSetup:
         from dataclasses import replace
 
         return replace(self, initial=tuple(self.initial[k] for k in whiskers),
+                       initial_rates=tuple(self.initial_rates[k] for k in whiskers),
                        loads=tuple(self.loads[k] for k in whiskers))
 
 
@@ -120,6 +131,7 @@ class Engine(ABC):
             for members, dt_s in step_groups(self.levels, config.dt_s)]
         self.build_seconds = time.perf_counter() - start
         self.free = FreeMotion(array.whiskers)
+        self.inertia = [BaseInertia.of(w.physics) for w in array.whiskers]
 
     def step_levels(self, array: ArrayModel, config: EngineConfig) -> np.ndarray:
         """[W] j per whisker: it steps at ``dt_s / 2**j`` (:mod:`pipeline.engines.stepping`)."""
@@ -132,26 +144,32 @@ class Engine(ABC):
     def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float, *,
             stop_drive_on_contact: bool = False, external_tip_force_n=None,
             initial_joint_angles_rad=None) -> TrialOutput:
-        """Simulate ``duration_s`` seconds from rest shape, the bases moving as the drive does at t=0.
+        """Simulate ``duration_s`` seconds, the bases moving as the drive does at t = 0 and every
+        whisker at the drive's quasi-steady state (module docstring).
 
         ``stop_drive_on_contact``: from a whisker's first contact on, its base holds the angles
         it had then (collision protocol). ``external_tip_force_n``: an optional constant force
         (N, world frame) on every whisker's tip node (static checks). ``initial_joint_angles_rad``:
         start bent instead (a release): the free joints' angles at t = 0 (rad, relative to the
         rest shape, in the order of the module docstring), [J] for every whisker or [W, J] per
-        whisker; velocities start at zero. None: rest shape. Another shape or a non-finite
-        angle is a UserError.
+        whisker; velocities start at zero. None: the drive's quasi-steady state. Another shape
+        or a non-finite angle is a UserError.
         """
         start_wall, start_cpu = time.perf_counter(), time.process_time()
         samples, initial = start_trial(self.array, scene, pose, drive, duration_s,
                                        self.config.output_rate_hz, initial_joint_angles_rad)
         extra = () if external_tip_force_n is None else (TipForce.checked(external_tip_force_n),)
         loads = [w.physics.loads() + extra for w in self.array.whiskers]
-        setup = TrialSetup(scene, pose, drive, samples, tuple(initial), tuple(loads), stop_drive_on_contact)
-        times = np.arange(1, samples + 1) / self.config.output_rate_hz
-        at_rest = np.array([not angles.any() for angles in initial])
+        interval = 1.0 / self.config.output_rate_hz
+        times = np.arange(1, samples + 1) * interval
+        driven = initial_joint_angles_rad is None          # not a release: starts with the drive
+        initial, rates = self._drive_start(scene, pose, drive) if driven else \
+            (initial, [np.zeros_like(angles) for angles in initial])
+        setup = TrialSetup(scene, pose, drive.continued(times[-1], interval), samples, tuple(initial),
+                           tuple(rates), tuple(loads), stop_drive_on_contact)
+        started_by_drive = np.full(len(self.array.whiskers), driven)
         self.free.select(drive, samples, depends_on_pose=any(l.depends_on_pose for ls in loads for l in ls))
-        reused = at_rest & self.free.reusable(pose, scene, times)
+        reused = started_by_drive & self.free.reusable(pose, scene, times)
         result = WorldResult.zeros(samples, len(self.array.whiskers), self.array.links)
         steps, refined = 0, {}
         for members, world in self.worlds:
@@ -169,7 +187,7 @@ class Engine(ABC):
             result.put(members[active], part, active)
         for k in np.flatnonzero(reused):
             result.wrench[:, k], result.nodes[:, k] = self.free.recall(k, pose)
-        for k in np.flatnonzero(at_rest & ~reused & ~result.touched):
+        for k in np.flatnonzero(started_by_drive & ~reused & ~result.touched):
             self.free.remember(k, result.wrench[:, k], result.nodes[:, k], pose)
         metadata = {"engine": self.name, "dt_s": self.config.dt_s,
                     "dt_per_whisker_s": (self.config.dt_s / 2.0 ** self.levels).tolist(),
@@ -180,6 +198,16 @@ class Engine(ABC):
                     "build_seconds": self.build_seconds}
         return TrialOutput(times, result.wrench, result.contact, result.nodes, self.array.names, metadata,
                            point_of_contact=result.point_of_contact)
+
+    def _drive_start(self, scene: Scene, pose: Pose, drive: ProtractionDrive) -> tuple[list, list]:
+        """Per whisker its free-joint angles (rad) and rates (rad/s) at t = 0: the drive's
+        quasi-steady state, or rest where that bent shape would pass through an obstacle (the
+        whisker then meets it from outside)."""
+        angles, rates = map(list, zip(*(inertia.quasi_steady(w, drive)
+                                        for inertia, w in zip(self.inertia, self.array.whiskers))))
+        for k in np.flatnonzero(blocked_at_start(self.array, scene, pose, float(drive(0.0)), angles).any(axis=0)):
+            angles[k], rates[k] = np.zeros_like(angles[k]), np.zeros_like(rates[k])
+        return angles, rates
 
     def _refine(self, k: int, dt_s: float, message: str, setup: TrialSetup) -> tuple[WorldResult, int, int]:
         """Whisker k alone with half the step, again while it jams: (its result, halvings, steps)."""

@@ -181,7 +181,7 @@ class BulletWorld(World):
     # -- trial ---------------------------------------------------------------------------
     def _reset(self, setup: TrialSetup, active: np.ndarray) -> None:
         """Active whiskers at the head pose, driven as the drive at t = 0, free joints at their
-        initial angles; the others parked."""
+        initial angles and rates; the others parked."""
         import pybullet as p
 
         rotation = setup.pose.rotation
@@ -193,7 +193,7 @@ class BulletWorld(World):
         for k, w in enumerate(self.bodies):
             if active[k]:
                 w.reset((position + rotation @ w.model.base_point_m) * U.LENGTH, orientation,
-                        setup.drive, setup.initial[k])
+                        setup.drive, self.dt_s, setup.initial[k], setup.initial_rates[k])
             else:
                 self._park(k, setup.drive)
         self._place_obstacles(0.0)
@@ -202,7 +202,8 @@ class BulletWorld(World):
     def _park(self, k: int, drive: ProtractionDrive) -> None:
         """Move whisker k far away at rest: it no longer touches anything."""
         w = self.bodies[k]
-        w.reset(np.full(3, PARKED_MM) * (k + 2), list(IDENTITY_QUAT), drive, np.zeros(len(w.free_dofs)))
+        rest = np.zeros(len(w.free_dofs))
+        w.reset(np.full(3, PARKED_MM) * (k + 2), list(IDENTITY_QUAT), drive, self.dt_s, rest, rest)
 
     def run(self, setup: TrialSetup, active: np.ndarray) -> WorldResult:
         import pybullet as p

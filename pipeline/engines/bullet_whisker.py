@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.engines import units as U
+from pipeline.engines.common import start_rate
 from pipeline.model.array import WhiskerModel
 from pipeline.model.kinematics import ProtractionDrive
 from pipeline.model.loads import LinkState, total_link_forces
@@ -145,24 +146,21 @@ class BulletWhisker:
         self._lhs_inverse, self._factorised_at = None, None
 
     # -- per trial -----------------------------------------------------------------------
-    def driven_targets(self, drive: ProtractionDrive, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Prescribed Z, Y, X follicle angles (rad) and rates (rad/s) at time t."""
-        theta, omega = float(drive(t)), float(drive(t, 1))
-        return self.rest_driven + self.rates * theta, self.rates * omega
-
-    def reset(self, base_mm: np.ndarray, orientation: list[float], drive: ProtractionDrive,
-              free_angles: np.ndarray) -> None:
+    def reset(self, base_mm: np.ndarray, orientation: list[float], drive: ProtractionDrive, h: float,
+              free_angles: np.ndarray, free_rates: np.ndarray) -> None:
         """Base at ``base_mm`` (world, mm) with the head ``orientation`` quaternion, driven joints
-        as the drive at t = 0, free joints (``dofs[3:]``, in the order of
-        :mod:`pipeline.engines.base`) at ``free_angles`` [J] (rad; zeros: rest shape), not moving."""
+        as the drive at t = 0 (rates for steps of size h, s: :func:`~pipeline.engines.common.start_rate`),
+        free joints (``dofs[3:]``, in the order of :mod:`pipeline.engines.base`) at ``free_angles``
+        [J] (rad; zeros: rest shape) moving at ``free_rates`` [J] (rad/s)."""
         import pybullet as p
 
         p.resetBasePositionAndOrientation(self.body, base_mm.tolist(), orientation,
                                           physicsClientId=self.client)
-        q_driven, v_driven = self.driven_targets(drive, 0.0)
+        q_driven = self.rest_driven + self.rates * float(drive(0.0))
+        v_driven = self.rates * start_rate(drive, h)
         self._lhs_inverse = None                            # the next step computes M afresh
         for k, joint in enumerate(self.dofs):
-            q, v = (q_driven[k], v_driven[k]) if k < 3 else (free_angles[k - 3], 0.0)
+            q, v = (q_driven[k], v_driven[k]) if k < 3 else (free_angles[k - 3], free_rates[k - 3])
             p.resetJointState(self.body, joint, q, v, physicsClientId=self.client)
 
     def driven_angles(self) -> np.ndarray:

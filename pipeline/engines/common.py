@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.errors import UserError
+from pipeline.model.joints import bent_chain
 from pipeline.model.kinematics import Pose
 
 # A base moment above this is no whisker's (they break near 10⁻⁴ N·m): the contact solver has
@@ -30,6 +31,17 @@ def start_trial(array, scene, pose: Pose, drive, duration_s: float, output_rate_
     initial = initial_angles(array, initial_joint_angles_rad)
     check_start_clear(array, scene, pose, float(drive(0.0)))
     return output_samples(duration_s, output_rate_hz), initial
+
+
+def start_rate(drive, dt_s: float) -> float:
+    """The drive's rate θ̇ (rad/s) to start the driven joints with in the engines' step of size
+    ``dt_s`` (v ← v + h·a, q ← q + h·v: a velocity is the mean over the step before it, and a
+    driven joint lands on θ(t + h) with a = ((θ(t + h) − q)/h − v)/h): the drive's cubic at t = 0
+    differenced over the step before, θ̇ − h·θ̈/2 + h²·θ⃛/6. Started with θ̇(0) instead, the first
+    step accelerates the base by only half the drive's θ̈(0), a kick that short whiskers ring
+    with (≈ h·ω₁/2 of their quasi-steady bend)."""
+    rate, acceleration, jerk = (float(drive(0.0, d)) for d in (1, 2, 3))
+    return rate - dt_s * acceleration / 2 + dt_s ** 2 * jerk / 6
 
 
 def check_pose(pose: Pose) -> None:
@@ -66,18 +78,29 @@ def check_start_clear(array, scene, pose: Pose, theta0_rad: float) -> None:
     ``pose``, protraction ``theta0_rad``) passes through an obstacle (a node inside a peg or a
     box, a link crossing a mesh surface): no simulator can start from there (the contact
     solver jams or, with the whole whisker inside a solid, reports nothing)."""
-    if not scene.obstacles:
-        return
-    nodes = np.array([pose.apply(w.rest_nodes_head(theta0_rad)) for w in array.whiskers])
-    for index, obstacle in enumerate(scene.obstacles):
-        blocked = obstacle.chains_through(nodes)
+    for index, blocked in enumerate(blocked_at_start(array, scene, pose, theta0_rad)):
         if blocked.any():
             names = [array.whiskers[k].name for k in np.flatnonzero(blocked)]
             more = f" and {len(names) - 1} more" if len(names) > 1 else ""
+            kind = type(scene.obstacles[index]).__name__
             raise UserError(f"impossible head pose {pose}: at the start of the trial whisker "
-                            f"{names[0]}{more} passes through obstacle {index} "
-                            f"({type(obstacle).__name__}) of scene '{scene.name}'; move the head "
-                            "or the obstacle")
+                            f"{names[0]}{more} passes through obstacle {index} ({kind}) of scene "
+                            f"'{scene.name}'; move the head or the obstacle")
+
+
+def blocked_at_start(array, scene, pose: Pose, theta0_rad: float, angles=None) -> np.ndarray:
+    """[O, W] whether whisker w passes through obstacle o at the start of the trial (head ``pose``,
+    protraction ``theta0_rad``) in its rest shape, or bent by its free-joint ``angles`` (per
+    whisker, rad, the layout's order)."""
+    if not scene.obstacles:
+        return np.zeros((0, len(array.whiskers)), bool)
+    if angles is None:
+        nodes = [w.rest_nodes_head(theta0_rad) for w in array.whiskers]
+    else:
+        nodes = [w.base_point_m + bent_chain(w.physics, q)[1][0] @ w.frame(theta0_rad).T
+                 for w, q in zip(array.whiskers, angles)]
+    nodes = np.array([pose.apply(n) for n in nodes])
+    return np.array([obstacle.chains_through(nodes) for obstacle in scene.obstacles])
 
 
 def output_samples(duration_s: float, output_rate_hz: float) -> int:

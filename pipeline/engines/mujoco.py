@@ -102,7 +102,7 @@ from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, TrialSetup, World, WorldResult
 from pipeline.engines.common import (ContactFlags, implausible, jam_message, link_reach_m, node_arc_fractions,
-                                     path_distance_m)
+                                     path_distance_m, start_rate)
 from pipeline.engines.stepping import damping_folds, folded_refinement_levels
 from pipeline.errors import SimulationError
 from pipeline.model.array import ArrayModel, WhiskerModel
@@ -468,10 +468,11 @@ class MujocoWorld(World):
                               else m.opt.disableflags | contact_bit)
 
     # -- trial ---------------------------------------------------------------------------
-    def _reset(self, pose: Pose, drive: ProtractionDrive,
-               initial: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """Head at ``pose``, driven joints as the drive at t = 0, free joints still at ``initial``
-        (per member, rad); returns the kinematic targets' offsets and θ-rates."""
+    def _reset(self, pose: Pose, drive: ProtractionDrive, initial: list[np.ndarray],
+               initial_rates: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """Head at ``pose``, driven joints as the drive at t = 0, free joints at ``initial``
+        (per member, rad) moving at ``initial_rates`` (rad/s); returns the kinematic targets'
+        offsets and θ-rates."""
         import mujoco
 
         m, d = self.model, self.data
@@ -485,10 +486,11 @@ class MujocoWorld(World):
         offset = np.concatenate([rest, np.zeros(n_obstacle)])
         theta_rate = np.concatenate([rates, np.zeros(n_obstacle)])
         d.qpos[self.kinematic] = offset + theta_rate * float(drive(0.0))
-        d.qvel[self.kinematic] = theta_rate * float(drive(0.0, 1))
+        d.qvel[self.kinematic] = theta_rate * start_rate(drive, self.dt_s)
         d.qvel[self.kinematic[self.n_driven:]] = self.obstacle_velocity
-        for qpos, angles in zip(self.free_qpos, initial):      # per member
+        for qpos, angles, angle_rates in zip(self.free_qpos, initial, initial_rates):   # per member
             d.qpos[qpos] = angles
+            d.qvel[qpos] = angle_rates                          # hinges: qpos address = dof address
         mujoco.mj_forward(m, d)
         return offset, theta_rate
 
@@ -521,7 +523,7 @@ class MujocoWorld(World):
         import mujoco
 
         m, d, h, spp = self.model, self.data, self.dt_s, self.steps_per_sample
-        offset, theta_rate = self._reset(setup.pose, setup.drive, setup.initial)
+        offset, theta_rate = self._reset(setup.pose, setup.drive, setup.initial, setup.initial_rates)
         n_w, n_steps = len(self.members), setup.samples * spp
         times = np.arange(n_steps + 2) * h
         thetas = np.asarray(setup.drive(times), float)

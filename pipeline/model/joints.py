@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.model.rotations import rot_z
+from pipeline.model.rotations import axis_rotation, rot_z, rotation_zyx
 
 _LOCAL = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}
 
@@ -117,3 +117,27 @@ def joint_layout(physics) -> JointLayout:
                                 physics.twist_stiffness_nm_per_rad[j - 1],
                                 physics.twist_damping_nms_per_rad[j - 1]))
     return JointLayout(tuple(joints), frames)
+
+
+def bent_chain(physics, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The chain's exact forward kinematics (module docstring) for joint angles q [T, n] (rad, in
+    the layout's order): link frames [T, N, 3, 3] and node positions [T, N+1, 3] (m), whisker frame."""
+    chain = physics.chain
+    q = np.atleast_2d(np.asarray(q, float))
+    t = q.shape[0]
+    column = {label: i for i, label in enumerate(physics.layout.labels)}
+    zero = np.zeros(t)
+
+    def angle(label):
+        return q[:, column[label]] if label in column else zero
+
+    frames = np.zeros((t, chain.links, 3, 3))
+    nodes = np.zeros((t, chain.links + 1, 3))
+    frame = rotation_zyx(angle("follicle_z"), angle("follicle_y"), zero) @ axis_rotation(2, chain.link_angles_rad[0])
+    for link in range(chain.links):
+        if link > 0:
+            frame = frame @ rotation_zyx(chain.rest_bend_rad[link - 1] + angle(f"z{link}"), angle(f"y{link}"),
+                                         angle(f"x{link}"))
+        frames[:, link] = frame
+        nodes[:, link + 1] = nodes[:, link] + frame[:, :, 0] * chain.link_lengths_m[link]
+    return frames, nodes

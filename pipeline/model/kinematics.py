@@ -8,7 +8,7 @@ frame (y toward the concave side) is R·Rx(−π/2). Left whiskers are mirrored 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -32,8 +32,10 @@ class ProtractionDrive:
 
     Interpolated with a C² cubic spline (not-a-knot ends, :mod:`pipeline.model.spline`), or
     piecewise linearly (``interpolation="linear"``, for drives with kinks such as an abrupt
-    stop). Before the first sample θ holds its first value, after the last its last value. ``kind`` says where the table came from
-    (``table``, ``sinusoid`` with its ``frequency_hz``, or ``still``), for the records.
+    stop). Before the first sample θ holds its first value, after the last its last value,
+    except after ``continued_after_s`` (:meth:`continued`), where the spline's cubic piece
+    there goes on. ``kind`` says where the table came from (``table``, ``sinusoid`` with its
+    ``frequency_hz``, or ``still``), for the records.
     """
 
     time_s: np.ndarray
@@ -41,6 +43,7 @@ class ProtractionDrive:
     interpolation: str = "cubic"
     kind: str = "table"
     frequency_hz: float = float("nan")
+    continued_after_s: float = float("inf")
     _spline: object = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -66,11 +69,27 @@ class ProtractionDrive:
 
     def __call__(self, t: np.ndarray | float, derivative: int = 0) -> np.ndarray:
         t = np.asarray(t, float)
-        inside = (t >= self.time_s[0]) & (t <= self.time_s[-1])
-        clipped = np.clip(t, self.time_s[0], self.time_s[-1])
+        continued = t > self.continued_after_s
+        inside = ((t >= self.time_s[0]) & (t <= self.time_s[-1])) | continued
+        at = np.where(continued, t, np.clip(t, self.time_s[0], self.time_s[-1]))
         if derivative == 0:
-            return self._spline(clipped)
-        return np.where(inside, self._spline(clipped, derivative), 0.0)
+            return self._spline(at)
+        return np.where(inside, self._spline(at, derivative), 0.0)
+
+    def continued(self, end_s: float, interval_s: float) -> "ProtractionDrive":
+        """This drive as a trial ending at ``end_s`` (s) with output interval ``interval_s`` (s)
+        steps it: when the table reaches into the last interval (past ``end_s − interval_s``),
+        the motion goes on smoothly after ``end_s`` (or the table's end, if earlier) — the
+        spline's cubic piece there, extended — so the steps that integrate the last sample do
+        not stop the base (a clipped drive decelerates it to rest within one step). A table
+        that ends earlier stops the base inside the trial, as it says: returned unchanged.
+
+        Continuing the spline, rather than extending a generator's table, is right for any
+        table (a recorded whisk does not stop where its recording does) and changes nothing
+        up to the trial's last sample."""
+        if self.duration_s <= end_s - interval_s:
+            return self
+        return replace(self, continued_after_s=min(float(end_s), self.duration_s))
 
 
 def sinusoidal_whisk(frequency_hz: float = 8.0, protraction_deg: float = 35.0,
