@@ -33,7 +33,7 @@ def main() -> None:
     parser.add_argument("--engine", default="mujoco")
     parser.add_argument("--profile", action="store_true")
     args = parser.parse_args()
-    config, _ = load_config(SimulateConfig, REPO / "configs" / "simulate.yaml", overrides={
+    config, _ = load_config(SimulateConfig, REPO / "configs" / "simulate.yaml", env_prefix="PIPELINE_SIMULATE_", overrides={
         "model": {"engine": {"name": args.engine}}, "scenes": {"folder": str(REPO / "outputs" / "meshes")}})
     simulator = Simulator(RunSpec(config, scene_catalogue(config.scenes), _layout(config)))
     start = time.process_time()
