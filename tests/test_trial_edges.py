@@ -124,7 +124,7 @@ def write_one(path, wrench: np.ndarray) -> bool:
                     whiskers=whisker_table(model_rat().select(names)))
     output = TrialOutput(np.arange(1, SAMPLES + 1) / 1000.0, wrench.astype(np.float32),
                          np.zeros((SAMPLES, 1, LINKS), bool), np.zeros((SAMPLES, 1, LINKS + 1, 3), np.float32),
-                         names)
+                         names, point_of_contact=np.full((SAMPLES, 1), np.nan, np.float32))
     record = TrialRecord(status="ok", scene="empty", samples=SAMPLES)
     with DatasetWriter.create(path, layout, {"name": "edges", "seed": 0}) as writer:
         writer.write(0, record, trial_arrays(output, np.zeros(SAMPLES), layout))
