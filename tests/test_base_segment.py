@@ -87,8 +87,8 @@ def test_integrated_density_gives_the_whisker_its_mass():
 
 def test_in_series_with_a_follicle_whatever_the_order():
     material = MaterialConfig(links=20, **PAPER_CHAIN)
-    alone = build_physics(ALPHA, material, (BaseSegment(),)).follicle
-    chain = build_physics(ALPHA, material).chain
+    based = build_physics(ALPHA, material, (BaseSegment(),))
+    alone, chain = based.follicle, based.chain
     k1, c1 = chain.stiffness_nm_per_rad[0], chain.damping_nms_per_rad[0]
     # k_0 = E_1·I_1 / ∫_0^{l/2} I_1/I(s) ds, between the half-link's stiffness at node 0 and at node 1
     assert 2 * k1 < alone.k_f < 2 * k1 * (chain.node_radii_m[0] / chain.node_radii_m[1]) ** 4

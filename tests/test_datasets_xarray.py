@@ -208,7 +208,7 @@ def test_world_frame_follows_the_engines_whiskers(tmp_path):
     from pipeline.protocols.whisking import run_trial
     from pipeline.scenes import empty
 
-    model, names = ModelConfig(), "RC1,LD2"
+    model, names = ModelConfig(material={"base_segment": False}), "RC1,LD2"   # link 1 rigid with the base
     pose = Pose((0.01, -0.02, 0.005), (0.4, -0.3, 0.2))
     drive = sinusoidal_whisk(8.0, 40.0, 20.0, 0.06)
     output = run_trial(model, empty(), pose, 0.06, names, drive)

@@ -66,7 +66,7 @@ def _protocol(material: MaterialConfig, geometry=ALPHA):
 def test_protocol_on_the_chain_matches_its_eigenvalues(damping_model, zeta):
     """The linear chain's ring-down shows its complex eigenvalues: f1 to 0.1 %, ζ1 to 1 %."""
     material = MaterialConfig(youngs_modulus_gpa=3.7, damping_model=damping_model, damping_ratio=zeta)
-    freqs, zetas = chain_damped_modes(build_physics(ALPHA, material).chain)
+    freqs, zetas = chain_damped_modes(build_physics(ALPHA, material))
     result = _protocol(material)
     assert result.f1_hz == pytest.approx(freqs[0], rel=1e-3)
     assert result.damping_ratio == pytest.approx(zetas[0], rel=0.01)
@@ -81,7 +81,7 @@ def test_untrimmed_whisker_three_modes_match_the_chain(links):
     """Where the paper's two-peak δ is undefined or negative (long untrimmed whisker, mode 2
     beating with mode 1), the fit still finds f1..f3 and ζ1..ζ3 of the chain."""
     material = MaterialConfig(youngs_modulus_gpa=3.7, damping_model="paper", damping_ratio=0.118, links=links)
-    freqs, zetas = chain_damped_modes(build_physics(D1, material).chain)
+    freqs, zetas = chain_damped_modes(build_physics(D1, material))
     result = _protocol(material, D1)
     np.testing.assert_allclose(result.frequencies_hz, freqs[:3], rtol=0.01)
     np.testing.assert_allclose(result.damping_ratios[:2], zetas[:2], rtol=0.03)
@@ -91,10 +91,17 @@ def test_untrimmed_whisker_three_modes_match_the_chain(links):
 def test_chain_zeta1_under_eq3_falls_with_links_and_kelvin_voigt_holds():
     def zeta1(model, links):
         material = MaterialConfig(links=links, damping_model=model, damping_ratio=0.14)
-        return chain_damped_modes(build_physics(ALPHA, material).chain)[1][0]
+        return chain_damped_modes(build_physics(ALPHA, material))[1][0]
 
     paper = [zeta1("paper", n) for n in (20, 40, 80)]
     kv = [zeta1("kelvin_voigt", n) for n in (20, 40, 80)]
     assert paper[2] < 0.55 * paper[0]                           # ≈ 1/√N
     assert max(kv) - min(kv) < 0.01 * kv[0]
     assert kv[0] == pytest.approx(0.14, rel=0.01)
+
+
+def test_kelvin_voigt_zeta_is_the_clamped_whiskers_first_mode_with_or_without_base_segment():
+    """β = 2ζ/ω₁ with ω₁ of the whisker on its base segment: ζ1 = ζ on either chain."""
+    for base_segment in (True, False):
+        material = MaterialConfig(links=20, damping_model="kelvin_voigt", damping_ratio=0.14, base_segment=base_segment)
+        assert chain_damped_modes(build_physics(ALPHA, material))[1][0] == pytest.approx(0.14, rel=1e-3)

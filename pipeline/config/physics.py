@@ -46,13 +46,12 @@ MATERIAL_PRESETS = {
     # untrimmed whiskers, isolated and glued at the base (Hartmann et al. 2003 D row, both methods):
     # joint fit of E and the Kelvin–Voigt ζ on the continuum chain (`pipeline calibrate --library
     # --where trimmed=no`, D2 and D4 held out): E = 3.59 ± 0.17 GPa (tensile tests: 3.34 ± 1.48,
-    # Quist et al. 2011), ζ = 0.142 ± 0.064 (the whisker's ζ1 with its base segment: 0.138;
-    # measured 0.11-0.17), the same at any N. Compliant follicle: k_f = 5e-7 N·m/rad, 0.4× the
+    # Quist et al. 2011), ζ1 = 0.138 ± 0.062 (measured 0.11-0.17), the same at any N. Compliant follicle: k_f = 5e-7 N·m/rad, 0.4× the
     # original WHISKiT code's 1.25e-6 (the paper's in-vivo fit is unpublished) and 0.4× the RB1
     # whisker's own base stiffness E·I/S, the largest round value giving Fig. 4's rigid/compliant
     # base-force ratio ≥ 5; c_f for a follicle damping ratio 0.2 on RB1 (c_f = 2·0.2·√(k_f·J),
     # J = 5.7e-11 kg·m²). Uncertain to a factor ≈ 2: only that ratio constrains them.
-    "untrimmed": {"youngs_modulus_gpa": 3.59, "damping_ratio": 0.142, "damping_model": "kelvin_voigt",
+    "untrimmed": {"youngs_modulus_gpa": 3.59, "damping_ratio": 0.138, "damping_model": "kelvin_voigt",
                   "link_density": "integrated", "base_segment": True,
                   "follicle": {"stiffness_nm_per_rad": 5e-7, "damping_nms_per_rad": 2.1e-9}},
     # the paper's own chain and fit, to reproduce the original and its published numbers: link 1
@@ -90,11 +89,11 @@ class MaterialConfig(StrictModel):
 
     # Defaults: the 'untrimmed' preset (MATERIAL_PRESETS), fitted on the measured untrimmed
     # whiskers the array has (Hartmann et al. 2003 D row, vibration table and pluck; D2, D4 held
-    # out) with the continuum chain: E = 3.59 ± 0.17 GPa, Kelvin–Voigt damping with ζ = 0.142 ±
-    # 0.064 at any N (measured 0.11-0.17). The paper's trimmed α and B1 are the 'trimmed' preset,
+    # out) with the continuum chain: E = 3.59 ± 0.17 GPa, Kelvin–Voigt damping with first-mode
+    # ζ1 = 0.138 ± 0.062 at any N (measured 0.11-0.17). The paper's trimmed α and B1 are the 'trimmed' preset,
     # the paper's own chain and fit (E = 7.45 GPa, eq. 3 with θ_ζ = 0.118) the 'paper' preset.
     youngs_modulus_gpa: float = Field(3.59, gt=0.1, le=20.0, description="E, GPa")
-    damping_ratio: float = Field(0.142, ge=0.0, le=2.0,
+    damping_ratio: float = Field(0.138, ge=0.0, le=2.0,
                                  description="θ_ζ of eq. 3 ('paper') or the first mode's ζ1 ('kelvin_voigt')")
     damping_model: Literal["paper", "kelvin_voigt"] = Field(
         "kelvin_voigt", description="'paper': eq. 3 per joint (depends on N); "

@@ -19,7 +19,8 @@ class PaperDamping:
     zeta: float
     name: str = "paper"
 
-    def coefficients(self, chain) -> np.ndarray:
+    def coefficients(self, chain, base_stiffness_nm_per_rad: float | None = None) -> np.ndarray:
+        """[N−1] c_n of the chain's joints (a base spring does not enter eq. 3)."""
         from pipeline.model.whisker import link_centres_of_mass
 
         com = link_centres_of_mass(chain)
@@ -38,17 +39,23 @@ class PaperDamping:
 class KelvinVoigtDamping:
     """Stiffness-proportional (Kelvin–Voigt) damping: c_n = β·k_n with β = 2ζ/ω₁.
 
-    The first in-plane mode of the undamped chain then has damping ratio ζ for every N, so
-    the damping converges as the chain is refined; higher modes get ζ_i = ζ·ω_i/ω₁.
+    ω₁ is the first in-plane mode of the whisker clamped at its base: the chain, on the base
+    segment's spring when it has one (the whisker's own compliance, not a follicle's). That
+    mode then has damping ratio ζ for every N, so the damping converges as the chain is
+    refined; higher modes get ζ_i = ζ·ω_i/ω₁.
     """
 
     zeta: float
     name: str = "kelvin_voigt"
 
-    def coefficients(self, chain) -> np.ndarray:
+    def coefficients(self, chain, base_stiffness_nm_per_rad: float | None = None) -> np.ndarray:
+        """[N−1] c_n of the chain's joints; the base spring of ``base_stiffness_nm_per_rad``
+        (N·m/rad), if given, enters ω₁ and takes the same β."""
         from pipeline.model.whisker import planar_modes
 
-        freqs, _ = planar_modes(chain)
+        stiffness = (None if base_stiffness_nm_per_rad is None
+                     else np.concatenate([[base_stiffness_nm_per_rad], chain.stiffness_nm_per_rad]))
+        freqs, _ = planar_modes(chain, stiffness)
         beta = 2 * self.zeta / (2 * np.pi * freqs[0])
         return beta * chain.stiffness_nm_per_rad
 

@@ -270,15 +270,19 @@ class BaseSegment(Extension):
 
     name: ClassVar[str] = "base_segment"
 
-    def physics(self, physics: WhiskerPhysics) -> WhiskerPhysics:
-        chain = physics.chain
+    @staticmethod
+    def stiffness_nm_per_rad(chain: WhiskerChain) -> float:
+        """k_0 of the equation above (N·m/rad)."""
         length = chain.link_length_m
         r0, r1 = chain.node_radii_m[0], chain.node_radii_m[1]
         s = 0.25 * length * (_GL_X + 1)                      # Gauss points on [0, l/2]
         relative = 0.25 * length * np.sum(_GL_W * (r1 / (r0 + (r1 - r0) * s / length)) ** 4)  # ∫ I_1/I ds
-        k1, c1 = chain.stiffness_nm_per_rad[0], chain.damping_nms_per_rad[0]
-        k0 = k1 * length / relative
-        c0 = k0 * c1 / k1
+        return float(chain.stiffness_nm_per_rad[0] * length / relative)
+
+    def physics(self, physics: WhiskerPhysics) -> WhiskerPhysics:
+        chain = physics.chain
+        k0 = self.stiffness_nm_per_rad(chain)
+        c0 = k0 * chain.damping_nms_per_rad[0] / chain.stiffness_nm_per_rad[0]
         follicle = physics.follicle
         if follicle is None:
             return replace(physics, follicle=CompliantFollicle(float(k0), float(c0)))

@@ -125,7 +125,9 @@ def build_physics(geometry: WhiskerGeometry, material: MaterialConfig,
                         integrated_density=material.link_density == "integrated")
     for ext in extensions:
         chain = ext.chain(chain)
-    coefficients = damping_model(material.damping_model, material.damping_ratio).coefficients(chain)
+    base = next((e for e in extensions if e.name == "base_segment"), None)
+    coefficients = damping_model(material.damping_model, material.damping_ratio).coefficients(
+        chain, None if base is None else base.stiffness_nm_per_rad(chain))
     chain = replace(chain, damping_nms_per_rad=np.asarray(coefficients, float))
     for ext in extensions:
         chain = ext.damping(chain)
