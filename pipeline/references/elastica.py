@@ -43,7 +43,7 @@ from scipy.optimize import brentq, minimize_scalar
 
 BVP_TOL = 1e-7            # solve_bvp's relative collocation residual
 BC_TOL = 1e-10            # boundary conditions, in S and E I(0)/S²
-MAX_NODES = 3_000
+MAX_NODES = 1_000
 START_MESH = np.linspace(0.0, 1.0, 201)
 MIN_STEP_RAD = np.radians(0.002)   # continuation step below which an angle has no equilibrium
 
