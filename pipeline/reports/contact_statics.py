@@ -94,16 +94,17 @@ def bench_config(config: ModelConfig, engine: str, friction: float) -> ModelConf
         update={"name": engine, "contact_friction": friction})})
 
 
-def reference_path(rod: Rod, peg: Peg, friction: float) -> Path:
-    angles = np.radians(np.arange(0.0, TOUCH_ANGLE_DEG + SWEEP_DEG + 1e-9, REFERENCE_STEP_DEG))
+def reference_path(rod: Rod, peg: Peg, friction: float, sweep_deg: float = SWEEP_DEG) -> Path:
+    angles = np.radians(np.arange(0.0, TOUCH_ANGLE_DEG + sweep_deg + 1e-9, REFERENCE_STEP_DEG))
     return quasi_static_path(rod, peg, angles, friction)
 
 
-def run_engine(config: ModelConfig, geometry: WhiskerGeometry, peg: Peg, speed_deg_s: float = SPEED_DEG_S):
+def run_engine(config: ModelConfig, geometry: WhiskerGeometry, peg: Peg, speed_deg_s: float = SPEED_DEG_S,
+               sweep_deg: float = SWEEP_DEG):
     """(protraction angle per sample in degrees, TrialOutput) of one slow turn into the peg."""
     from pipeline.engines import create_engine
 
-    end_deg = TOUCH_ANGLE_DEG + SWEEP_DEG
+    end_deg = TOUCH_ANGLE_DEG + sweep_deg
     duration = end_deg / speed_deg_s
     drive = ProtractionDrive(np.array([0.0, duration]), np.radians([0.0, end_deg]), interpolation="linear")
     scene = Scene("contact-statics", (Cylinder(peg.radius_m, PEG_LENGTH_M, (*peg.centre_m, 0.0)),))
@@ -164,13 +165,15 @@ def compare(case: Case, angle_deg: np.ndarray, output, path: Path, peg: Peg) -> 
 
 
 def run_case(config: ModelConfig, case: Case, speed_deg_s: float = SPEED_DEG_S,
-             path: Path | None = None) -> CaseResult:
-    """One whisker × contact position × friction × engine (``path``: the elastica, if known)."""
+             path: Path | None = None, sweep_deg: float = SWEEP_DEG) -> CaseResult:
+    """One whisker × contact position × friction × engine, the base turned ``sweep_deg`` past the
+    touch (``path``: the elastica, if known)."""
     geometry = geometry_of(config, case.whisker)
     rod = rod_of(geometry, config.material.youngs_modulus_gpa * 1e9)
     peg = peg_touching(rod, case.fraction, np.radians(TOUCH_ANGLE_DEG), PEG_RADIUS_M)
-    path = path or reference_path(rod, peg, case.friction)
-    angle, output = run_engine(bench_config(config, case.engine, case.friction), geometry, peg, speed_deg_s)
+    path = path or reference_path(rod, peg, case.friction, sweep_deg)
+    angle, output = run_engine(bench_config(config, case.engine, case.friction), geometry, peg, speed_deg_s,
+                               sweep_deg)
     return compare(case, angle, output, path, peg)
 
 
