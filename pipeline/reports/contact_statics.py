@@ -31,7 +31,8 @@ from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.morphology import load_morphology
 from pipeline.model.whisker import WhiskerGeometry, rest_nodes
 from pipeline.references.elastica import Path, Peg, Rod, peg_touching, quasi_static_path
-from pipeline.reports.checks import rigid
+from pipeline.reports.checks import Section, check, rigid
+from pipeline.reports.published import Published
 from pipeline.scenes.obstacles import Cylinder, Scene, points_along
 
 WHISKERS = ("RC1", "RC3", "RC5")
@@ -157,7 +158,7 @@ def compare(case: Case, angle_deg: np.ndarray, output, path: Path, peg: Peg) -> 
               "moment_bias_pct": bias[0], "transverse_bias_pct": bias[1], "axial_bias_pct_of_f": bias[2],
               "slip_off_ref_deg": float(ref_slip), "slip_off_engine_deg": engine_slip,
               "slip_off_diff_deg": float(engine_slip - ref_slip),
-              "compared_to_deg": float(end), "samples": int(inside.sum()),
+              "end_deg": float(end), "sweep_end_deg": float(angle_deg[-1]), "samples": int(inside.sum()),
               "deepest_mm": deepest * 1e3, "pass_through": bool(deepest > PASS_THROUGH_M),
               "max_moment_nm": float(scales[0]), "max_force_n": float(force_scale),
               "cpu_s": float(output.metadata.get("cpu_seconds", float("nan")))}
@@ -178,7 +179,7 @@ def run_case(config: ModelConfig, case: Case, speed_deg_s: float = SPEED_DEG_S,
 
 
 def run_cases(config: ModelConfig, whiskers=WHISKERS, fractions=FRACTIONS, frictions=FRICTIONS,
-              engines=ENGINES, progress=lambda _: None) -> list[CaseResult]:
+              engines=ENGINES, progress=lambda _: None, sweep_deg: float = SWEEP_DEG) -> list[CaseResult]:
     """Every case; the elastica is solved once per whisker × position × friction."""
     results = []
     for whisker in whiskers:
@@ -187,11 +188,11 @@ def run_cases(config: ModelConfig, whiskers=WHISKERS, fractions=FRACTIONS, frict
         for fraction in fractions:
             peg = peg_touching(rod, fraction, np.radians(TOUCH_ANGLE_DEG), PEG_RADIUS_M)
             for friction in frictions:
-                path = reference_path(rod, peg, friction)
+                path = reference_path(rod, peg, friction, sweep_deg)
                 for engine in engines:
                     case = Case(whisker, fraction, friction, engine)
                     progress(f"contact statics: {case.label}")
-                    results.append(run_case(config, case, path=path))
+                    results.append(run_case(config, case, path=path, sweep_deg=sweep_deg))
     return results
 
 
@@ -212,3 +213,67 @@ def table_rows(results: list[CaseResult]) -> list[list[str]]:
                      f"{e['moment_bias_pct']:+.1f}", angle(e["slip_off_ref_deg"]), angle(e["slip_off_engine_deg"]),
                      f"{e['deepest_mm']:.3f}", "yes" if e["pass_through"] else "no"])
     return rows
+
+
+# -- `pipeline validate`: the section ------------------------------------------------------
+ISSUE = "issue 24, done-when (against the elastica)"
+TARGETS = {"moment": Published(3.0, None, ISSUE), "transverse": Published(3.0, None, ISSUE),
+           "axial": Published(5.0, None, ISSUE), "axial_friction": Published(10.0, None, ISSUE),
+           "slip_off": Published(0.5, None, ISSUE), "pass_through": Published(0, None, ISSUE)}
+QUICK_SWEEP_DEG = 8.0
+
+
+def slip_off_gap_deg(errors: dict) -> float:
+    """|engine − elastica| slip-off angle (°): 0 if neither slips off within the sweep; if only
+    one does, its distance to the end of the comparison (a lower bound)."""
+    engine, ref = errors["slip_off_engine_deg"], errors["slip_off_ref_deg"]
+    if np.isfinite(engine) and np.isfinite(ref):
+        return abs(engine - ref)
+    if np.isfinite(engine) or np.isfinite(ref):
+        return abs(errors["sweep_end_deg"] - (engine if np.isfinite(engine) else ref))
+    return 0.0
+
+
+def contact_statics_section(config: ModelConfig, quick: bool, progress=lambda _: None) -> Section:
+    """Section ``contact_statics``: the configured engine against the elastica, worst case of
+    each error against the issue's targets; every case in the summary."""
+    chosen = QUICK if quick else {"whiskers": WHISKERS, "fractions": FRACTIONS, "frictions": FRICTIONS}
+    sweep = QUICK_SWEEP_DEG if quick else SWEEP_DEG
+    results = run_cases(config, chosen["whiskers"], chosen["fractions"], chosen["frictions"],
+                        (config.engine.name,), progress, sweep)
+
+    def worst(name, frictions=(0.0, 0.5)):
+        values = [r.errors[name] for r in results if r.case.friction in frictions]
+        return float(np.nanmax(values)) if values else float("nan")
+
+    slip = max(slip_off_gap_deg(r.errors) for r in results)
+    through = sum(r.errors["pass_through"] for r in results)
+    checks = [
+        check("contact_moment_rms_pct", "base moment RMS error, worst case (% of the elastica's max)",
+              TARGETS["moment"], worst("moment_rms_pct"), worst("moment_rms_pct") <= 3.0, "≤ 3 %"),
+        check("contact_transverse_rms_pct", "transverse force RMS error, worst case (% of max)",
+              TARGETS["transverse"], worst("transverse_rms_pct"), worst("transverse_rms_pct") <= 3.0, "≤ 3 %"),
+        check("contact_axial_pct", "axial force RMS error, μ = 0, worst case (% of max |F|)", TARGETS["axial"],
+              worst("axial_rms_pct_of_f", (0.0,)), worst("axial_rms_pct_of_f", (0.0,)) <= 5.0, "≤ 5 %"),
+        check("contact_axial_friction_pct", "axial force RMS error, μ = 0.5, worst case (% of max |F|)",
+              TARGETS["axial_friction"], worst("axial_rms_pct_of_f", (0.5,)),
+              worst("axial_rms_pct_of_f", (0.5,)) <= 10.0, "≤ 10 %"),
+        check("contact_slip_off_deg", "slip-off angle difference, worst case (°)", TARGETS["slip_off"], slip,
+              slip <= 0.5, "≤ 0.5°"),
+        check("contact_pass_through", "cases with the centre line > 0.05 mm inside the peg", TARGETS["pass_through"],
+              through, through == 0, "none"),
+    ]
+    cases = [{"whisker": r.case.whisker, "fraction": r.case.fraction, "friction": r.case.friction,
+              "engine": r.case.engine, **r.errors} for r in results]
+    caption = (f"Contact statics: {', '.join(chosen['whiskers'])} turned about the base at {SPEED_DEG_S:g} °/s "
+               f"into a peg of radius {PEG_RADIUS_M * 1e3:g} mm touched at "
+               f"{', '.join(f'{f:.0%}' for f in chosen['fractions'])} of the arc, μ = "
+               f"{', '.join(f'{f:g}' for f in chosen['frictions'])}, rigid follicle, compared with the planar "
+               f"elastica (pipeline/references/elastica.py) over {sweep:g}° past the touch. Per case "
+               "(whisker, position, μ: moment / transverse / axial RMS error %): " + "; ".join(
+                   f"{r.case.whisker} {r.case.fraction:.0%} μ={r.case.friction:g}: {r.errors['moment_rms_pct']:.1f} / "
+                   f"{r.errors['transverse_rms_pct']:.1f} / {r.errors['axial_rms_pct_of_f']:.1f}" for r in results) + ".")
+    series = {r.case.label: (r.angle_deg, r.engine_wrench, r.reference_wrench) for r in results}
+    return Section("contact_statics", "Contact statics against the elastica (issue 24)", checks,
+                   {"sweep_deg": sweep, "speed_deg_s": SPEED_DEG_S, "peg_radius_m": PEG_RADIUS_M, "cases": cases},
+                   series, caption)
