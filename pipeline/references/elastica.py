@@ -80,13 +80,6 @@ class Rod:
     def length_m(self) -> float:
         return float(self.arc_m[-1])
 
-    def refined(self, factor: int) -> Rod:
-        """The same rod on a grid ``factor`` times finer (values interpolated linearly)."""
-        arc = np.interp(np.arange((len(self.arc_m) - 1) * factor + 1) / factor,
-                        np.arange(len(self.arc_m)), self.arc_m)
-        return Rod(arc, *(np.interp(arc, self.arc_m, a) for a in
-                          (self.bending_stiffness_nm2, self.rest_curvature_per_m, self.radius_m)))
-
 
 @dataclass(frozen=True)
 class Peg:

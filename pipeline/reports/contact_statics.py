@@ -271,8 +271,9 @@ def contact_statics_section(config: ModelConfig, quick: bool, progress=lambda _:
                f"{', '.join(f'{f:g}' for f in chosen['frictions'])}, rigid follicle, compared with the planar "
                f"elastica (pipeline/references/elastica.py) over {sweep:g}° past the touch. Per case "
                "(whisker, position, μ: moment / transverse / axial RMS error %): " + "; ".join(
-                   f"{r.case.whisker} {r.case.fraction:.0%} μ={r.case.friction:g}: {r.errors['moment_rms_pct']:.1f} / "
-                   f"{r.errors['transverse_rms_pct']:.1f} / {r.errors['axial_rms_pct_of_f']:.1f}" for r in results) + ".")
+                   f"{r.case.whisker} {r.case.fraction:.0%} μ={r.case.friction:g}: "
+                   f"{r.errors['moment_rms_pct']:.1f} / {r.errors['transverse_rms_pct']:.1f} / "
+                   f"{r.errors['axial_rms_pct_of_f']:.1f}" for r in results) + ".")
     series = {r.case.label: (r.angle_deg, r.engine_wrench, r.reference_wrench) for r in results}
     return Section("contact_statics", "Contact statics against the elastica (issue 24)", checks,
                    {"sweep_deg": sweep, "speed_deg_s": SPEED_DEG_S, "peg_radius_m": PEG_RADIUS_M, "cases": cases},
