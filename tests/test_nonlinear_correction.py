@@ -3,7 +3,10 @@ truth (tests/truth/) bends by about a third of its length: effect-free draw ``no
 straight, 21 mm, its four trials without noise. benchmarks/nonlinear_range.py measured, on
 this draw and two others (5040, 5060), the fitted misfit / RMS deflection of the linear
 simulator 0.0237, 0.0254, 0.0262 and after the correction 0.0214, 0.0207, 0.0209 (ratios
-0.90, 0.81, 0.80)."""
+0.90, 0.81, 0.80) with the paper's chain. With the continuum chain (the default since session 9)
+the linear fit of draw 5000 is already 44 % closer (misfit 3.96e-6 against 7.06e-6 m) and the
+correction gains less (ratio 0.966 against 0.904): much of what it took up was the chain's own
+error near the base."""
 
 from dataclasses import replace
 
@@ -39,7 +42,7 @@ def test_correction_follows_a_large_bend_better_than_the_linear_simulator(bent):
     linear = fit(TrajectoryObjective(measurement), start, BASELINE_NAMES, max_iterations=40)
     corrected = correct(measurement, linear)
     assert corrected.iterations >= 1
-    assert corrected.fit.error < 0.95 * linear.error          # measured 0.90
+    assert corrected.fit.error < 0.98 * linear.error          # measured 0.966
     # the corrected residuals are the engine's own misfit: the defect is not a free offset
     engine = TrajectoryObjective(measurement, corrected.simulator)
     assert engine.error(engine.residuals(corrected.fit.spec)) == pytest.approx(corrected.fit.error, rel=1e-6)
