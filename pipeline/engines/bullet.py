@@ -62,6 +62,7 @@ import numpy as np
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, TrialSetup, World, WorldResult
+from pipeline.engines.bullet_contact import find_contacts
 from pipeline.engines.bullet_whisker import IDENTITY_QUAT, BulletWhisker, quat
 from pipeline.engines.common import implausible, jam_message
 from pipeline.model.array import WhiskerModel
@@ -70,7 +71,6 @@ from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
 
 __all__ = ["BulletEngine"]
 
-WHISKER_GROUP, OBSTACLE_GROUP = 1, 2
 PARKED_MM = 1e6          # obstacles of other scenes and jammed whiskers wait this far away
 MESH_MARGIN_MM = 0.3     # contact skin of triangle meshes (0.1 mm let links through; see above)
 
@@ -124,19 +124,19 @@ class BulletWorld(World):
         p.setGravity(0, 0, 0, physicsClientId=self.client)
         self.bodies = [BulletWhisker(self.client, w) for w in whiskers]
         for w in self.bodies:
-            self._set_contact_properties(w.body, w.whisker_links, WHISKER_GROUP, OBSTACLE_GROUP)
-        self._owner = {w.body: k for k, w in enumerate(self.bodies)}
+            self._without_bullet_contact(w.body, w.whisker_links)
+        self._links = {w.body: w.local_link for w in self.bodies}
         self._scenes: dict[str, list[_Obstacle]] = {}
         self._scene_key: str | None = None
 
     # -- scene ---------------------------------------------------------------------------
-    def _set_contact_properties(self, body: int, links, group: int, mask: int) -> None:
+    def _without_bullet_contact(self, body: int, links) -> None:
+        """Bullet's solver never sees a contact (collision masks 0): contacts are found and solved
+        in the implicit step (:mod:`pipeline.engines.bullet_contact`)."""
         import pybullet as p
 
         for link in links:
-            p.setCollisionFilterGroupMask(body, link, group, mask, physicsClientId=self.client)
-            p.changeDynamics(body, link, restitution=0.0, lateralFriction=self.config.contact_friction,
-                             physicsClientId=self.client)
+            p.setCollisionFilterGroupMask(body, link, 0, 0, physicsClientId=self.client)
 
     @property
     def obstacles(self) -> list[_Obstacle]:
@@ -158,7 +158,7 @@ class BulletWorld(World):
                                          physicsClientId=self.client)
                 if isinstance(obstacle, TriangleMesh):
                     p.changeDynamics(body, -1, collisionMargin=MESH_MARGIN_MM, physicsClientId=self.client)
-                self._set_contact_properties(body, [-1], OBSTACLE_GROUP, WHISKER_GROUP)
+                self._without_bullet_contact(body, [-1])
                 built.append(_Obstacle(body, start, np.asarray(obstacle.velocity_m_s, float) * U.LENGTH))
             self._scenes[scene.key] = built
         self._scene_key = scene.key
@@ -202,7 +202,7 @@ class BulletWorld(World):
     def run(self, setup: TrialSetup, active: np.ndarray) -> WorldResult:
         import pybullet as p
 
-        c, h, drive = self.client, self.dt_s, setup.drive
+        c, h, drive, config = self.client, self.dt_s, setup.drive, self.config
         self.set_scene(setup.scene)
         self._reset(setup, active)
         n_w, n_links = len(self.bodies), self.whiskers[0].chain.links
@@ -213,16 +213,19 @@ class BulletWorld(World):
         running = list(np.flatnonzero(active))
         n_steps = setup.samples * self.steps_per_sample
         thetas = np.asarray(drive(np.arange(1, n_steps + 1) * h), float)     # θ(t + h) of every step
+        obstacle_bodies = [o.body for o in self.obstacles]
         for step in range(n_steps):
-            t = step * h
+            if moving:                                   # contacts with where obstacles will be
+                self._place_obstacles((step + 1) * h)
+            contacts = find_contacts(c, obstacle_bodies, self._links) if obstacle_bodies else {}
             for k in running:
                 w = self.bodies[k]
                 target = held[k] if held[k] is not None else w.rest_driven + w.rates * thetas[step]
-                w.apply_implicit_torques(target, h, setup.loads[k])
-            if moving:
-                self._place_obstacles(t + h)
+                points = contacts.get(w.body, ())
+                normal = w.apply_implicit_torques(target, h, setup.loads[k], points,
+                                                  config.contact_friction, config.solver_iterations)
+                self._flag_contacts(k, points, normal, touching, result.touched)
             p.stepSimulation(physicsClientId=c)
-            self._collect_contacts(touching, result.touched)
             if setup.hold_on_contact:
                 for k in np.flatnonzero(touching.any(axis=1)):
                     if held[k] is None:
@@ -240,21 +243,16 @@ class BulletWorld(World):
                     running.remove(k)
         return result
 
-    def _collect_contacts(self, touching: np.ndarray, touched: np.ndarray) -> None:
-        """OR this step's whisker–obstacle contacts into ``touching`` [w, N]: a link touches when it
-        penetrates or the solver pushed on it (a resting contact can sit a hair above zero);
-        ``touched`` [w] marks whiskers with any contact point at all."""
-        import pybullet as p
-
-        for obstacle in self.obstacles:
-            for point in p.getContactPoints(bodyA=obstacle.body, physicsClientId=self.client):
-                k = self._owner.get(point[2])
-                if k is None:
-                    continue
-                touched[k] = True
-                link = self.bodies[k].local_link.get(point[4])
-                if link is not None and (point[8] <= 0.0 or point[9] > 0.0):
-                    touching[k, link] = True
+    @staticmethod
+    def _flag_contacts(k: int, points, normal_forces: np.ndarray, touching: np.ndarray,
+                       touched: np.ndarray) -> None:
+        """OR whisker k's contacts of this step into ``touching`` [w, N]: a link touches when it
+        penetrates or is pushed on (a resting contact can sit a hair above zero); ``touched`` [w]
+        marks whiskers with any contact point at all (within reach)."""
+        for point, force in zip(points, normal_forces):
+            touched[k] = True
+            if point.gap_mm <= 0.0 or force > 0.0:
+                touching[k, point.link] = True
 
     def close(self) -> None:
         import pybullet as p

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.engines import units as U
+from pipeline.engines.bullet_contact import solve_forces, tangent_basis
 from pipeline.model.array import WhiskerModel
 from pipeline.model.kinematics import ProtractionDrive
 from pipeline.model.loads import LinkState, total_link_forces
@@ -170,11 +171,16 @@ class BulletWhisker:
         return np.array([s[0] for s in p.getJointStates(self.body, self.dofs[:3],
                                                           physicsClientId=self.client)])
 
-    def apply_implicit_torques(self, q_target: np.ndarray, h: float, loads=()) -> None:
-        """Joint torques of one linearly implicit step of size h (s) toward driven angles q_target.
+    def apply_implicit_torques(self, q_target: np.ndarray, h: float, loads=(), contacts=(),
+                               friction: float = 0.0, iterations: int = 50) -> np.ndarray:
+        """Joint torques of one linearly implicit step of size h (s) toward driven angles q_target;
+        returns the normal force (internal units) at each of ``contacts``.
 
         ``loads`` (:mod:`pipeline.model.loads`) enter the implicit solve as the generalised force
         Jᵀ·F and are applied to Bullet's bodies too, so the step Bullet takes is the implicit one.
+        So do the forces at ``contacts`` (:class:`~pipeline.engines.bullet_contact.ContactPoint`),
+        solved within the same implicit operator with Coulomb ``friction`` μ
+        (:mod:`pipeline.engines.bullet_contact`, ``iterations`` Gauss–Seidel sweeps at most).
         M·a + b comes from Bullet's inverse dynamics (exact at every step). The free–free block
         M_FF inside the implicit operator depends on the free angles q_F only (the driven joints
         turn the whole chain rigidly), so it is recomputed (Bullet's costliest query) only once
@@ -193,10 +199,45 @@ class BulletWhisker:
         driven_only = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, accel.tolist(),
                                                           physicsClientId=c)) - generalised   # M_·D·a_D + b − Jᵀ·F
         accel[3:] = self._lhs_inverse @ (-self.stiffness[3:] * q[3:] - self.damping[3:] * v[3:] - driven_only[3:])
+        normal_forces = np.zeros(len(contacts))
+        if contacts:
+            normal_forces, contact_generalised = self._contact_forces(contacts, q_list, v, accel, h,
+                                                                      friction, iterations)
+            generalised = generalised + contact_generalised
         torque = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, accel.tolist(),
                                                      physicsClientId=c)) - generalised
         p.setJointMotorControlArray(self.body, self.dofs, p.TORQUE_CONTROL, forces=torque.tolist(),
                                     physicsClientId=c)
+        return normal_forces
+
+    def _contact_forces(self, contacts, q: list[float], v: np.ndarray, accel: np.ndarray, h: float,
+                        friction: float, iterations: int) -> tuple[np.ndarray, np.ndarray]:
+        """Solve the contact forces of the step (:mod:`pipeline.engines.bullet_contact`), add
+        their free-joint response W·J_Fᵀ·f to ``accel`` (in place) and apply them to the links;
+        returns the normal forces [P] and their generalised force Jᵀ·f [n_dof]."""
+        import pybullet as p
+
+        c = self.client
+        zeros = [0.0] * self.n_dof
+        rows, frames = [], []
+        for contact in contacts:
+            link = self.whisker_links[contact.link]
+            state = p.getLinkState(self.body, link, computeForwardKinematics=True, physicsClientId=c)
+            local = matrix_from_xyzw(state[5]).T @ (contact.point_mm - np.asarray(state[4]))
+            linear = np.asarray(p.calculateJacobian(self.body, link, local.tolist(), q, zeros, zeros,
+                                                    physicsClientId=c)[0])
+            frames.append(np.stack([contact.normal, *tangent_basis(contact.normal)]))   # rows n, t1, t2
+            rows.append(frames[-1] @ linear)
+        jacobian = np.vstack(rows)                                   # [3P, n_dof]
+        response = self._lhs_inverse @ jacobian[:, 3:].T             # W·J_Fᵀ
+        forces = solve_forces(h * jacobian[:, 3:] @ response, jacobian @ (v + h * accel),
+                              np.array([contact.gap_mm for contact in contacts]), h, friction, iterations)
+        accel[3:] += response @ forces
+        for i, (contact, frame) in enumerate(zip(contacts, frames)):
+            world = frame.T @ forces[3 * i:3 * i + 3]
+            p.applyExternalForce(self.body, self.whisker_links[contact.link], world.tolist(),
+                                 contact.point_mm.tolist(), p.WORLD_FRAME, physicsClientId=c)
+        return forces[0::3], jacobian.T @ forces
 
     def _factorise(self, q: list[float], h: float) -> None:
         """(M_FF + h·C + h²·K)⁻¹ at joint angles q (F: the free joints)."""
