@@ -74,36 +74,42 @@ def find_contacts(client: int, obstacle_bodies, whisker_bodies: dict[int, object
     return found
 
 
-def tangent_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit vectors completing ``normal`` to a right-handed orthonormal frame."""
-    helper = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    t1 = np.cross(normal, helper)
-    t1 /= np.linalg.norm(t1)
-    return t1, np.cross(normal, t1)
+def contact_frame(normal: np.ndarray, with_tangents: bool) -> np.ndarray:
+    """[1, 3] the unit ``normal``, or [3, 3] it and two unit tangents (rows, right-handed)."""
+    if not with_tangents:
+        return normal[None, :]
+    nx, ny, nz = normal
+    # a tangent ⟂ normal from whichever of x, y is least aligned with it
+    t1 = np.array([0.0, nz, -ny]) if abs(nx) >= abs(ny) else np.array([-nz, 0.0, nx])
+    t1 /= np.sqrt(t1 @ t1)
+    t2 = np.array([ny * t1[2] - nz * t1[1], nz * t1[0] - nx * t1[2], nx * t1[1] - ny * t1[0]])
+    return np.array([normal, t1, t2])
 
 
 def solve_forces(G: np.ndarray, u0: np.ndarray, gaps_mm: np.ndarray, h: float, mu: float,
                  iterations: int) -> np.ndarray:
-    """Contact forces f [3P] (normal, two tangents per point) of the step (module docstring).
+    """Contact forces f of the step (module docstring): per point the normal force, and with
+    μ > 0 two tangential ones ([P] or [3P], the rows of :func:`contact_frame`).
 
-    ``G`` [3P, 3P]: velocity after the step per unit force; ``u0`` [3P]: velocity after the
-    step without contact; ``gaps_mm`` [P]."""
+    ``G``: velocity after the step per unit force; ``u0``: velocity after the step without
+    contact; ``gaps_mm`` [P]."""
     n = len(gaps_mm)
+    per_point = 3 if mu > 0 else 1
     bias = np.where(gaps_mm >= 0, gaps_mm, PENETRATION_ERP * gaps_mm) / h
-    f = np.zeros(3 * n)
+    f = np.zeros(per_point * n)
     u = u0.copy()
-    diagonal = np.diag(G)
+    diagonal = np.diag(G).copy()
     for _ in range(iterations):
         largest_change = 0.0
         for i in range(n):
-            r = 3 * i
-            normal = max(0.0, f[r] - (u[r] + bias[i]) / diagonal[r])
-            changes = [normal - f[r]]
-            if mu > 0:
+            r = per_point * i
+            changes = [max(0.0, f[r] - (u[r] + bias[i]) / diagonal[r]) - f[r]]
+            if per_point == 3:
+                bound = mu * (f[r] + changes[0])
                 tangential = f[r + 1:r + 3] - u[r + 1:r + 3] / diagonal[r + 1:r + 3]
                 size = np.hypot(*tangential)
-                if size > mu * normal:
-                    tangential *= mu * normal / size
+                if size > bound:
+                    tangential *= bound / size
                 changes += list(tangential - f[r + 1:r + 3])
             for j, change in enumerate(changes):
                 if change:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.engines import units as U
-from pipeline.engines.bullet_contact import solve_forces, tangent_basis
+from pipeline.engines.bullet_contact import contact_frame, solve_forces
 from pipeline.model.array import WhiskerModel
 from pipeline.model.kinematics import ProtractionDrive
 from pipeline.model.loads import LinkState, total_link_forces
@@ -214,30 +214,38 @@ class BulletWhisker:
                         friction: float, iterations: int) -> tuple[np.ndarray, np.ndarray]:
         """Solve the contact forces of the step (:mod:`pipeline.engines.bullet_contact`), add
         their free-joint response W·J_Fᵀ·f to ``accel`` (in place) and apply them to the links;
-        returns the normal forces [P] and their generalised force Jᵀ·f [n_dof]."""
+        returns the normal forces [P] and their generalised force Jᵀ·f [n_dof].
+
+        One Jacobian per touched link, at its frame's origin o; a point p's row along d is
+        d·J_lin + ((p − o) × d)·J_ang."""
         import pybullet as p
 
         c = self.client
         zeros = [0.0] * self.n_dof
+        jacobians = {}
         rows, frames = [], []
         for contact in contacts:
-            link = self.whisker_links[contact.link]
-            state = p.getLinkState(self.body, link, computeForwardKinematics=True, physicsClientId=c)
-            local = matrix_from_xyzw(state[5]).T @ (contact.point_mm - np.asarray(state[4]))
-            linear = np.asarray(p.calculateJacobian(self.body, link, local.tolist(), q, zeros, zeros,
-                                                    physicsClientId=c)[0])
-            frames.append(np.stack([contact.normal, *tangent_basis(contact.normal)]))   # rows n, t1, t2
-            rows.append(frames[-1] @ linear)
-        jacobian = np.vstack(rows)                                   # [3P, n_dof]
+            if contact.link not in jacobians:
+                link = self.whisker_links[contact.link]
+                origin = p.getLinkState(self.body, link, computeForwardKinematics=True, physicsClientId=c)[4]
+                linear, angular = p.calculateJacobian(self.body, link, [0.0, 0.0, 0.0], q, zeros, zeros,
+                                                      physicsClientId=c)
+                jacobians[contact.link] = (np.asarray(origin), np.asarray(linear), np.asarray(angular))
+            origin, linear, angular = jacobians[contact.link]
+            frame = contact_frame(contact.normal, friction > 0)                 # rows: n (, t1, t2)
+            rows.append(frame @ linear + np.cross(contact.point_mm - origin, frame) @ angular)
+            frames.append(frame)
+        jacobian = np.vstack(rows)                                   # [P or 3P, n_dof]
         response = self._lhs_inverse @ jacobian[:, 3:].T             # W·J_Fᵀ
         forces = solve_forces(h * jacobian[:, 3:] @ response, jacobian @ (v + h * accel),
                               np.array([contact.gap_mm for contact in contacts]), h, friction, iterations)
         accel[3:] += response @ forces
+        per_point = len(forces) // len(contacts)
         for i, (contact, frame) in enumerate(zip(contacts, frames)):
-            world = frame.T @ forces[3 * i:3 * i + 3]
+            world = frame.T @ forces[per_point * i:per_point * (i + 1)]
             p.applyExternalForce(self.body, self.whisker_links[contact.link], world.tolist(),
                                  contact.point_mm.tolist(), p.WORLD_FRAME, physicsClientId=c)
-        return forces[0::3], jacobian.T @ forces
+        return forces[0::per_point], jacobian.T @ forces
 
     def _factorise(self, q: list[float], h: float) -> None:
         """(M_FF + h·C + h²·K)⁻¹ at joint angles q (F: the free joints)."""
