@@ -79,8 +79,8 @@ def contact_frame(normal: np.ndarray, with_tangents: bool) -> np.ndarray:
     if not with_tangents:
         return normal[None, :]
     nx, ny, nz = normal
-    # a tangent ⟂ normal from whichever of x, y is least aligned with it
-    t1 = np.array([0.0, nz, -ny]) if abs(nx) >= abs(ny) else np.array([-nz, 0.0, nx])
+    # a tangent ⟂ normal: x × normal, or y × normal when the normal is closer to x than to y
+    t1 = np.array([0.0, -nz, ny]) if abs(nx) <= abs(ny) else np.array([nz, 0.0, -nx])
     t1 /= np.sqrt(t1 @ t1)
     t2 = np.array([ny * t1[2] - nz * t1[1], nz * t1[0] - nx * t1[2], nx * t1[1] - ny * t1[0]])
     return np.array([normal, t1, t2])
@@ -92,7 +92,8 @@ def solve_forces(G: np.ndarray, u0: np.ndarray, gaps_mm: np.ndarray, h: float, m
     μ > 0 two tangential ones ([P] or [3P], the rows of :func:`contact_frame`).
 
     ``G``: velocity after the step per unit force; ``u0``: velocity after the step without
-    contact; ``gaps_mm`` [P]."""
+    contact; ``gaps_mm`` [P]. A point that no spring joint can move (on link 1 with a rigid
+    follicle: the drive is rigid) gets no force."""
     n = len(gaps_mm)
     per_point = 3 if mu > 0 else 1
     bias = np.where(gaps_mm >= 0, gaps_mm, PENETRATION_ERP * gaps_mm) / h
@@ -103,6 +104,8 @@ def solve_forces(G: np.ndarray, u0: np.ndarray, gaps_mm: np.ndarray, h: float, m
         largest_change = 0.0
         for i in range(n):
             r = per_point * i
+            if diagonal[r] <= 0.0:      # a point no spring joint can move (link 1, rigid follicle)
+                continue
             changes = [max(0.0, f[r] - (u[r] + bias[i]) / diagonal[r]) - f[r]]
             if per_point == 3:
                 bound = mu * (f[r] + changes[0])
