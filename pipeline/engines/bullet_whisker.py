@@ -128,6 +128,7 @@ class BulletWhisker:
         p.changeDynamics(self.body, -1, linearDamping=0, angularDamping=0,
                          activationState=p.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=client)
         self.dofs = [j for j, t in enumerate(links.columns["linkJointTypes"]) if t == p.JOINT_REVOLUTE]
+        self.dof_joints = np.array(self.dofs)                # joint index of each dof (serial chain)
         p.setJointMotorControlArray(self.body, self.dofs, p.VELOCITY_CONTROL,
                                     forces=[0.0] * len(self.dofs), physicsClientId=client)
         p.enableJointForceTorqueSensor(self.body, self.sensor_joint, True, physicsClientId=client)
@@ -216,24 +217,26 @@ class BulletWhisker:
         their free-joint response W·J_Fᵀ·f to ``accel`` (in place) and apply them to the links;
         returns the normal forces [P] and their generalised force Jᵀ·f [n_dof].
 
-        One Jacobian per touched link, at its frame's origin o; a point p's row along d is
-        d·J_lin + ((p − o) × d)·J_ang."""
+        One Jacobian per step, at the frame origin o of the farthest touched link: a point p on
+        link l has the row d·J_lin + ((p − o) × d)·J_ang along d, with the columns of the joints
+        beyond l (not l's ancestors in the serial chain) zeroed."""
         import pybullet as p
 
         c = self.client
         zeros = [0.0] * self.n_dof
-        jacobians = {}
+        farthest = self.whisker_links[max(contact.link for contact in contacts)]
+        origin = np.asarray(p.getLinkState(self.body, farthest, computeForwardKinematics=True,
+                                           physicsClientId=c)[4])
+        linear, angular = (np.asarray(part) for part in p.calculateJacobian(
+            self.body, farthest, [0.0, 0.0, 0.0], q, zeros, zeros, physicsClientId=c))
         rows, frames = [], []
         for contact in contacts:
-            if contact.link not in jacobians:
-                link = self.whisker_links[contact.link]
-                origin = p.getLinkState(self.body, link, computeForwardKinematics=True, physicsClientId=c)[4]
-                linear, angular = p.calculateJacobian(self.body, link, [0.0, 0.0, 0.0], q, zeros, zeros,
-                                                      physicsClientId=c)
-                jacobians[contact.link] = (np.asarray(origin), np.asarray(linear), np.asarray(angular))
-            origin, linear, angular = jacobians[contact.link]
             frame = contact_frame(contact.normal, friction > 0)                 # rows: n (, t1, t2)
-            rows.append(frame @ linear + np.cross(contact.point_mm - origin, frame) @ angular)
+            r = contact.point_mm - origin
+            moment_arms = r[[1, 2, 0]] * frame[:, [2, 0, 1]] - r[[2, 0, 1]] * frame[:, [1, 2, 0]]   # r × d
+            row = frame @ linear + moment_arms @ angular
+            row[:, self.dof_joints > self.whisker_links[contact.link]] = 0.0
+            rows.append(row)
             frames.append(frame)
         jacobian = np.vstack(rows)                                   # [P or 3P, n_dof]
         response = self._lhs_inverse @ jacobian[:, 3:].T             # W·J_Fᵀ
