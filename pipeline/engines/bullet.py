@@ -1,23 +1,25 @@
 """Bullet engine (pybullet): whiskers as Featherstone chains with implicit joint spring-dampers.
 
 Each whisker is one multibody (:mod:`pipeline.engines.bullet_whisker`). Whiskers never touch each
-other (collision groups), only obstacles, so they are independent systems: the whiskers that
+other, only obstacles, so they are independent systems: the whiskers that
 share a step size form one Bullet world (a pybullet client), run by the template of
 :mod:`pipeline.engines.base`. Each whisker steps at ``engine.dt_s / 2**j`` with j from its first
 mode (:mod:`pipeline.engines.stepping`).
 
 Integration scheme (one step of size h, per whisker; q, v joint positions and velocities):
 
-    (M_FF + h·C + h²·K) a_F = −K·q_F − C·v_F − b_F − M_FD·a_D
-    τ = M·a + b,  applied as joint torques, then Bullet's semi-implicit Euler step
-        (v ← v + h·a + contact impulses; q ← q + h·v)
+    (M_FF + h·C + h²·K) a_F = −K·q_F − C·v_F − b_F − M_FD·a_D + J_Fᵀ·f
+    τ = M·a + b − Jᵀ·f,  applied as joint torques, f as forces on the links, then Bullet's
+        semi-implicit Euler step (v ← v + h·a; q ← q + h·v)
 
 M is Bullet's joint-space mass matrix and b its bias forces (Coriolis, centrifugal) less the
 generalised loads Jᵀ·F (:mod:`pipeline.model.loads`: gravity, drag, a tip force) at the current state; F are the spring joints, D the driven ones whose accelerations a_D make
 them land exactly on the prescribed angles at t + h. This linearly implicit scheme is stable
 for any h (for an undamped mode it is symplectic Euler with ω² replaced by k/(m + h²k)) and,
 unlike backward Euler, adds no numerical damping; frequencies drop by ≈ (hω)²/2 relative.
-Contact impulses come from Bullet's constraint solver within the same step. M·a + b is Bullet's
+The contact forces f are solved within the same operator (:mod:`pipeline.engines.bullet_contact`:
+non-penetration and Coulomb friction μ as configured); Bullet's own contact solver, which would
+see the links' inertia but not the springs, never sees a contact. M·a + b is Bullet's
 inverse dynamics at every step (driven joints land exactly); the free–free block M_FF inside
 the implicit operator, a function of the free angles only, is recomputed when one of them has
 moved by :data:`~pipeline.engines.bullet_whisker.MASS_REFRESH_RAD` (every ≈ 10th step of a
@@ -32,18 +34,15 @@ list→array conversion on ≈ 1 step in 10, numpy ≈ 15 µs). A full-array fre
 whisk takes ≈ 1.2·10⁶ whisker-steps per simulated second under the default step plan, so the
 pybullet calls alone put a floor of ≈ 110 µs × 3·10⁵ ≈ 33 CPU-s under a 250 ms trial.
 
-Contact jams. The contact solver sees a link's inertia but not the joint springs of the step,
-so a thin tip pushed into a mesh by the rigid drive can end up between faces with opposing
-normals; the impulses then grow without bound. A whisker whose base moment leaves the
-plausible range is parked out of the way (the rest of its world goes on); the template
-simulates it again alone with half the step.
+Contact jams. A whisker whose base moment leaves the plausible range (a contact that cannot
+be resolved, e.g. a bent start held against a surface) is parked out of the way (the rest of
+its world goes on); the template simulates it again alone with half the step. (Bullet's own
+contact solver, used before issue 24, jammed thin tips between mesh faces with opposing
+normals; the implicit contact has not jammed in the cases that did.)
 
-Triangle meshes. Bullet's triangles have no thickness, and a thin link that crosses one within
-a step is then pushed out on the far side (on a closed sphere: nodes up to 2.8 mm inside). A
-mesh therefore gets a collision margin of :data:`MESH_MARGIN_MM` — a skin Bullet detects
-contacts in, wide enough to catch a link before it crosses — with its vertices moved inward
-by the same distance along their normals, so that the skin's outer side is the scanned surface
-(sphere: ≤ 0.5 mm, tips only, as MuJoCo; ``benchmarks/bench_penetration.py``).
+Triangle meshes are the scanned surface itself: contacts are found within
+:data:`~pipeline.engines.bullet_contact.CONTACT_REACH_MM` of it, before a thin link can cross a
+triangle (which has no thickness) within a step.
 
 Obstacle shapes cannot be freed in pybullet (``removeBody`` on a static mesh body fails and
 ``removeCollisionShape`` refuses shapes in use), so each world keeps the bodies of every scene
@@ -72,7 +71,6 @@ from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
 __all__ = ["BulletEngine"]
 
 PARKED_MM = 1e6          # obstacles of other scenes and jammed whiskers wait this far away
-MESH_MARGIN_MM = 0.3     # contact skin of triangle meshes (0.1 mm let links through; see above)
 
 
 @dataclass
@@ -97,12 +95,10 @@ def _box_shape(client: int, box: Box) -> int:
 
 
 def _mesh_shape(client: int, mesh: TriangleMesh) -> int:
-    """A concave mesh moved :data:`MESH_MARGIN_MM` inward along its normals (its contact skin
-    then reaches out to the scanned surface)."""
     import pybullet as p
 
-    inner = mesh.vertices_m * U.LENGTH - MESH_MARGIN_MM * mesh.vertex_normals
-    return p.createCollisionShape(p.GEOM_MESH, physicsClientId=client, vertices=inner.tolist(),
+    return p.createCollisionShape(p.GEOM_MESH, physicsClientId=client,
+                                  vertices=(mesh.vertices_m * U.LENGTH).tolist(),
                                   indices=mesh.faces.astype(int).ravel().tolist())
 
 
@@ -156,8 +152,6 @@ class BulletWorld(World):
                 start = np.asarray(obstacle.position_m, float) * U.LENGTH
                 body = p.createMultiBody(0.0, shape, -1, (start + PARKED_MM).tolist(), quat(obstacle.rotation),
                                          physicsClientId=self.client)
-                if isinstance(obstacle, TriangleMesh):
-                    p.changeDynamics(body, -1, collisionMargin=MESH_MARGIN_MM, physicsClientId=self.client)
                 self._without_bullet_contact(body, [-1])
                 built.append(_Obstacle(body, start, np.asarray(obstacle.velocity_m_s, float) * U.LENGTH))
             self._scenes[scene.key] = built
