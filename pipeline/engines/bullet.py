@@ -114,9 +114,8 @@ class BulletWorld(World):
 
         super().__init__(whiskers, config, dt_s)
         self.client = p.connect(p.DIRECT)
-        p.setPhysicsEngineParameter(fixedTimeStep=dt_s, numSubSteps=0,
-                                    numSolverIterations=config.solver_iterations,
-                                    deterministicOverlappingPairs=1, physicsClientId=self.client)
+        p.setPhysicsEngineParameter(fixedTimeStep=dt_s, numSubSteps=0, deterministicOverlappingPairs=1,
+                                    physicsClientId=self.client)
         p.setGravity(0, 0, 0, physicsClientId=self.client)
         self.bodies = [BulletWhisker(self.client, w) for w in whiskers]
         for w in self.bodies:
@@ -207,11 +206,11 @@ class BulletWorld(World):
         running = list(np.flatnonzero(active))
         n_steps = setup.samples * self.steps_per_sample
         thetas = np.asarray(drive(np.arange(1, n_steps + 1) * h), float)     # θ(t + h) of every step
-        obstacle_bodies = [o.body for o in self.obstacles]
+        obstacles = [(o.body, o.velocity_mm_s) for o in self.obstacles]
         for step in range(n_steps):
             if moving:                                   # contacts with where obstacles will be
                 self._place_obstacles((step + 1) * h)
-            contacts = find_contacts(c, obstacle_bodies, self._links) if obstacle_bodies else {}
+            contacts = find_contacts(c, obstacles, self._links) if obstacles else {}
             for k in running:
                 w = self.bodies[k]
                 target = held[k] if held[k] is not None else w.rest_driven + w.rates * thetas[step]

@@ -13,7 +13,8 @@ with f per contact point a normal force f_n ≥ 0 and a friction force |f_t| ≤
 The velocity after the step at a point, u = J·(v + h·a) = u₀ + G·f with G = h·J_F·W·J_Fᵀ, must
 not close the gap g (mm, < 0: penetration) within the step: u_n ≥ −g/h for g ≥ 0, and
 u_n ≥ −:data:`PENETRATION_ERP`·g/h inside (pushed out over a few steps, no pop); friction
-opposes sliding (u_t = 0 while |f_t| < μ·f_n). Projected Gauss–Seidel over the points solves
+opposes sliding relative to the obstacle's surface (u_t = its velocity while |f_t| < μ·f_n).
+Projected Gauss–Seidel over the points (at most ``engine.solver_iterations`` sweeps) solves
 this small problem (a few points per whisker). The forces are applied to the links as external
 forces at the points and enter the joint torques as −Jᵀ·f, exactly as the loads do, so the base
 sensor feels them. At rest a = 0 and the springs balance the contact: K·q = Jᵀ·f.
@@ -46,18 +47,20 @@ class ContactPoint:
     point_mm: np.ndarray     # [3] on the whisker's surface
     normal: np.ndarray       # [3] unit, from the obstacle toward the whisker
     gap_mm: float            # distance to the obstacle, < 0 inside
+    surface_velocity: np.ndarray   # [3] mm/s, the obstacle's (friction acts on the relative sliding)
 
 
-def find_contacts(client: int, obstacle_bodies, whisker_bodies: dict[int, object]) -> dict[int, list[ContactPoint]]:
+def find_contacts(client: int, obstacles, whisker_bodies: dict[int, object]) -> dict[int, list[ContactPoint]]:
     """Contact points within :data:`CONTACT_REACH_MM` of the obstacles, per whisker body id.
 
-    ``whisker_bodies``: body id → the whisker's ``local_link`` map (Bullet link → 0-based link).
+    ``obstacles``: (body id, velocity [3] mm/s) of each; ``whisker_bodies``: body id → the
+    whisker's ``local_link`` map (Bullet link → 0-based link).
     A broadphase query per obstacle selects the candidate whiskers (cheap), then
     ``getClosestPoints`` gives the points."""
     import pybullet as p
 
     found: dict[int, list[ContactPoint]] = {}
-    for obstacle in obstacle_bodies:
+    for obstacle, velocity in obstacles:
         low, high = p.getAABB(obstacle, -1, physicsClientId=client)
         low = [v - CONTACT_REACH_MM for v in low]
         high = [v + CONTACT_REACH_MM for v in high]
@@ -71,7 +74,7 @@ def find_contacts(client: int, obstacle_bodies, whisker_bodies: dict[int, object
                     continue
                 # normal on B (the whisker) points toward A (the obstacle)
                 found.setdefault(body, []).append(ContactPoint(
-                    link, np.array(point[6]), -np.array(point[7]), float(point[8])))
+                    link, np.array(point[6]), -np.array(point[7]), float(point[8]), velocity))
     return found
 
 

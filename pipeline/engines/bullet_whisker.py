@@ -240,7 +240,11 @@ class BulletWhisker:
             frames.append(frame)
         jacobian = np.vstack(rows)                                   # [P or 3P, n_dof]
         response = self._lhs_inverse @ jacobian[:, 3:].T             # W·J_Fᵀ
-        forces = solve_forces(h * jacobian[:, 3:] @ response, jacobian @ (v + h * accel),
+        velocity = jacobian @ (v + h * accel)                         # after the step, without contact
+        if friction > 0:                         # friction acts on sliding relative to the surface
+            velocity -= np.concatenate([np.array([0.0, *frame[1:] @ contact.surface_velocity])
+                                        for contact, frame in zip(contacts, frames)])
+        forces = solve_forces(h * jacobian[:, 3:] @ response, velocity,
                               np.array([contact.gap_mm for contact in contacts]), h, friction, iterations)
         accel[3:] += response @ forces
         per_point = len(forces) // len(contacts)
