@@ -128,7 +128,6 @@ class BulletWhisker:
         p.changeDynamics(self.body, -1, linearDamping=0, angularDamping=0,
                          activationState=p.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=client)
         self.dofs = [j for j, t in enumerate(links.columns["linkJointTypes"]) if t == p.JOINT_REVOLUTE]
-        self.dof_joints = np.array(self.dofs)                # joint index of each dof (serial chain)
         p.setJointMotorControlArray(self.body, self.dofs, p.VELOCITY_CONTROL,
                                     forces=[0.0] * len(self.dofs), physicsClientId=client)
         p.enableJointForceTorqueSensor(self.body, self.sensor_joint, True, physicsClientId=client)
@@ -143,6 +142,8 @@ class BulletWhisker:
         self.link1_angle = chain.link_angles_rad[0]
         self.tip_offset = chain.link_lengths_m[-1] * U.LENGTH
         self.local_link = {link: i for i, link in enumerate(self.whisker_links)}
+        # dofs moving whisker link i: those of its joint and before (a serial chain)
+        self.ancestor_dofs = np.searchsorted(self.dofs, self.whisker_links, side="right")
         self._lhs_inverse, self._factorised_at = None, None
 
     # -- per trial -----------------------------------------------------------------------
@@ -229,28 +230,23 @@ class BulletWhisker:
                                            physicsClientId=c)[4])
         linear, angular = (np.asarray(part) for part in p.calculateJacobian(
             self.body, farthest, [0.0, 0.0, 0.0], q, zeros, zeros, physicsClientId=c))
-        rows, frames = [], []
-        for contact in contacts:
-            frame = contact_frame(contact.normal, friction > 0)                 # rows: n (, t1, t2)
-            r = contact.point_mm - origin
-            moment_arms = r[[1, 2, 0]] * frame[:, [2, 0, 1]] - r[[2, 0, 1]] * frame[:, [1, 2, 0]]   # r × d
-            row = frame @ linear + moment_arms @ angular
-            row[:, self.dof_joints > self.whisker_links[contact.link]] = 0.0
-            rows.append(row)
-            frames.append(frame)
-        jacobian = np.vstack(rows)                                   # [P or 3P, n_dof]
+        frames = np.concatenate([contact_frame(contact.normal, friction > 0) for contact in contacts])
+        per_point = len(frames) // len(contacts)                     # rows n (, t1, t2) per point
+        arms = np.repeat([contact.point_mm for contact in contacts], per_point, axis=0) - origin
+        jacobian = frames @ linear + np.cross(arms, frames) @ angular          # [P or 3P, n_dof]
+        ancestors = np.repeat([self.ancestor_dofs[contact.link] for contact in contacts], per_point)
+        jacobian[np.arange(self.n_dof) >= ancestors[:, None]] = 0.0
         response = self._lhs_inverse @ jacobian[:, 3:].T             # W·J_Fᵀ
         velocity = jacobian @ (v + h * accel)                         # after the step, without contact
         if friction > 0:                         # friction acts on sliding relative to the surface
-            velocity -= np.concatenate([np.array([0.0, *frame[1:] @ contact.surface_velocity])
-                                        for contact, frame in zip(contacts, frames)])
+            surface = np.repeat([contact.surface_velocity for contact in contacts], 3, axis=0)
+            velocity -= np.einsum("ij,ij->i", frames, surface) * (np.arange(len(frames)) % 3 > 0)
         forces = solve_forces(h * jacobian[:, 3:] @ response, velocity,
                               np.array([contact.gap_mm for contact in contacts]), h, friction, iterations)
         accel[3:] += response @ forces
-        per_point = len(forces) // len(contacts)
-        for i, (contact, frame) in enumerate(zip(contacts, frames)):
-            world = frame.T @ forces[per_point * i:per_point * (i + 1)]
-            p.applyExternalForce(self.body, self.whisker_links[contact.link], world.tolist(),
+        world = np.einsum("ij,i->ij", frames, forces).reshape(len(contacts), per_point, 3).sum(axis=1)
+        for contact, force in zip(contacts, world):
+            p.applyExternalForce(self.body, self.whisker_links[contact.link], force.tolist(),
                                  contact.point_mm.tolist(), p.WORLD_FRAME, physicsClientId=c)
         return forces[0::per_point], jacobian.T @ forces
 
