@@ -175,9 +175,6 @@ class BulletWorld(World):
         rotation = setup.pose.rotation
         orientation = quat(rotation)
         position = np.asarray(setup.pose.position_m, float)
-        # Clear cached contact manifolds so a trial does not depend on the previous one.
-        self._place_obstacles(0.0, far=True)
-        p.performCollisionDetection(physicsClientId=self.client)
         for k, w in enumerate(self.bodies):
             if active[k]:
                 w.reset((position + rotation @ w.model.base_point_m) * U.LENGTH, orientation,
@@ -185,7 +182,7 @@ class BulletWorld(World):
             else:
                 self._park(k, setup.drive)
         self._place_obstacles(0.0)
-        p.performCollisionDetection(physicsClientId=self.client)
+        p.performCollisionDetection(physicsClientId=self.client)    # bounding boxes, where contacts are looked up
 
     def _park(self, k: int, drive: ProtractionDrive) -> None:
         """Move whisker k far away at rest: it no longer touches anything."""

@@ -55,15 +55,15 @@ def find_contacts(client: int, obstacles, whisker_bodies: dict[int, object]) -> 
 
     ``obstacles``: (body id, velocity [3] mm/s) of each; ``whisker_bodies``: body id → the
     whisker's ``local_link`` map (Bullet link → 0-based link).
-    A broadphase query per obstacle selects the candidate whiskers (cheap), then
-    ``getClosestPoints`` gives the points."""
+    A broadphase query per obstacle selects the candidate whiskers (cheap; the whiskers' boxes
+    there are a step old, hence twice the reach), then ``getClosestPoints`` gives the points."""
     import pybullet as p
 
     found: dict[int, list[ContactPoint]] = {}
     for obstacle, velocity in obstacles:
         low, high = p.getAABB(obstacle, -1, physicsClientId=client)
-        low = [v - CONTACT_REACH_MM for v in low]
-        high = [v + CONTACT_REACH_MM for v in high]
+        low = [v - 2 * CONTACT_REACH_MM for v in low]
+        high = [v + 2 * CONTACT_REACH_MM for v in high]
         near = {body for body, _ in (p.getOverlappingObjects(low, high, physicsClientId=client) or ())
                 if body in whisker_bodies}
         for body in near:
