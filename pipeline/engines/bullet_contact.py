@@ -36,6 +36,7 @@ import numpy as np
 
 CONTACT_REACH_MM = 0.25      # speculative contact distance (a tip moves ≲ 0.15 mm per step)
 PENETRATION_ERP = 0.2        # fraction of a penetration removed per step
+MERGE_MM = 0.1               # a link's points closer than this to a deeper one are dropped
 TOLERANCE = 1e-6             # Gauss–Seidel stops when no force changes by more than this × the largest
 
 
@@ -56,7 +57,9 @@ def find_contacts(client: int, obstacles, whisker_bodies: dict[int, object]) -> 
     ``obstacles``: (body id, velocity [3] mm/s) of each; ``whisker_bodies``: body id → the
     whisker's ``local_link`` map (Bullet link → 0-based link).
     A broadphase query per obstacle selects the candidate whiskers (cheap; the whiskers' boxes
-    there are a step old, hence twice the reach), then ``getClosestPoints`` gives the points."""
+    there are a step old, hence twice the reach), then ``getClosestPoints`` gives the points.
+    A mesh gives one per triangle near a link: a link's points within :data:`MERGE_MM` of a
+    deeper one are dropped (near-copies that only slow the solve down)."""
     import pybullet as p
 
     found: dict[int, list[ContactPoint]] = {}
@@ -68,14 +71,16 @@ def find_contacts(client: int, obstacles, whisker_bodies: dict[int, object]) -> 
                 if body in whisker_bodies}
         for body in near:
             links = whisker_bodies[body]
-            for point in p.getClosestPoints(obstacle, body, CONTACT_REACH_MM, physicsClientId=client):
-                link = links.get(point[4])
-                if link is None:
+            kept: list[ContactPoint] = found.setdefault(body, [])
+            points = p.getClosestPoints(obstacle, body, CONTACT_REACH_MM, physicsClientId=client)
+            for point in sorted(points, key=lambda point: point[8]):            # deepest first
+                link, where = links.get(point[4]), np.array(point[6])
+                if link is None or any(other.link == link and np.sum((other.point_mm - where) ** 2) < MERGE_MM ** 2
+                                       for other in kept):
                     continue
                 # normal on B (the whisker) points toward A (the obstacle)
-                found.setdefault(body, []).append(ContactPoint(
-                    link, np.array(point[6]), -np.array(point[7]), float(point[8]), velocity))
-    return found
+                kept.append(ContactPoint(link, where, -np.array(point[7]), float(point[8]), velocity))
+    return {body: points for body, points in found.items() if points}
 
 
 def contact_frame(normal: np.ndarray, with_tangents: bool) -> np.ndarray:
