@@ -22,8 +22,8 @@ from pipeline.protocols.peg_sweep import bend_angles_deg, friction_ratio, penetr
 
 
 def sweep(engine: str, args):
-    config = ModelConfig(engine=EngineConfig(name=engine, contact_friction=args.mu,
-                                             **({"dt_s": args.dt} if args.dt else {})))
+    step = {"dt_s": args.dt} if args.dt and engine == "bullet" else {}
+    config = ModelConfig(engine=EngineConfig(name=engine, contact_friction=args.mu, **step))
     start = time.process_time()
     result = run_peg_sweep(config, args.whisker, args.fraction, args.past, args.rate)
     return result, time.process_time() - start
