@@ -20,7 +20,7 @@ forces at the points and enter the joint torques as −Jᵀ·f, exactly as the l
 sensor feels them. At rest a = 0 and the springs balance the contact: K·q = Jᵀ·f.
 
 Contacts are looked for within :data:`CONTACT_REACH_MM` of the surface (farther than any link
-moves in a step), so that a link is caught before it crosses a thin peg or a mesh's skin; a
+moves in a step), so that a link is caught before it crosses a thin peg or a triangle; a
 point farther than its gap only limits motion that would cross it. μ is the configured
 Coulomb coefficient itself (Bullet's own rule would multiply two bodies' coefficients).
 
