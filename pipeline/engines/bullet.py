@@ -36,7 +36,7 @@ pybullet calls alone put a floor of ≈ 110 µs × 3·10⁵ ≈ 33 CPU-s under a
 A whisker-step within reach of an obstacle adds its contact query (``getClosestPoints``), one
 Jacobian and the solve, ≈ 1.5–2× a free whisker-step (issue 24, engine CPU-s of 250 ms trials,
 Bullet's own contact before → this: RC1 against the active pegs ×1.4–1.6, the right array
-against them ×1.05, the passive peg through it ×1.08).
+against them ×1.05, the passive peg through it ×1.08–1.16).
 
 Contact jams. A whisker whose base moment leaves the plausible range (a contact that cannot
 be resolved, e.g. a bent start held against a surface) is parked out of the way (the rest of
