@@ -50,20 +50,21 @@ def test_step_per_whisker_follows_its_first_mode():
     assert np.all(refinement_levels(array, model.engine.model_copy(update={"f1_tolerance": 0})) == 0)
 
 
-def test_a_jammed_whisker_is_simulated_again_alone_with_a_finer_step():
+def test_a_tip_on_a_rough_sheet_no_longer_jams_at_the_coarse_step():
+    """The RD3 tip that once jammed in this sheet at one coarse step (Bullet's contact solver saw
+    no joint springs; issue 24) now stays physical without re-simulation: contact is solved in
+    the implicit step (pipeline.engines.bullet_contact). Re-simulating a jammed whisker alone is
+    tested from a bent start (test_engine_release)."""
     scene = Scene("bumpy-sheet", (beside_right_array(bumpy_sheet(), 0.023),))   # clear at the start
-    # one coarse step for all and no second chance: the RD3 tip jams in the sheet
-    with pytest.raises(SimulationError, match="RD3"):
-        run_trial(with_engine(f1_tolerance=0.0, jam_refinements=0), scene, Pose(), 0.1, "RD3")
-    coarse = with_engine(f1_tolerance=0.0)                            # one 0.1 ms step, 2 halvings
+    coarse = with_engine(f1_tolerance=0.0, jam_refinements=0)       # one 0.1 ms step, no second chance
     out = run_trial(coarse, scene, Pose(), 0.1, "RD3,RB3")
-    assert out.metadata["jam_refined"].get("RD3", 0) >= 1
+    assert out.metadata["jam_refined"] == {}
     assert out.contact[:, out.index("RD3")].any()
     # the re-simulation's points of contact came along: one wherever a link touched
     assert np.array_equal(np.isfinite(out.point_of_contact), out.contact.any(axis=2))
     moments = out.moment_magnitude()
     assert np.all(np.isfinite(moments)) and moments.max() < 1e-4     # whiskers break near 1e-4 N·m
-    # the other whisker is untouched by its neighbour's refinement
+    # whiskers are independent: a neighbour does not change another's signals
     alone = run_trial(coarse, scene, Pose(), 0.1, "RB3")
     assert np.array_equal(alone.base_wrench[:, 0], out.base_wrench[:, out.index("RB3")])
 

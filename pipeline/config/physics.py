@@ -133,7 +133,7 @@ class EngineConfig(StrictModel):
                                              "half its step, at most this many times")
     output_rate_hz: float = Field(1000.0, gt=0, le=100_000)
     contact_friction: float = Field(0.5, ge=0, le=2.0, description="Coulomb μ whisker–object")
-    solver_iterations: int = Field(50, ge=1, le=1000, description="Bullet contact solver iterations")
+    solver_iterations: int = Field(50, ge=1, le=1000, description="Bullet: most Gauss–Seidel sweeps of a step's contact solve")
 
 
 class WhiskConfig(StrictModel):

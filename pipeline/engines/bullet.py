@@ -1,23 +1,25 @@
 """Bullet engine (pybullet): whiskers as Featherstone chains with implicit joint spring-dampers.
 
 Each whisker is one multibody (:mod:`pipeline.engines.bullet_whisker`). Whiskers never touch each
-other (collision groups), only obstacles, so they are independent systems: the whiskers that
+other, only obstacles, so they are independent systems: the whiskers that
 share a step size form one Bullet world (a pybullet client), run by the template of
 :mod:`pipeline.engines.base`. Each whisker steps at ``engine.dt_s / 2**j`` with j from its first
 mode (:mod:`pipeline.engines.stepping`).
 
 Integration scheme (one step of size h, per whisker; q, v joint positions and velocities):
 
-    (M_FF + h·C + h²·K) a_F = −K·q_F − C·v_F − b_F − M_FD·a_D
-    τ = M·a + b,  applied as joint torques, then Bullet's semi-implicit Euler step
-        (v ← v + h·a + contact impulses; q ← q + h·v)
+    (M_FF + h·C + h²·K) a_F = −K·q_F − C·v_F − b_F − M_FD·a_D + J_Fᵀ·f
+    τ = M·a + b − Jᵀ·f,  applied as joint torques, f as forces on the links, then Bullet's
+        semi-implicit Euler step (v ← v + h·a; q ← q + h·v)
 
 M is Bullet's joint-space mass matrix and b its bias forces (Coriolis, centrifugal) less the
 generalised loads Jᵀ·F (:mod:`pipeline.model.loads`: gravity, drag, a tip force) at the current state; F are the spring joints, D the driven ones whose accelerations a_D make
 them land exactly on the prescribed angles at t + h. This linearly implicit scheme is stable
 for any h (for an undamped mode it is symplectic Euler with ω² replaced by k/(m + h²k)) and,
 unlike backward Euler, adds no numerical damping; frequencies drop by ≈ (hω)²/2 relative.
-Contact impulses come from Bullet's constraint solver within the same step. M·a + b is Bullet's
+The contact forces f are solved within the same operator (:mod:`pipeline.engines.bullet_contact`:
+non-penetration and Coulomb friction μ as configured); Bullet's own contact solver, which would
+see the links' inertia but not the springs, never sees a contact. M·a + b is Bullet's
 inverse dynamics at every step (driven joints land exactly); the free–free block M_FF inside
 the implicit operator, a function of the free angles only, is recomputed when one of them has
 moved by :data:`~pipeline.engines.bullet_whisker.MASS_REFRESH_RAD` (every ≈ 10th step of a
@@ -31,29 +33,29 @@ force/torque sensor), the implicit torques ≈ 73 µs (joint states 10 µs and t
 list→array conversion on ≈ 1 step in 10, numpy ≈ 15 µs). A full-array free
 whisk takes ≈ 1.2·10⁶ whisker-steps per simulated second under the default step plan, so the
 pybullet calls alone put a floor of ≈ 110 µs × 3·10⁵ ≈ 33 CPU-s under a 250 ms trial.
+A whisker-step within reach of an obstacle adds its contact query (``getClosestPoints``), one
+Jacobian and the solve, ≈ 1.5–2× a free whisker-step (issue 24, engine CPU-s of 250 ms trials,
+Bullet's own contact before → this: RC1 against the active pegs ×1.4–1.6, the right array
+against them ×1.05, the passive peg through it ×1.08–1.16).
 
-Contact jams. The contact solver sees a link's inertia but not the joint springs of the step,
-so a thin tip pushed into a mesh by the rigid drive can end up between faces with opposing
-normals; the impulses then grow without bound. A whisker whose base moment leaves the
-plausible range is parked out of the way (the rest of its world goes on); the template
-simulates it again alone with half the step.
+Contact jams. A whisker whose base moment leaves the plausible range (a contact that cannot
+be resolved, e.g. a bent start held against a surface) is parked out of the way (the rest of
+its world goes on); the template simulates it again alone with half the step. (Bullet's own
+contact solver, used before issue 24, jammed thin tips between mesh faces with opposing
+normals; the implicit contact has not jammed in the cases that did.)
 
-Triangle meshes. Bullet's triangles have no thickness, and a thin link that crosses one within
-a step is then pushed out on the far side (on a closed sphere: nodes up to 2.8 mm inside). A
-mesh therefore gets a collision margin of :data:`MESH_MARGIN_MM` — a skin Bullet detects
-contacts in, wide enough to catch a link before it crosses — with its vertices moved inward
-by the same distance along their normals, so that the skin's outer side is the scanned surface
-(sphere: ≤ 0.5 mm, tips only, as MuJoCo; ``benchmarks/bench_penetration.py``).
+Triangle meshes are the scanned surface itself: contacts are found within
+:data:`~pipeline.engines.bullet_contact.CONTACT_REACH_MM` of it, before a thin link can cross a
+triangle (which has no thickness) within a step.
 
 Obstacle shapes cannot be freed in pybullet (``removeBody`` on a static mesh body fails and
 ``removeCollisionShape`` refuses shapes in use), so each world keeps the bodies of every scene
 it has seen and parks those of other scenes far away: memory grows with the number of distinct
 scenes, not of trials.
 
-Point of contact: each touching link's contact points (midway between ``positionOnA`` and
-``positionOnB``) projected onto the link's axis between its nodes
-(:class:`~pipeline.engines.common.ContactFlags`); the nodes are read after the step whose
-collision detection found the points, one step later (the test against a peg: within 0.5 % of S).
+Point of contact: each touching link's contact points (on the whisker's surface) projected onto
+the link's axis between its nodes, both as found before the step
+(:class:`~pipeline.engines.common.ContactFlags`).
 
 Internal units mm–mg–s (:mod:`pipeline.engines.units`); outputs are converted to SI.
 """
@@ -67,6 +69,7 @@ import numpy as np
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, TrialSetup, World, WorldResult
+from pipeline.engines.bullet_contact import find_contacts
 from pipeline.engines.bullet_whisker import IDENTITY_QUAT, BulletWhisker, quat
 from pipeline.engines.common import ContactFlags, implausible, jam_message, node_arc_fractions
 from pipeline.model.array import WhiskerModel
@@ -75,9 +78,7 @@ from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
 
 __all__ = ["BulletEngine"]
 
-WHISKER_GROUP, OBSTACLE_GROUP = 1, 2
 PARKED_MM = 1e6          # obstacles of other scenes and jammed whiskers wait this far away
-MESH_MARGIN_MM = 0.3     # contact skin of triangle meshes (0.1 mm let links through; see above)
 
 
 @dataclass
@@ -102,12 +103,10 @@ def _box_shape(client: int, box: Box) -> int:
 
 
 def _mesh_shape(client: int, mesh: TriangleMesh) -> int:
-    """A concave mesh moved :data:`MESH_MARGIN_MM` inward along its normals (its contact skin
-    then reaches out to the scanned surface)."""
     import pybullet as p
 
-    inner = mesh.vertices_m * U.LENGTH - MESH_MARGIN_MM * mesh.vertex_normals
-    return p.createCollisionShape(p.GEOM_MESH, physicsClientId=client, vertices=inner.tolist(),
+    return p.createCollisionShape(p.GEOM_MESH, physicsClientId=client,
+                                  vertices=(mesh.vertices_m * U.LENGTH).tolist(),
                                   indices=mesh.faces.astype(int).ravel().tolist())
 
 
@@ -123,25 +122,24 @@ class BulletWorld(World):
 
         super().__init__(whiskers, config, dt_s)
         self.client = p.connect(p.DIRECT)
-        p.setPhysicsEngineParameter(fixedTimeStep=dt_s, numSubSteps=0,
-                                    numSolverIterations=config.solver_iterations,
-                                    deterministicOverlappingPairs=1, physicsClientId=self.client)
+        p.setPhysicsEngineParameter(fixedTimeStep=dt_s, numSubSteps=0, deterministicOverlappingPairs=1,
+                                    physicsClientId=self.client)
         p.setGravity(0, 0, 0, physicsClientId=self.client)
         self.bodies = [BulletWhisker(self.client, w) for w in whiskers]
         for w in self.bodies:
-            self._set_contact_properties(w.body, w.whisker_links, WHISKER_GROUP, OBSTACLE_GROUP)
-        self._owner = {w.body: k for k, w in enumerate(self.bodies)}
+            self._without_bullet_contact(w.body, w.whisker_links)
+        self._links = {w.body: w.local_link for w in self.bodies}
         self._scenes: dict[str, list[_Obstacle]] = {}
         self._scene_key: str | None = None
 
     # -- scene ---------------------------------------------------------------------------
-    def _set_contact_properties(self, body: int, links, group: int, mask: int) -> None:
+    def _without_bullet_contact(self, body: int, links) -> None:
+        """Bullet's solver never sees a contact (collision masks 0): contacts are found and solved
+        in the implicit step (:mod:`pipeline.engines.bullet_contact`)."""
         import pybullet as p
 
         for link in links:
-            p.setCollisionFilterGroupMask(body, link, group, mask, physicsClientId=self.client)
-            p.changeDynamics(body, link, restitution=0.0, lateralFriction=self.config.contact_friction,
-                             physicsClientId=self.client)
+            p.setCollisionFilterGroupMask(body, link, 0, 0, physicsClientId=self.client)
 
     @property
     def obstacles(self) -> list[_Obstacle]:
@@ -161,9 +159,7 @@ class BulletWorld(World):
                 start = np.asarray(obstacle.position_m, float) * U.LENGTH
                 body = p.createMultiBody(0.0, shape, -1, (start + PARKED_MM).tolist(), quat(obstacle.rotation),
                                          physicsClientId=self.client)
-                if isinstance(obstacle, TriangleMesh):
-                    p.changeDynamics(body, -1, collisionMargin=MESH_MARGIN_MM, physicsClientId=self.client)
-                self._set_contact_properties(body, [-1], OBSTACLE_GROUP, WHISKER_GROUP)
+                self._without_bullet_contact(body, [-1])
                 built.append(_Obstacle(body, start, np.asarray(obstacle.velocity_m_s, float) * U.LENGTH))
             self._scenes[scene.key] = built
         self._scene_key = scene.key
@@ -187,9 +183,6 @@ class BulletWorld(World):
         rotation = setup.pose.rotation
         orientation = quat(rotation)
         position = np.asarray(setup.pose.position_m, float)
-        # Clear cached contact manifolds so a trial does not depend on the previous one.
-        self._place_obstacles(0.0, far=True)
-        p.performCollisionDetection(physicsClientId=self.client)
         for k, w in enumerate(self.bodies):
             if active[k]:
                 w.reset((position + rotation @ w.model.base_point_m) * U.LENGTH, orientation,
@@ -197,7 +190,7 @@ class BulletWorld(World):
             else:
                 self._park(k, setup.drive)
         self._place_obstacles(0.0)
-        p.performCollisionDetection(physicsClientId=self.client)
+        p.performCollisionDetection(physicsClientId=self.client)    # bounding boxes, where contacts are looked up
 
     def _park(self, k: int, drive: ProtractionDrive) -> None:
         """Move whisker k far away at rest: it no longer touches anything."""
@@ -208,7 +201,7 @@ class BulletWorld(World):
     def run(self, setup: TrialSetup, active: np.ndarray) -> WorldResult:
         import pybullet as p
 
-        c, h, drive = self.client, self.dt_s, setup.drive
+        c, h, drive, config = self.client, self.dt_s, setup.drive, self.config
         self.set_scene(setup.scene)
         self._reset(setup, active)
         n_w, n_links = len(self.bodies), self.whiskers[0].chain.links
@@ -219,16 +212,19 @@ class BulletWorld(World):
         running = list(np.flatnonzero(active))
         n_steps = setup.samples * self.steps_per_sample
         thetas = np.asarray(drive(np.arange(1, n_steps + 1) * h), float)     # θ(t + h) of every step
+        obstacles = [(o.body, o.velocity_mm_s) for o in self.obstacles]
         for step in range(n_steps):
-            t = step * h
+            if moving:                                   # contacts with where obstacles will be
+                self._place_obstacles((step + 1) * h)
+            contacts = find_contacts(c, obstacles, self._links) if obstacles else {}
             for k in running:
                 w = self.bodies[k]
                 target = held[k] if held[k] is not None else w.rest_driven + w.rates * thetas[step]
-                w.apply_implicit_torques(target, h, setup.loads[k])
-            if moving:
-                self._place_obstacles(t + h)
+                points = contacts.get(w.body, ())
+                normal = w.apply_implicit_torques(target, h, setup.loads[k], points,
+                                                  config.contact_friction, config.solver_iterations)
+                self._flag_contacts(k, points, normal, flags, result.touched)
             p.stepSimulation(physicsClientId=c)
-            self._collect_contacts(flags, result.touched)
             if setup.hold_on_contact:
                 for k in np.flatnonzero(flags.touching.any(axis=1)):
                     if held[k] is None:
@@ -245,28 +241,18 @@ class BulletWorld(World):
                     running.remove(k)
         return result
 
-    def _collect_contacts(self, flags: ContactFlags, touched: np.ndarray) -> None:
-        """Add this step's whisker–obstacle contacts to ``flags``: a link touches when it
-        penetrates or the solver pushed on it (a resting contact can sit a hair above zero), at
-        the point midway between the surfaces; ``touched`` [w] marks whiskers with any contact
-        point at all."""
-        import pybullet as p
-
-        links, points, segments = [], [], []
-        for obstacle in self.obstacles:
-            for point in p.getContactPoints(bodyA=obstacle.body, physicsClientId=self.client):
-                k = self._owner.get(point[2])
-                if k is None:
-                    continue
-                touched[k] = True
-                link = self.bodies[k].local_link.get(point[4])
-                if link is not None and (point[8] <= 0.0 or point[9] > 0.0):
-                    links.append(k * flags.touching.shape[1] + link)
-                    points.append([0.5 * (a + b) for a, b in zip(point[5], point[6])])
-                    segments.append(self.bodies[k].link_nodes(link))
-        if links:
-            segments = np.array(segments)
-            flags.add(np.array(links), np.array(points), segments[:, 0], segments[:, 1])
+    def _flag_contacts(self, k: int, points, normal_forces: np.ndarray, flags: ContactFlags,
+                       touched: np.ndarray) -> None:
+        """Add whisker k's contacts of this step to ``flags``: a link touches when it penetrates or
+        is pushed on (a resting contact can sit a hair above zero), at its point on the whisker's
+        surface; ``touched`` [w] marks whiskers with any contact point at all (within reach)."""
+        if points:
+            touched[k] = True
+        pressed = [point for point, force in zip(points, normal_forces) if point.gap_mm <= 0.0 or force > 0.0]
+        if pressed:
+            segments = np.array([self.bodies[k].link_nodes(point.link) for point in pressed])
+            flags.add(k * flags.touching.shape[1] + np.array([point.link for point in pressed]),
+                      np.array([point.point_mm for point in pressed]), segments[:, 0], segments[:, 1])
 
     def close(self) -> None:
         import pybullet as p

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.engines import units as U
+from pipeline.engines.bullet_contact import contact_frame, solve_forces
 from pipeline.engines.common import start_rate
 from pipeline.model.array import WhiskerModel
 from pipeline.model.kinematics import ProtractionDrive
@@ -143,6 +144,8 @@ class BulletWhisker:
         self.link_lengths = (chain.link_lengths_m * U.LENGTH).tolist()
         self.tip_offset = self.link_lengths[-1]
         self.local_link = {link: i for i, link in enumerate(self.whisker_links)}
+        # dofs moving whisker link i: those of its joint and before (a serial chain)
+        self.ancestor_dofs = np.searchsorted(self.dofs, self.whisker_links, side="right")
         self._lhs_inverse, self._factorised_at = None, None
 
     # -- per trial -----------------------------------------------------------------------
@@ -169,11 +172,16 @@ class BulletWhisker:
         return np.array([s[0] for s in p.getJointStates(self.body, self.dofs[:3],
                                                           physicsClientId=self.client)])
 
-    def apply_implicit_torques(self, q_target: np.ndarray, h: float, loads=()) -> None:
-        """Joint torques of one linearly implicit step of size h (s) toward driven angles q_target.
+    def apply_implicit_torques(self, q_target: np.ndarray, h: float, loads=(), contacts=(),
+                               friction: float = 0.0, iterations: int = 50) -> np.ndarray:
+        """Joint torques of one linearly implicit step of size h (s) toward driven angles q_target;
+        returns the normal force (internal units) at each of ``contacts``.
 
         ``loads`` (:mod:`pipeline.model.loads`) enter the implicit solve as the generalised force
         Jᵀ·F and are applied to Bullet's bodies too, so the step Bullet takes is the implicit one.
+        So do the forces at ``contacts`` (:class:`~pipeline.engines.bullet_contact.ContactPoint`),
+        solved within the same implicit operator with Coulomb ``friction`` μ
+        (:mod:`pipeline.engines.bullet_contact`, ``iterations`` Gauss–Seidel sweeps at most).
         M·a + b comes from Bullet's inverse dynamics (exact at every step). The free–free block
         M_FF inside the implicit operator depends on the free angles q_F only (the driven joints
         turn the whole chain rigidly), so it is recomputed (Bullet's costliest query) only once
@@ -192,10 +200,54 @@ class BulletWhisker:
         driven_only = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, accel.tolist(),
                                                           physicsClientId=c)) - generalised   # M_·D·a_D + b − Jᵀ·F
         accel[3:] = self._lhs_inverse @ (-self.stiffness[3:] * q[3:] - self.damping[3:] * v[3:] - driven_only[3:])
+        normal_forces = np.zeros(len(contacts))
+        if contacts:
+            normal_forces, contact_generalised = self._contact_forces(contacts, q_list, v, accel, h,
+                                                                      friction, iterations)
+            generalised = generalised + contact_generalised
         torque = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, accel.tolist(),
                                                      physicsClientId=c)) - generalised
         p.setJointMotorControlArray(self.body, self.dofs, p.TORQUE_CONTROL, forces=torque.tolist(),
                                     physicsClientId=c)
+        return normal_forces
+
+    def _contact_forces(self, contacts, q: list[float], v: np.ndarray, accel: np.ndarray, h: float,
+                        friction: float, iterations: int) -> tuple[np.ndarray, np.ndarray]:
+        """Solve the contact forces of the step (:mod:`pipeline.engines.bullet_contact`), add
+        their free-joint response W·J_Fᵀ·f to ``accel`` (in place) and apply them to the links;
+        returns the normal forces [P] and their generalised force Jᵀ·f [n_dof].
+
+        One Jacobian per step, at the frame origin o of the farthest touched link: a point p on
+        link l has the row d·J_lin + ((p − o) × d)·J_ang along d, with the columns of the joints
+        beyond l (not l's ancestors in the serial chain) zeroed."""
+        import pybullet as p
+
+        c = self.client
+        zeros = [0.0] * self.n_dof
+        farthest = self.whisker_links[max(contact.link for contact in contacts)]
+        origin = np.asarray(p.getLinkState(self.body, farthest, computeForwardKinematics=True,
+                                           physicsClientId=c)[4])
+        linear, angular = (np.asarray(part) for part in p.calculateJacobian(
+            self.body, farthest, [0.0, 0.0, 0.0], q, zeros, zeros, physicsClientId=c))
+        frames = np.concatenate([contact_frame(contact.normal, friction > 0) for contact in contacts])
+        per_point = len(frames) // len(contacts)                     # rows n (, t1, t2) per point
+        arms = np.repeat([contact.point_mm for contact in contacts], per_point, axis=0) - origin
+        jacobian = frames @ linear + np.cross(arms, frames) @ angular          # [P or 3P, n_dof]
+        ancestors = np.repeat([self.ancestor_dofs[contact.link] for contact in contacts], per_point)
+        jacobian[np.arange(self.n_dof) >= ancestors[:, None]] = 0.0
+        response = self._lhs_inverse @ jacobian[:, 3:].T             # W·J_Fᵀ
+        velocity = jacobian @ (v + h * accel)                         # after the step, without contact
+        if friction > 0:                         # friction acts on sliding relative to the surface
+            surface = np.repeat([contact.surface_velocity for contact in contacts], 3, axis=0)
+            velocity -= np.einsum("ij,ij->i", frames, surface) * (np.arange(len(frames)) % 3 > 0)
+        forces = solve_forces(h * jacobian[:, 3:] @ response, velocity,
+                              np.array([contact.gap_mm for contact in contacts]), h, friction, iterations)
+        accel[3:] += response @ forces
+        world = np.einsum("ij,i->ij", frames, forces).reshape(len(contacts), per_point, 3).sum(axis=1)
+        for contact, force in zip(contacts, world):
+            p.applyExternalForce(self.body, self.whisker_links[contact.link], force.tolist(),
+                                 contact.point_mm.tolist(), p.WORLD_FRAME, physicsClientId=c)
+        return forces[0::per_point], jacobian.T @ forces
 
     def _factorise(self, q: list[float], h: float) -> None:
         """(M_FF + h·C + h²·K)⁻¹ at joint angles q (F: the free joints)."""

@@ -1,0 +1,143 @@
+"""Whisker–obstacle contact solved inside the implicit step of :mod:`pipeline.engines.bullet`.
+
+Bullet's own contact solver sees a link's inertia but not the joint springs that the implicit
+step folds into its operator (M + h·C + h²·K); its impulses then bend the chain as if it were
+free, and at rest the contact force balances only M·(M + h²K)⁻¹·K·q instead of K·q: a kink at
+the contact link, forces 5–40 % low and a whisker sinking through a thin peg under load. So
+Bullet only *finds* contacts here (``getClosestPoints``, its response is filtered off) and the
+forces come from the step's own operator:
+
+    a_F = W·(r + J_Fᵀ·f),  W = (M_FF + h·C + h²·K)⁻¹,  r the contact-free right-hand side,
+
+with f per contact point a normal force f_n ≥ 0 and a friction force |f_t| ≤ μ·f_n (a cone).
+The velocity after the step at a point, u = J·(v + h·a) = u₀ + G·f with G = h·J_F·W·J_Fᵀ, must
+not close the gap g (mm, < 0: penetration) within the step: u_n ≥ −g/h for g ≥ 0, and
+u_n ≥ −:data:`PENETRATION_ERP`·g/h inside (pushed out over a few steps, no pop); friction
+opposes sliding relative to the obstacle's surface (u_t = its velocity while |f_t| < μ·f_n).
+Projected Gauss–Seidel over the points (at most ``engine.solver_iterations`` sweeps) solves
+this small problem (a few points per whisker). The forces are applied to the links as external
+forces at the points and enter the joint torques as −Jᵀ·f, exactly as the loads do, so the base
+sensor feels them. At rest a = 0 and the springs balance the contact: K·q = Jᵀ·f.
+
+Contacts are looked for within :data:`CONTACT_REACH_MM` of the surface (farther than any link
+moves in a step), so that a link is caught before it crosses a thin peg or a triangle; a
+point farther than its gap only limits motion that would cross it. μ is the configured
+Coulomb coefficient itself (Bullet's own rule would multiply two bodies' coefficients).
+
+Internal units mm–mg–s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+CONTACT_REACH_MM = 0.25      # speculative contact distance (a tip moves ≲ 0.15 mm per step)
+PENETRATION_ERP = 0.2        # fraction of a penetration removed per step
+MERGE_MM = 0.1               # a link's points closer than this to a deeper one are dropped
+TOLERANCE = 1e-6             # Gauss–Seidel stops when no force changes by more than this × the largest
+
+
+@dataclass(frozen=True)
+class ContactPoint:
+    """One contact of a whisker link with an obstacle (internal units, world frame)."""
+
+    link: int                # 0-based whisker link
+    point_mm: np.ndarray     # [3] on the whisker's surface
+    normal: np.ndarray       # [3] unit, from the obstacle toward the whisker
+    gap_mm: float            # distance to the obstacle, < 0 inside
+    surface_velocity: np.ndarray   # [3] mm/s, the obstacle's (friction acts on the relative sliding)
+
+
+def find_contacts(client: int, obstacles, whisker_bodies: dict[int, object]) -> dict[int, list[ContactPoint]]:
+    """Contact points within :data:`CONTACT_REACH_MM` of the obstacles, per whisker body id.
+
+    ``obstacles``: (body id, velocity [3] mm/s) of each; ``whisker_bodies``: body id → the
+    whisker's ``local_link`` map (Bullet link → 0-based link).
+    A broadphase query per obstacle selects the candidate whiskers (cheap; the whiskers' boxes
+    there are a step old, hence twice the reach), then ``getClosestPoints`` gives the points.
+    A mesh gives one per triangle near a link: a link's points within :data:`MERGE_MM` of a
+    deeper one are dropped (near-copies that only slow the solve down)."""
+    import pybullet as p
+
+    found: dict[int, list[ContactPoint]] = {}
+    for obstacle, velocity in obstacles:
+        low, high = p.getAABB(obstacle, -1, physicsClientId=client)
+        low = [v - 2 * CONTACT_REACH_MM for v in low]
+        high = [v + 2 * CONTACT_REACH_MM for v in high]
+        near = {body for body, _ in (p.getOverlappingObjects(low, high, physicsClientId=client) or ())
+                if body in whisker_bodies}
+        for body in near:
+            links = whisker_bodies[body]
+            kept: list[ContactPoint] = found.setdefault(body, [])
+            points = p.getClosestPoints(obstacle, body, CONTACT_REACH_MM, physicsClientId=client)
+            for point in sorted(points, key=lambda point: point[8]):            # deepest first
+                link, where = links.get(point[4]), np.array(point[6])
+                if link is None or any(other.link == link and np.sum((other.point_mm - where) ** 2) < MERGE_MM ** 2
+                                       for other in kept):
+                    continue
+                # normal on B (the whisker) points toward A (the obstacle)
+                kept.append(ContactPoint(link, where, -np.array(point[7]), float(point[8]), velocity))
+    return {body: points for body, points in found.items() if points}
+
+
+def contact_frame(normal: np.ndarray, with_tangents: bool) -> np.ndarray:
+    """[1, 3] the unit ``normal``, or [3, 3] it and two unit tangents (rows, right-handed)."""
+    if not with_tangents:
+        return normal[None, :]
+    nx, ny, nz = normal
+    # a tangent ⟂ normal: x × normal, or y × normal when the normal is closer to x than to y
+    t1 = np.array([0.0, -nz, ny]) if abs(nx) <= abs(ny) else np.array([nz, 0.0, -nx])
+    t1 /= np.sqrt(t1 @ t1)
+    t2 = np.array([ny * t1[2] - nz * t1[1], nz * t1[0] - nx * t1[2], nx * t1[1] - ny * t1[0]])
+    return np.array([normal, t1, t2])
+
+
+def solve_forces(G: np.ndarray, u0: np.ndarray, gaps_mm: np.ndarray, h: float, mu: float,
+                 iterations: int) -> np.ndarray:
+    """Contact forces f of the step (module docstring): per point the normal force, and with
+    μ > 0 two tangential ones ([P] or [3P], the rows of :func:`contact_frame`).
+
+    ``G``: velocity after the step per unit force; ``u0``: velocity after the step without
+    contact; ``gaps_mm`` [P]. A point that no spring joint can move (on link 1 with a rigid
+    follicle: the drive is rigid) gets no force. Plain Python floats: the problem is a few
+    rows, where numpy's per-call overhead would dominate."""
+    per_point = 3 if mu > 0 else 1
+    rows = per_point * len(gaps_mm)
+    columns = G.T.tolist()                   # columns[j]: velocity change per unit force j
+    u = u0.tolist()
+    f = [0.0] * rows
+    bias = [(g if g >= 0 else PENETRATION_ERP * g) / h for g in gaps_mm.tolist()]
+    diagonal = [columns[j][j] for j in range(rows)]
+
+    def push(j: int, change: float) -> None:
+        f[j] += change
+        column = columns[j]
+        for k in range(rows):
+            u[k] += column[k] * change
+
+    for _ in range(iterations):
+        largest_change = 0.0
+        for i, b in enumerate(bias):
+            r = per_point * i
+            if diagonal[r] <= 0.0:      # a point no spring joint can move (link 1, rigid follicle)
+                continue
+            change = max(0.0, f[r] - (u[r] + b) / diagonal[r]) - f[r]
+            if change:
+                push(r, change)
+                largest_change = max(largest_change, abs(change))
+            if per_point == 3:
+                t1 = f[r + 1] - u[r + 1] / diagonal[r + 1]
+                t2 = f[r + 2] - u[r + 2] / diagonal[r + 2]
+                size, bound = math.hypot(t1, t2), mu * f[r]
+                if size > bound:
+                    t1, t2 = (t1 * bound / size, t2 * bound / size) if size > 0 else (0.0, 0.0)
+                for j, value in ((r + 1, t1), (r + 2, t2)):
+                    if value != f[j]:
+                        largest_change = max(largest_change, abs(value - f[j]))
+                        push(j, value - f[j])
+        if largest_change <= TOLERANCE * max(map(abs, f), default=0.0):
+            break
+    return np.array(f)
