@@ -1,0 +1,158 @@
+"""Do a dataset's tactile statistics converge? The same trials at the default step, at half of it,
+and on the other engine, compared the way a neuroscientist would plot them.
+
+Run: .venv/bin/python benchmarks/bench_statistics.py [--trials 0-11] [--variants half,bullet]
+     [--cache DIR] [--json out.json]
+
+The trials are those of configs/simulate.yaml (as `pipeline simulate` draws them: scene, head
+pose, whisk; run `pipeline build-meshes` first). Variants: ``default`` (the config), ``half``
+(``engine.dt_s`` and ``engine.f1_tolerance`` halved: every whisker's step halved), ``bullet``
+(the same trials on the other engine). Per (trial, whisker): touched or not, contact onset and
+duration (samples of 1 ms), peak |M| (N·m), peak transverse force |F_t| = |(F_y, F_z)| (N) and
+the point of contact at the peak |M| (fraction of S). Each variant is compared with ``default``:
+
+- contact map: share of pairs touched in one and not the other; onset identical; paired
+  duration difference (median, P90 of |d| / duration);
+- paired over pairs touched in both: median and P90 of |relative difference| of peak |M| and
+  peak |F_t|, and the median signed difference; point of contact at the peak (median |d|);
+- distributions over pairs: two-sample Kolmogorov–Smirnov statistic and p (scipy) of peak |M|,
+  peak |F_t|, duration, POC at peak; per-whisker contact probability (largest |difference|).
+
+The issue's targets (issue 24): peak |M| and |F_t| median |d| ≤ 2 % and P90 ≤ 5 % for ``half``,
+≤ 5 % and ≤ 15 % for the other engine; contact map and durations as before. With ``--cache``
+each variant's per-pair table is kept (npz) and reused on the next run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import ks_2samp
+
+from pipeline.config.loader import load_config
+from pipeline.config.simulate import SimulateConfig
+from pipeline.runner.scenes import scene_catalogue
+from pipeline.runner.simulate import _layout
+from pipeline.runner.trial import RunSpec, Simulator
+
+REPO = Path(__file__).resolve().parents[1]
+VARIANTS = {"default": {}, "half": {"dt_s": 5e-5, "f1_tolerance": 0.005}, "bullet": {"name": "bullet"}}
+FIELDS = ("touched", "onset", "duration", "peak_moment", "peak_transverse", "poc_at_peak")
+
+
+def trial_table(arrays: dict[str, np.ndarray], samples: int) -> dict[str, np.ndarray]:
+    """Per whisker [W] of one trial's arrays: the FIELDS (NaN where a whisker never touched)."""
+    contact = arrays["contact"][:samples].any(axis=2)                       # [T, W]
+    wrench = arrays["base_wrench"][:samples].astype(float)                  # [T, W, 6]
+    moment = np.linalg.norm(wrench[..., 3:], axis=-1)
+    transverse = np.hypot(wrench[..., 1], wrench[..., 2])
+    touched = contact.any(axis=0)
+    peak = np.argmax(np.where(contact, moment, -np.inf), axis=0)            # sample of peak |M| in contact
+    columns = np.arange(contact.shape[1])
+    poc = arrays["point_of_contact"][:samples].astype(float)
+    return {"touched": touched,
+            "onset": np.where(touched, np.argmax(contact, axis=0), np.nan),
+            "duration": np.where(touched, contact.sum(axis=0), np.nan),
+            "peak_moment": np.where(touched, np.max(np.where(contact, moment, 0.0), axis=0), np.nan),
+            "peak_transverse": np.where(touched, np.max(np.where(contact, transverse, 0.0), axis=0), np.nan),
+            "poc_at_peak": np.where(touched, poc[peak, columns], np.nan)}
+
+
+def run_variant(name: str, trials: list[int], cache: Path | None) -> dict[str, np.ndarray]:
+    """[trials, W] of every FIELD for variant ``name`` (and ``cpu_s`` per trial)."""
+    path = cache / f"{name}_{trials[0]}-{trials[-1]}.npz" if cache else None
+    if path is not None and path.is_file():
+        return dict(np.load(path))
+    config, _ = load_config(SimulateConfig, REPO / "configs" / "simulate.yaml", env_prefix="PIPELINE_SIMULATE_",
+                            overrides={"model": {"engine": VARIANTS[name]},
+                                       "scenes": {"folder": str(REPO / "outputs" / "meshes")}})
+    simulator = Simulator(RunSpec(config, scene_catalogue(config.scenes), _layout(config)))
+    rows, cpu = [], []
+    for index in trials:
+        start = time.process_time()
+        result = simulator.run(index)
+        cpu.append(time.process_time() - start)
+        if result.arrays is None:
+            raise SystemExit(f"{name}: trial {index} failed: {result.record.error}")
+        rows.append(trial_table(result.arrays, result.record.samples))
+        print(f"  {name}: trial {index} {cpu[-1]:.1f} CPU-s, {int(rows[-1]['touched'].sum())} whiskers touched",
+              flush=True)
+    table = {f: np.array([r[f] for r in rows]) for f in FIELDS} | {"cpu_s": np.array(cpu)}
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(path, **table)
+    return table
+
+
+def relative(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return b / a - 1.0
+
+
+def compare(base: dict[str, np.ndarray], other: dict[str, np.ndarray]) -> dict[str, float]:
+    """The statistics of the module docstring, ``other`` against ``base``."""
+    both = base["touched"] & other["touched"]
+    either = base["touched"] | other["touched"]
+    out = {"pairs_touched_both": int(both.sum()), "pairs_touched_one_only": int((either & ~both).sum()),
+           "touched_set_identical_share": float(1 - (either & ~both).sum() / max(either.sum(), 1)),
+           "onset_identical_share": float(np.mean(base["onset"][both] == other["onset"][both])),
+           "cpu_s_per_trial": float(np.mean(other["cpu_s"]))}
+    duration = np.abs(other["duration"][both] - base["duration"][both]) / base["duration"][both]
+    out |= {"duration_median_abs_rel": float(np.median(duration)),
+            "duration_p90_abs_rel": float(np.percentile(duration, 90))}
+    for field in ("peak_moment", "peak_transverse"):
+        d = relative(base[field][both], other[field][both])
+        out |= {f"{field}_median_abs_rel": float(np.median(np.abs(d))),
+                f"{field}_p90_abs_rel": float(np.percentile(np.abs(d), 90)),
+                f"{field}_median_rel": float(np.median(d)),
+                f"{field}_share_above_20pct": float(np.mean(np.abs(d) > 0.2))}
+    out["poc_at_peak_median_abs"] = float(np.nanmedian(np.abs(other["poc_at_peak"][both] - base["poc_at_peak"][both])))
+    for field in ("peak_moment", "peak_transverse", "duration", "poc_at_peak"):
+        a, b = base[field][base["touched"]], other[field][other["touched"]]
+        test = ks_2samp(a[np.isfinite(a)], b[np.isfinite(b)])
+        out |= {f"ks_{field}_statistic": float(test.statistic), f"ks_{field}_p": float(test.pvalue)}
+    probability = np.abs(other["touched"].mean(axis=0) - base["touched"].mean(axis=0))
+    out["contact_probability_max_abs_difference"] = float(probability.max())
+    return out
+
+
+def report(name: str, stats: dict[str, float]) -> str:
+    pct = {k: 100 * v for k, v in stats.items()}
+    return "\n".join([
+        f"default vs {name}: {stats['pairs_touched_both']} pairs touched in both, "
+        f"{stats['pairs_touched_one_only']} in one only; CPU {stats['cpu_s_per_trial']:.2f} s per trial",
+        f"  contact: onset identical {pct['onset_identical_share']:.0f} %, duration |d| median "
+        f"{pct['duration_median_abs_rel']:.1f} % P90 {pct['duration_p90_abs_rel']:.1f} %, per-whisker contact "
+        f"probability max |d| {stats['contact_probability_max_abs_difference']:.3f}",
+        *(f"  {label}: median |d| {pct[f'{f}_median_abs_rel']:.1f} %, P90 {pct[f'{f}_p90_abs_rel']:.1f} %, "
+          f"median d {pct[f'{f}_median_rel']:+.1f} %, > 20 %: {pct[f'{f}_share_above_20pct']:.0f} % of pairs; "
+          f"KS D {stats[f'ks_{f}_statistic']:.3f} (p {stats[f'ks_{f}_p']:.2f})"
+          for f, label in (("peak_moment", "peak |M| "), ("peak_transverse", "peak |Ft|"))),
+        f"  POC at peak |M|: median |d| {stats['poc_at_peak_median_abs']:.3f} S; KS D "
+        f"{stats['ks_poc_at_peak_statistic']:.3f} (p {stats['ks_poc_at_peak_p']:.2f}); duration KS D "
+        f"{stats['ks_duration_statistic']:.3f} (p {stats['ks_duration_p']:.2f})"])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--trials", default="0-11", help="first-last trial index")
+    parser.add_argument("--variants", default="half,bullet", help=f"compared with default: {', '.join(VARIANTS)}")
+    parser.add_argument("--cache", type=Path, default=None, help="folder for each variant's per-pair table")
+    parser.add_argument("--json", type=Path, default=None)
+    args = parser.parse_args()
+    first, last = map(int, args.trials.split("-"))
+    trials = list(range(first, last + 1))
+    base = run_variant("default", trials, args.cache)
+    results = {}
+    for name in args.variants.split(","):
+        results[name] = compare(base, run_variant(name, trials, args.cache))
+        print(report(name, results[name]), flush=True)
+    if args.json:
+        args.json.write_text(json.dumps({"trials": args.trials, "comparisons": results}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
