@@ -114,8 +114,10 @@ PRISM_DEPTH_MM = (0.05, 1.0)   # a face's prism reaches this far into the object
 ARENA_BYTES = 512 << 20         # MuJoCo's per-step scratch: a capsule lying across many prisms
                                # needs tens of MB; untouched pages cost no memory
 MAX_ACCELERATION = 1e10        # mjMAXVAL: MuJoCo's bound for a sane acceleration (rad/s², mm/s²)
-CONTACT_TIME_CONSTANT_STEPS = 2.0
+CONTACT_TIME_CONSTANT_S = 2e-4    # solref: at least two of the coarsest steps (module docstring)
 CONTACT_IMPEDANCE = (0.95, 0.99, 0.001)     # MuJoCo solimp: d0, dwidth, width (mm)
+FRICTION_IMPEDANCE_RATIO = 10.0   # MuJoCo impratio: friction 10× less regularised than the normal
+SOLVER_ITERATIONS = 1000          # PGS sweeps at most (converged: a whisker's contacts in any order)
 WHISKER_CONTYPE = OBSTACLE_CONAFFINITY = 1
 _Z, _Y, _X = (0.0, 0.0, 1.0), (0.0, 1.0, 0.0), (1.0, 0.0, 0.0)
 
@@ -238,7 +240,7 @@ class MujocoWorld(World):
     def _contact_options(self, element) -> None:
         element.condim = 3
         element.friction = [self.config.contact_friction, 0.0, 0.0]
-        element.solref = [CONTACT_TIME_CONSTANT_STEPS * self.dt_s, 1.0]
+        element.solref = [max(CONTACT_TIME_CONSTANT_S, 2.0 * self.config.dt_s), 1.0]
         element.solimp = [*CONTACT_IMPEDANCE, 0.5, 2.0]
 
     def _build(self, parts: list[_Part], members: np.ndarray) -> None:
@@ -254,6 +256,9 @@ class MujocoWorld(World):
         option.integrator = mujoco.mjtIntegrator.mjINT_DISCRETE
         option.jacobian = mujoco.mjtJacobian.mjJAC_SPARSE     # same arithmetic for any selection
         option.solver = mujoco.mjtSolver.mjSOL_PGS
+        option.iterations = SOLVER_ITERATIONS
+        option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+        option.impratio = FRICTION_IMPEDANCE_RATIO
         option.gravity = [0.0, 0.0, 0.0]                 # gravity is a load (pipeline.model.loads)
         option.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
         option.disableflags |= mujoco.mjtDisableBit.mjDSBL_MULTICCD     # one point per capsule–prism
