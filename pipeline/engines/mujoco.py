@@ -52,9 +52,9 @@ whisker and every step: a whisker pressed quasi-statically into a peg sinks as d
 the step (it sank 3× less when the time constant was two steps). Coulomb friction μ on an
 elliptic cone with ``impratio`` 10: a pyramidal cone with soft constraints let contacts creep,
 tangential/normal 0.1–0.29 instead of 0.5 while sliding in a slow peg sweep (RC1, μ = 0.5),
-and the follicle's axial force then barely felt μ (Fx/|F| at the peak moment 0.64 → 0.44
-instead of → 0.26); now the ratio is μ while sliding and ≤ μ sticking
-(benchmarks/bench_contact_friction.py). Projected Gauss–Seidel solver, up to
+and the follicle's axial force barely felt μ (Fx/|F| at the peak moment 0.64 with μ = 0,
+0.44 with μ = 0.5; now 0.70 and 0.26); now the ratio is μ while sliding and ≤ μ sticking
+(benchmarks/bench_contact_friction.py). Costs +9 % CPU per dataset trial. Projected Gauss–Seidel solver, up to
 :data:`SOLVER_ITERATIONS` sweeps per constraint island (the Newton solver of MuJoCo 4.0.0 has a
 sparse-factorisation bug, fixed in 4.0.1, and its island-wide convergence test made a
 whisker's result depend on its neighbours' contacts by 10⁻¹⁵). Whisker capsules have
