@@ -1,4 +1,5 @@
-"""``pipeline validate``: the paper's validation (Table 1, Figs. 2–5) on the configured engine.
+"""``pipeline validate``: the paper's validation (Table 1, Figs. 2–5) on the configured engine,
+and the contact statics against the elastica (issue 24, :mod:`pipeline.reports.contact_statics`).
 
 Each figure is a :class:`~pipeline.reports.checks.Section` built by its module
 (resonance_checks, collision_checks, follicle_check, array_checks); this module runs them in
@@ -24,9 +25,9 @@ from pipeline.reports.document import Markdown, number, write_json
 QUICK_COLLISION_WHISKERS = ("RA0",)
 FULL_COLLISION_WHISKERS = ("RA0", "RB1", "RC2", "RD0")
 QUICK_SPEEDS_DEG_S = (90, 270, 540)
-SECTIONS = ("table1", "fig2", "fig3_shock", "fig3_front", "fig4", "fig5")
+SECTIONS = ("table1", "fig2", "fig3_shock", "fig3_front", "fig4", "fig5", "contact_statics")
 # Longest first, so that two processes finish together (seconds on Bullet, full run).
-LONGEST_FIRST = ("fig5", "fig3_shock", "fig2", "table1", "fig4", "fig3_front")
+LONGEST_FIRST = ("contact_statics", "fig5", "fig3_shock", "fig2", "table1", "fig4", "fig3_front")
 
 
 def build_section(name: str, config: ModelConfig, quick: bool, mesh: Path | None,
@@ -35,6 +36,7 @@ def build_section(name: str, config: ModelConfig, quick: bool, mesh: Path | None
     from pipeline.protocols.collision import SPEEDS_DEG_S
     from pipeline.reports.array_checks import array_section
     from pipeline.reports.collision_checks import collision_runs, front_section, shock_section
+    from pipeline.reports.contact_statics import contact_statics_section
     from pipeline.reports.follicle_check import follicle_section
     from pipeline.reports.resonance_checks import array_resonance, engine_resonances, table_1
 
@@ -54,6 +56,8 @@ def build_section(name: str, config: ModelConfig, quick: bool, mesh: Path | None
         section = follicle_section(config, progress)
     elif name == "fig5":
         section = array_section(config, quick, mesh, progress)
+    elif name == "contact_statics":
+        section = contact_statics_section(config, quick, progress)
     else:
         raise ValueError(f"unknown validation section {name}")
     return section, time.perf_counter() - begin

@@ -187,8 +187,25 @@ def fig5(section: Section, plt):
     return fig
 
 
+def contact_statics(section: Section, plt):
+    """Base Mz, Fy, Fx against the base angle: the engine (solid) and the elastica (dashed)."""
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4))
+    labels = ("Mz (N·m)", "Fy, transverse (N)", "Fx, axial (N)")
+    for n, (case, (angle, engine, reference)) in enumerate(section.series.items()):
+        colour = f"C{n % 10}"
+        inside = np.isfinite(reference[:, 0])
+        for j, ax in enumerate(axes):
+            ax.plot(angle[inside], engine[inside, j], color=colour, lw=0.9, label=case if j == 0 else None)
+            ax.plot(angle[inside], reference[inside, j], color=colour, lw=0.9, ls="--")
+    for ax, label in zip(axes, labels):
+        ax.set_xlabel("base angle (°)")
+        ax.set_title(label)
+    axes[0].legend(fontsize=6, title="solid: engine, dashed: elastica", title_fontsize=6)
+    return fig
+
+
 DRAW = {"table1": table1, "fig2": fig2, "fig3_shock": fig3_shock, "fig3_front": fig3_front, "fig4": fig4,
-        "fig5": fig5}
+        "fig5": fig5, "contact_statics": contact_statics}
 
 
 def write_figure(section: Section, out: Path) -> Path | None:

@@ -1,0 +1,73 @@
+"""Contact statics against the elastica (issue 24): the full table, and how quasi-static it is.
+
+Run: .venv/bin/python benchmarks/bench_contact_statics.py [--engines bullet,mujoco]
+     [--whiskers RC1,RC3,RC5] [--fractions 0.3,0.6,0.85] [--frictions 0,0.5] [--speed-check]
+
+Each case turns one whisker of the model rat slowly into a thin peg and compares the base
+moment and forces with the planar elastica (pipeline/reports/contact_statics.py). Printed: one
+row per whisker × contact position × μ × engine (RMS errors in % of the elastica's largest
+value, slip-off angles, deepest point of the centre line inside the peg). ``--speed-check``
+instead runs each engine's RC3 60 % μ = 0 case at the drive speed and at half of it and prints
+the change of the base signals at the same angle (RMS and largest, in % of the elastica's
+largest value) and of the errors against the elastica: below 0.5 % the drive is quasi-static
+enough.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+
+def speed_check(config, engines, speed_deg_s: float) -> None:
+    from pipeline.reports.contact_statics import Case, run_case
+
+    for engine in engines:
+        case = Case("RC3", 0.60, 0.0, engine)
+        fast, slow = (run_case(config, case, speed) for speed in (speed_deg_s, speed_deg_s / 2))
+        slow_at_fast = np.stack([np.interp(fast.angle_deg, slow.angle_deg, slow.engine_wrench[:, j])
+                                 for j in range(3)], axis=1)
+        inside = np.isfinite(fast.reference_wrench[:, 0])
+        scale = np.nanmax(np.abs(fast.reference_wrench), axis=0)
+        scale[2] = fast.errors["max_force_n"]
+        difference = fast.engine_wrench[inside] - slow_at_fast[inside]
+        rms = 100 * np.sqrt(np.mean(difference ** 2, axis=0)) / scale
+        largest = 100 * np.max(np.abs(difference), axis=0) / scale
+        print(f"{case.label}: {speed_deg_s:g} → {speed_deg_s / 2:g} °/s changes Mz, Fy, Fx by RMS "
+              f"{rms[0]:.2f}, {rms[1]:.2f}, {rms[2]:.2f} % (largest {largest[0]:.2f}, {largest[1]:.2f}, "
+              f"{largest[2]:.2f} %); RMS errors against the elastica M {fast.errors['moment_rms_pct']:.2f} → "
+              f"{slow.errors['moment_rms_pct']:.2f} %, F⊥ {fast.errors['transverse_rms_pct']:.2f} → "
+              f"{slow.errors['transverse_rms_pct']:.2f} %, F∥ {fast.errors['axial_rms_pct_of_f']:.2f} → "
+              f"{slow.errors['axial_rms_pct_of_f']:.2f} %")
+
+
+def main() -> None:
+    from pipeline.config.physics import ModelConfig
+    from pipeline.reports import contact_statics as C
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--engines", default=",".join(C.ENGINES))
+    parser.add_argument("--whiskers", default=",".join(C.WHISKERS))
+    parser.add_argument("--fractions", default=",".join(f"{f:g}" for f in C.FRACTIONS))
+    parser.add_argument("--frictions", default=",".join(f"{f:g}" for f in C.FRICTIONS))
+    parser.add_argument("--speed", type=float, default=C.SPEED_DEG_S, help="drive speed, °/s")
+    parser.add_argument("--speed-check", action="store_true")
+    args = parser.parse_args()
+    config = ModelConfig()
+    engines = args.engines.split(",")
+    if args.speed_check:
+        speed_check(config, engines, args.speed)
+        return
+    start = time.perf_counter()
+    results = C.run_cases(config, args.whiskers.split(","), [float(f) for f in args.fractions.split(",")],
+                          [float(f) for f in args.frictions.split(",")], engines, progress=print)
+    print(" | ".join(C.TABLE_COLUMNS))
+    for row in C.table_rows(results):
+        print(" | ".join(row))
+    print(f"{time.perf_counter() - start:.0f} s")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,280 @@
+"""Contact statics against the elastica (issue 24): a whisker turned slowly into a thin peg.
+
+One whisker of the model rat (default material, rigid follicle: the base is clamped as in the
+elastica) lies in the head's x–y plane, concave toward +y, and the drive turns it about z
+(:func:`pipeline.model.array.single_whisker`), so the problem is planar. A vertical peg of
+radius :data:`PEG_RADIUS_M` stands on the +y side where the rest shape, turned by
+:data:`TOUCH_ANGLE_DEG`, touches it at a fraction of the arc length S. The base turns at
+:data:`SPEED_DEG_S` (linear ramp, quasi-static: see benchmarks/bench_contact_statics.py) to
+:data:`SWEEP_DEG` past the touch, and each output sample's base wrench (whisker frame: Mz, Fy
+transverse, Fx axial) is compared with the planar elastica of
+:mod:`pipeline.references.elastica` at the same base angle.
+
+Errors, over the samples where both are in contact (from the touch to the earlier slip-off):
+RMS of the moment and of the transverse force in % of the elastica's largest |value|, RMS of
+the axial force in % of the elastica's largest |F|; the slip-off angle difference (engine −
+elastica, degrees; the engine slips off at its last sample in contact when none follows within
+:data:`SLIP_HOLD_DEG`); pass-through: a point of the centre line (sampled along the links)
+deeper than :data:`PASS_THROUGH_M` inside the peg.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pipeline.config.physics import ModelConfig
+from pipeline.model.array import single_whisker
+from pipeline.model.extensions import model_parts
+from pipeline.model.kinematics import Pose, ProtractionDrive
+from pipeline.model.morphology import load_morphology
+from pipeline.model.whisker import WhiskerGeometry, rest_nodes
+from pipeline.references.elastica import Path, Peg, Rod, peg_touching, quasi_static_path
+from pipeline.reports.checks import Section, check, rigid
+from pipeline.reports.published import Published
+from pipeline.scenes.obstacles import Cylinder, Scene, points_along
+
+WHISKERS = ("RC1", "RC3", "RC5")
+FRACTIONS = (0.30, 0.60, 0.85)
+FRICTIONS = (0.0, 0.5)
+ENGINES = ("bullet", "mujoco")
+QUICK = {"whiskers": ("RC3",), "fractions": (0.60,), "frictions": (0.0,)}
+PEG_RADIUS_M = 0.5e-3            # the library's 1 mm pegs
+PEG_LENGTH_M = 0.02
+TOUCH_ANGLE_DEG = 2.0
+SWEEP_DEG = 30.0
+SPEED_DEG_S = 10.0
+REFERENCE_STEP_DEG = 0.25
+ROD_GRID = 401
+SLIP_HOLD_DEG = 1.0
+PASS_THROUGH_M = 0.05e-3
+
+
+@dataclass(frozen=True)
+class Case:
+    whisker: str
+    fraction: float
+    friction: float
+    engine: str
+
+    @property
+    def label(self) -> str:
+        return f"{self.whisker} {self.fraction:.0%} μ={self.friction:g} {self.engine}"
+
+
+@dataclass
+class CaseResult:
+    case: Case
+    errors: dict                    # the numbers of the table (module docstring)
+    angle_deg: np.ndarray = field(repr=False, default=None)        # [T] base angle of the samples
+    engine_wrench: np.ndarray = field(repr=False, default=None)    # [T, 3] Mz, Fy, Fx
+    reference_wrench: np.ndarray = field(repr=False, default=None)  # [T, 3] NaN outside contact
+
+
+def geometry_of(config: ModelConfig, name: str) -> WhiskerGeometry:
+    s = load_morphology(config.morphology)[name]
+    return WhiskerGeometry(s.arc_length_m, s.base_radius_m, s.tip_radius_m, s.curvature_per_m)
+
+
+def rod_of(geometry: WhiskerGeometry, youngs_modulus_pa: float, points: int = ROD_GRID) -> Rod:
+    """The continuum whisker the model discretises: radius linear from base to tip, rest shape
+    y = A·x² (κ0 = 2A / (1 + 4A²x²)^{3/2} at the x of each arc length)."""
+    arc = geometry.arc_length_m * np.linspace(0.0, 1.0, points)
+    x = rest_nodes(geometry, points - 1)[:, 0]
+    a = geometry.curvature_per_m
+    curvature = 2 * a / (1 + (2 * a * x) ** 2) ** 1.5
+    radius = geometry.base_radius_m + (geometry.tip_radius_m - geometry.base_radius_m) * arc / geometry.arc_length_m
+    return Rod.from_radius(arc, radius, youngs_modulus_pa, curvature)
+
+
+def bench_config(config: ModelConfig, engine: str, friction: float) -> ModelConfig:
+    """``config`` on ``engine`` (its default step) with friction μ and a clamped base."""
+    bench = rigid(config)
+    return bench.model_copy(update={"engine": bench.engine.model_copy(
+        update={"name": engine, "contact_friction": friction})})
+
+
+def reference_path(rod: Rod, peg: Peg, friction: float, sweep_deg: float = SWEEP_DEG) -> Path:
+    angles = np.radians(np.arange(0.0, TOUCH_ANGLE_DEG + sweep_deg + 1e-9, REFERENCE_STEP_DEG))
+    return quasi_static_path(rod, peg, angles, friction)
+
+
+def run_engine(config: ModelConfig, geometry: WhiskerGeometry, peg: Peg, speed_deg_s: float = SPEED_DEG_S,
+               sweep_deg: float = SWEEP_DEG):
+    """(protraction angle per sample in degrees, TrialOutput) of one slow turn into the peg."""
+    from pipeline.engines import create_engine
+
+    end_deg = TOUCH_ANGLE_DEG + sweep_deg
+    duration = end_deg / speed_deg_s
+    drive = ProtractionDrive(np.array([0.0, duration]), np.radians([0.0, end_deg]), interpolation="linear")
+    scene = Scene("contact-statics", (Cylinder(peg.radius_m, PEG_LENGTH_M, (*peg.centre_m, 0.0)),))
+    material, extensions = model_parts(config)
+    with create_engine(config, single_whisker(geometry, material, extensions=extensions)) as engine:
+        output = engine.run(scene, Pose(), drive, duration)
+    return np.degrees(drive(output.time_s)), output
+
+
+def engine_slip_off_deg(angle_deg: np.ndarray, touching: np.ndarray) -> float:
+    """Angle of the last sample in contact when no contact follows within SLIP_HOLD_DEG; NaN if
+    the contact holds to the end (or never starts)."""
+    if not touching.any():
+        return float("nan")
+    k = np.flatnonzero(touching)
+    gaps = np.flatnonzero((angle_deg[k[1:]] - angle_deg[k[:-1]]) > SLIP_HOLD_DEG)
+    last = k[gaps[0]] if gaps.size else k[-1]
+    return float(angle_deg[last]) if angle_deg[-1] - angle_deg[last] > SLIP_HOLD_DEG else float("nan")
+
+
+def deepest_m(output, peg: Peg) -> float:
+    """Largest depth (m) of the whisker's centre line inside the peg (points along the links)."""
+    nodes = output.node_positions_m[:, 0].astype(float)
+    points = points_along(nodes, 0.1 * peg.radius_m)                  # [T, P, 3]
+    distance = np.hypot(points[..., 0] - peg.centre_m[0], points[..., 1] - peg.centre_m[1])
+    return float(np.max(peg.radius_m - distance))
+
+
+def compare(case: Case, angle_deg: np.ndarray, output, path: Path, peg: Peg) -> CaseResult:
+    """The errors of one engine run against the elastica path (module docstring)."""
+    wrench = output.base_wrench[:, 0].astype(float)
+    engine = np.stack([wrench[:, 5], wrench[:, 1], wrench[:, 0]], axis=1)
+    ref_angle = np.degrees(path.series("base_angle_rad"))
+    ref = np.stack([path.series(k) for k in ("base_moment_nm", "transverse_force_n", "axial_force_n")], axis=1)
+    ref_slip = np.degrees(path.slip_off_angle_rad)
+    engine_slip = engine_slip_off_deg(angle_deg, output.contact[:, 0].any(axis=1))
+    end = np.nanmin([ref_slip, engine_slip, ref_angle[-1]])
+    inside = (angle_deg > np.degrees(path.touch_angle_rad)) & (angle_deg <= end) & (angle_deg >= ref_angle[0])
+    reference = np.full_like(engine, np.nan)
+    for j in range(3):
+        reference[inside, j] = np.interp(angle_deg[inside], ref_angle, ref[:, j])
+    force_scale = np.max(np.hypot(ref[:, 1], ref[:, 2]))
+    scales = (np.max(np.abs(ref[:, 0])), np.max(np.abs(ref[:, 1])), force_scale)
+    difference = engine[inside] - reference[inside]
+    rms = [float(100 * np.sqrt(np.mean(difference[:, j] ** 2)) / scales[j]) if inside.any() else float("nan")
+           for j in range(3)]
+    bias = [float(100 * np.mean(difference[:, j]) / scales[j]) if inside.any() else float("nan") for j in range(3)]
+    deepest = deepest_m(output, peg)
+    errors = {"moment_rms_pct": rms[0], "transverse_rms_pct": rms[1], "axial_rms_pct_of_f": rms[2],
+              "moment_bias_pct": bias[0], "transverse_bias_pct": bias[1], "axial_bias_pct_of_f": bias[2],
+              "slip_off_ref_deg": float(ref_slip), "slip_off_engine_deg": engine_slip,
+              "slip_off_diff_deg": float(engine_slip - ref_slip),
+              "end_deg": float(end), "sweep_end_deg": float(angle_deg[-1]), "samples": int(inside.sum()),
+              "deepest_mm": deepest * 1e3, "pass_through": bool(deepest > PASS_THROUGH_M),
+              "max_moment_nm": float(scales[0]), "max_force_n": float(force_scale),
+              "cpu_s": float(output.metadata.get("cpu_seconds", float("nan")))}
+    return CaseResult(case, errors, angle_deg, engine, reference)
+
+
+def run_case(config: ModelConfig, case: Case, speed_deg_s: float = SPEED_DEG_S,
+             path: Path | None = None, sweep_deg: float = SWEEP_DEG) -> CaseResult:
+    """One whisker × contact position × friction × engine, the base turned ``sweep_deg`` past the
+    touch (``path``: the elastica, if known)."""
+    geometry = geometry_of(config, case.whisker)
+    rod = rod_of(geometry, config.material.youngs_modulus_gpa * 1e9)
+    peg = peg_touching(rod, case.fraction, np.radians(TOUCH_ANGLE_DEG), PEG_RADIUS_M)
+    path = path or reference_path(rod, peg, case.friction, sweep_deg)
+    angle, output = run_engine(bench_config(config, case.engine, case.friction), geometry, peg, speed_deg_s,
+                               sweep_deg)
+    return compare(case, angle, output, path, peg)
+
+
+def run_cases(config: ModelConfig, whiskers=WHISKERS, fractions=FRACTIONS, frictions=FRICTIONS,
+              engines=ENGINES, progress=lambda _: None, sweep_deg: float = SWEEP_DEG) -> list[CaseResult]:
+    """Every case; the elastica is solved once per whisker × position × friction."""
+    results = []
+    for whisker in whiskers:
+        geometry = geometry_of(config, whisker)
+        rod = rod_of(geometry, config.material.youngs_modulus_gpa * 1e9)
+        for fraction in fractions:
+            peg = peg_touching(rod, fraction, np.radians(TOUCH_ANGLE_DEG), PEG_RADIUS_M)
+            for friction in frictions:
+                path = reference_path(rod, peg, friction, sweep_deg)
+                for engine in engines:
+                    case = Case(whisker, fraction, friction, engine)
+                    progress(f"contact statics: {case.label}")
+                    results.append(run_case(config, case, path=path, sweep_deg=sweep_deg))
+    return results
+
+
+TABLE_COLUMNS = ("whisker", "position", "μ", "engine", "M rms %", "F⊥ rms %", "F∥ rms % of |F|",
+                 "M bias %", "slip-off elastica °", "slip-off engine °", "deepest mm", "pass-through")
+
+
+def table_rows(results: list[CaseResult]) -> list[list[str]]:
+    """One row per case, the columns of TABLE_COLUMNS."""
+    def angle(value):
+        return "held" if not np.isfinite(value) else f"{value:.2f}"
+
+    rows = []
+    for r in results:
+        e, c = r.errors, r.case
+        rows.append([c.whisker, f"{c.fraction:.0%}", f"{c.friction:g}", c.engine,
+                     f"{e['moment_rms_pct']:.1f}", f"{e['transverse_rms_pct']:.1f}", f"{e['axial_rms_pct_of_f']:.1f}",
+                     f"{e['moment_bias_pct']:+.1f}", angle(e["slip_off_ref_deg"]), angle(e["slip_off_engine_deg"]),
+                     f"{e['deepest_mm']:.3f}", "yes" if e["pass_through"] else "no"])
+    return rows
+
+
+# -- `pipeline validate`: the section ------------------------------------------------------
+ISSUE = "issue 24, done-when (against the elastica)"
+TARGETS = {"moment": Published(3.0, None, ISSUE), "transverse": Published(3.0, None, ISSUE),
+           "axial": Published(5.0, None, ISSUE), "axial_friction": Published(10.0, None, ISSUE),
+           "slip_off": Published(0.5, None, ISSUE), "pass_through": Published(0, None, ISSUE)}
+QUICK_SWEEP_DEG = 8.0
+
+
+def slip_off_gap_deg(errors: dict) -> float:
+    """|engine − elastica| slip-off angle (°): 0 if neither slips off within the sweep; if only
+    one does, its distance to the end of the comparison (a lower bound)."""
+    engine, ref = errors["slip_off_engine_deg"], errors["slip_off_ref_deg"]
+    if np.isfinite(engine) and np.isfinite(ref):
+        return abs(engine - ref)
+    if np.isfinite(engine) or np.isfinite(ref):
+        return abs(errors["sweep_end_deg"] - (engine if np.isfinite(engine) else ref))
+    return 0.0
+
+
+def contact_statics_section(config: ModelConfig, quick: bool, progress=lambda _: None) -> Section:
+    """Section ``contact_statics``: the configured engine against the elastica, worst case of
+    each error against the issue's targets; every case in the summary."""
+    chosen = QUICK if quick else {"whiskers": WHISKERS, "fractions": FRACTIONS, "frictions": FRICTIONS}
+    sweep = QUICK_SWEEP_DEG if quick else SWEEP_DEG
+    results = run_cases(config, chosen["whiskers"], chosen["fractions"], chosen["frictions"],
+                        (config.engine.name,), progress, sweep)
+
+    def worst(name, frictions=(0.0, 0.5)):
+        values = [r.errors[name] for r in results if r.case.friction in frictions]
+        return float(np.nanmax(values)) if values else float("nan")
+
+    slip = max(slip_off_gap_deg(r.errors) for r in results)
+    through = sum(r.errors["pass_through"] for r in results)
+    checks = [
+        check("contact_moment_rms_pct", "base moment RMS error, worst case (% of the elastica's max)",
+              TARGETS["moment"], worst("moment_rms_pct"), worst("moment_rms_pct") <= 3.0, "≤ 3 %"),
+        check("contact_transverse_rms_pct", "transverse force RMS error, worst case (% of max)",
+              TARGETS["transverse"], worst("transverse_rms_pct"), worst("transverse_rms_pct") <= 3.0, "≤ 3 %"),
+        check("contact_axial_pct", "axial force RMS error, μ = 0, worst case (% of max |F|)", TARGETS["axial"],
+              worst("axial_rms_pct_of_f", (0.0,)), worst("axial_rms_pct_of_f", (0.0,)) <= 5.0, "≤ 5 %"),
+        check("contact_axial_friction_pct", "axial force RMS error, μ = 0.5, worst case (% of max |F|)",
+              TARGETS["axial_friction"], worst("axial_rms_pct_of_f", (0.5,)),
+              worst("axial_rms_pct_of_f", (0.5,)) <= 10.0, "≤ 10 %"),
+        check("contact_slip_off_deg", "slip-off angle difference, worst case (°)", TARGETS["slip_off"], slip,
+              slip <= 0.5, "≤ 0.5°"),
+        check("contact_pass_through", "cases with the centre line > 0.05 mm inside the peg", TARGETS["pass_through"],
+              through, through == 0, "none"),
+    ]
+    cases = [{"whisker": r.case.whisker, "fraction": r.case.fraction, "friction": r.case.friction,
+              "engine": r.case.engine, **r.errors} for r in results]
+    caption = (f"Contact statics: {', '.join(chosen['whiskers'])} turned about the base at {SPEED_DEG_S:g} °/s "
+               f"into a peg of radius {PEG_RADIUS_M * 1e3:g} mm touched at "
+               f"{', '.join(f'{f:.0%}' for f in chosen['fractions'])} of the arc, μ = "
+               f"{', '.join(f'{f:g}' for f in chosen['frictions'])}, rigid follicle, compared with the planar "
+               f"elastica (pipeline/references/elastica.py) over {sweep:g}° past the touch. Per case "
+               "(whisker, position, μ: moment / transverse / axial RMS error %): " + "; ".join(
+                   f"{r.case.whisker} {r.case.fraction:.0%} μ={r.case.friction:g}: "
+                   f"{r.errors['moment_rms_pct']:.1f} / {r.errors['transverse_rms_pct']:.1f} / "
+                   f"{r.errors['axial_rms_pct_of_f']:.1f}" for r in results) + ".")
+    series = {r.case.label: (r.angle_deg, r.engine_wrench, r.reference_wrench) for r in results}
+    return Section("contact_statics", "Contact statics against the elastica (issue 24)", checks,
+                   {"sweep_deg": sweep, "speed_deg_s": SPEED_DEG_S, "peg_radius_m": PEG_RADIUS_M, "cases": cases},
+                   series, caption)
