@@ -45,10 +45,24 @@ with a compliant one it is rotated back through the follicle hinges. Sensors and
 positions describe the state at the start of a step, so sample k is read after the step
 that starts at t_k (one extra step at the end of a trial).
 
-Contacts. Soft constraints with a time constant of two steps, critically damped (inelastic),
-pyramidal Coulomb friction μ, projected Gauss–Seidel solver (the Newton solver of MuJoCo
-4.0.0 has a sparse-factorisation bug, fixed in 4.0.1, and its island-wide convergence test
-made a whisker's result depend on its neighbours' contacts by 10⁻¹⁵). Whisker capsules have
+Contacts. Soft constraints, critically damped (inelastic), with a time constant fixed in
+seconds (:data:`CONTACT_TIME_CONSTANT_S`, two of the default coarsest steps; never below two
+of the configured ``dt_s``, MuJoCo's stability limit), so the contact law is the same for every
+whisker and every step: a whisker pressed quasi-statically into a peg sinks as deep at half
+the step (it sank 3× less when the time constant was two steps). Coulomb friction μ on an
+elliptic cone with ``impratio`` 10: a pyramidal cone with soft constraints let contacts creep,
+tangential/normal 0.1–0.29 instead of 0.5 while sliding in a slow peg sweep (RC1, μ = 0.5),
+and the follicle's axial force barely felt μ (Fx/|F| at the peak moment 0.64 with μ = 0,
+0.44 with μ = 0.5; now 0.70 and 0.26); now the ratio is μ while sliding and ≤ μ sticking
+(benchmarks/bench_contact_friction.py). Costs +9 % CPU per dataset trial. Not converged in
+the step: the peaks of whiskers sliding on scans (24 dataset trials, every step halved,
+benchmarks/bench_step_convergence.py): median change of peak |M| 1.2 %, of peak F_t 3.4 %,
+P90 36 % and 57 % (creeping pyramidal friction: 15 % and 34 %; P90 of 12-trial halves
+differ by up to 15 points): a whisker that sticks on a faceted surface lets go at a
+step-sensitive instant. Projected Gauss–Seidel solver, up to
+:data:`SOLVER_ITERATIONS` sweeps per constraint island (the Newton solver of MuJoCo 4.0.0 has a
+sparse-factorisation bug, fixed in 4.0.1, and its island-wide convergence test made a
+whisker's result depend on its neighbours' contacts by 10⁻¹⁵). Whisker capsules have
 contype 1 and obstacles conaffinity 1 only, so whiskers never touch each other. Link n stays
 within the arc length to its distal node of the base point, so before each trial the engine
 lets only the links that can reach an obstacle collide, and a world none of whose links can
@@ -88,8 +102,11 @@ proximal one of its last step with contacts (:class:`~pipeline.engines.common.Co
 
 Independence. Each whisker is its own kinematic tree and, touching a static obstacle, its own
 constraint island: its result does not depend on which others are simulated with it (bit for
-bit, for pegs and edges; with a mesh the cropped face set, hence the contact order, depends on
-the world's whiskers), which the template's reuse of free motion relies on.
+bit, for pegs and edges; with a mesh the cropped face set, hence the order of a whisker's
+contacts, depends on the world's whiskers; the converged solve leaves that order a trace of
+≤ 4·10⁻⁴ of a whisker's peak in one sample, ~10⁻¹³ typically: 6 dataset trials, right side
+alone against the full array: peak |M| the same, peak F_t within 6·10⁻⁵; with a pyramidal cone
+and 100 sweeps up to 5 % and 8 %), which the template's reuse of free motion relies on.
 """
 
 from __future__ import annotations
@@ -120,8 +137,10 @@ PRISM_DEPTH_MM = (0.05, 1.0)   # a face's prism reaches this far into the object
 ARENA_BYTES = 512 << 20         # MuJoCo's per-step scratch: a capsule lying across many prisms
                                # needs tens of MB; untouched pages cost no memory
 MAX_ACCELERATION = 1e10        # mjMAXVAL: MuJoCo's bound for a sane acceleration (rad/s², mm/s²)
-CONTACT_TIME_CONSTANT_STEPS = 2.0
+CONTACT_TIME_CONSTANT_S = 2e-4    # solref: at least two of the coarsest steps (module docstring)
 CONTACT_IMPEDANCE = (0.95, 0.99, 0.001)     # MuJoCo solimp: d0, dwidth, width (mm)
+FRICTION_IMPEDANCE_RATIO = 10.0   # MuJoCo impratio: friction 10× less regularised than the normal
+SOLVER_ITERATIONS = 1000          # PGS sweeps at most (converged: a whisker's contacts in any order)
 WHISKER_CONTYPE = OBSTACLE_CONAFFINITY = 1
 _Z, _Y, _X = (0.0, 0.0, 1.0), (0.0, 1.0, 0.0), (1.0, 0.0, 0.0)
 
@@ -245,7 +264,7 @@ class MujocoWorld(World):
     def _contact_options(self, element) -> None:
         element.condim = 3
         element.friction = [self.config.contact_friction, 0.0, 0.0]
-        element.solref = [CONTACT_TIME_CONSTANT_STEPS * self.dt_s, 1.0]
+        element.solref = [max(CONTACT_TIME_CONSTANT_S, 2.0 * self.config.dt_s), 1.0]
         element.solimp = [*CONTACT_IMPEDANCE, 0.5, 2.0]
 
     def _build(self, parts: list[_Part], members: np.ndarray) -> None:
@@ -261,6 +280,9 @@ class MujocoWorld(World):
         option.integrator = mujoco.mjtIntegrator.mjINT_DISCRETE
         option.jacobian = mujoco.mjtJacobian.mjJAC_SPARSE     # same arithmetic for any selection
         option.solver = mujoco.mjtSolver.mjSOL_PGS
+        option.iterations = SOLVER_ITERATIONS
+        option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+        option.impratio = FRICTION_IMPEDANCE_RATIO
         option.gravity = [0.0, 0.0, 0.0]                 # gravity is a load (pipeline.model.loads)
         option.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
         option.disableflags |= mujoco.mjtDisableBit.mjDSBL_MULTICCD     # one point per capsule–prism
