@@ -56,7 +56,7 @@ and the follicle's axial force barely felt μ (Fx/|F| at the peak moment 0.64 wi
 0.44 with μ = 0.5; now 0.70 and 0.26); now the ratio is μ while sliding and ≤ μ sticking
 (benchmarks/bench_contact_friction.py). Costs +9 % CPU per dataset trial. Not converged in
 the step: the peaks of whiskers sliding on scans (24 dataset trials, every step halved,
-benchmarks/bench_step_convergence.py): median change of peak |M| 1.2 %, of peak F_t 3.4 %,
+benchmarks/bench_statistics.py): median change of peak |M| 1.2 %, of peak F_t 3.4 %,
 P90 36 % and 57 % (creeping pyramidal friction: 15 % and 34 %; P90 of 12-trial halves
 differ by up to 15 points): a whisker that sticks on a faceted surface lets go at a
 step-sensitive instant. Projected Gauss–Seidel solver, up to
