@@ -59,7 +59,10 @@ def find_contacts(client: int, obstacles, whisker_bodies: dict[int, object]) -> 
     A broadphase query per obstacle selects the candidate whiskers (cheap; the whiskers' boxes
     there are a step old, hence twice the reach), then ``getClosestPoints`` gives the points.
     A mesh gives one per triangle near a link: a link's points within :data:`MERGE_MM` of a
-    deeper one are dropped (near-copies that only slow the solve down)."""
+    deeper one are dropped (near-copies that only slow the solve down), and so are points whose
+    normal opposes a deeper one's of the same link and obstacle (a link between two faces of a
+    sheet thinner than the reach, or of a fold in a scan: pushed from both sides, the step's
+    problem has no bounded solution and the whisker jams; the deeper side pushes it out)."""
     import pybullet as p
 
     found: dict[int, list[ContactPoint]] = {}
@@ -73,13 +76,15 @@ def find_contacts(client: int, obstacles, whisker_bodies: dict[int, object]) -> 
             links = whisker_bodies[body]
             kept: list[ContactPoint] = found.setdefault(body, [])
             points = p.getClosestPoints(obstacle, body, CONTACT_REACH_MM, physicsClientId=client)
+            first = len(kept)                     # this obstacle's points start here
             for point in sorted(points, key=lambda point: point[8]):            # deepest first
                 link, where = links.get(point[4]), np.array(point[6])
-                if link is None or any(other.link == link and np.sum((other.point_mm - where) ** 2) < MERGE_MM ** 2
-                                       for other in kept):
+                normal = -np.array(point[7])      # on B (the whisker), toward A (the obstacle)
+                if link is None or any(other.link == link and (np.sum((other.point_mm - where) ** 2) < MERGE_MM ** 2
+                                                               or other.normal @ normal < 0.0)
+                                       for other in kept[first:]):
                     continue
-                # normal on B (the whisker) points toward A (the obstacle)
-                kept.append(ContactPoint(link, where, -np.array(point[7]), float(point[8]), velocity))
+                kept.append(ContactPoint(link, where, normal, float(point[8]), velocity))
     return {body: points for body, points in found.items() if points}
 
 
