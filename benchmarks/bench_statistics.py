@@ -76,16 +76,25 @@ def run_variant(name: str, trials: list[int], cache: Path | None) -> dict[str, n
         start = time.process_time()
         result = simulator.run(index)
         cpu.append(time.process_time() - start)
-        if result.arrays is None:
-            raise SystemExit(f"{name}: trial {index} failed: {result.record.error}")
-        rows.append(trial_table(result.arrays, result.record.samples))
+        if result.arrays is None:           # a failed trial: compared as touching nothing, counted
+            print(f"  {name}: trial {index} failed: {result.record.error}", flush=True)
+            rows.append({f: np.full(len(config_whiskers(simulator)), np.nan) for f in FIELDS[1:]}
+                        | {"touched": np.zeros(len(config_whiskers(simulator)), bool), "failed": True})
+            continue
+        rows.append(trial_table(result.arrays, result.record.samples) | {"failed": False})
         print(f"  {name}: trial {index} {cpu[-1]:.1f} CPU-s, {int(rows[-1]['touched'].sum())} whiskers touched",
               flush=True)
-    table = {f: np.array([r[f] for r in rows]) for f in FIELDS} | {"cpu_s": np.array(cpu)}
+    table = {f: np.array([r[f] for r in rows]) for f in FIELDS} | {"cpu_s": np.array(cpu),
+                                                                    "failed": np.array([r["failed"] for r in rows])}
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez(path, **table)
     return table
+
+
+def config_whiskers(simulator: Simulator) -> list[str]:
+    """The names of the whiskers a trial of ``simulator`` records."""
+    return list(simulator.spec.layout.whiskers["name"])
 
 
 def relative(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -94,12 +103,18 @@ def relative(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def compare(base: dict[str, np.ndarray], other: dict[str, np.ndarray]) -> dict[str, float]:
     """The statistics of the module docstring, ``other`` against ``base``."""
+    def failed(table):
+        return np.asarray(table.get("failed", np.zeros(len(table["touched"]), bool)), bool)
+
+    ok = ~(failed(base) | failed(other))                                # trials both finished
+    base, other = ({k: v[ok] for k, v in t.items() if k != "failed"} for t in (base, other))
     both = base["touched"] & other["touched"]
     either = base["touched"] | other["touched"]
     out = {"pairs_touched_both": int(both.sum()), "pairs_touched_one_only": int((either & ~both).sum()),
            "touched_set_identical_share": float(1 - (either & ~both).sum() / max(either.sum(), 1)),
            "onset_identical_share": float(np.mean(base["onset"][both] == other["onset"][both])),
-           "cpu_s_per_trial": float(np.mean(other["cpu_s"]))}
+           "cpu_s_per_trial": float(np.mean(other["cpu_s"])), "trials_compared": int(ok.sum()),
+           "trials_failed": int(np.sum(~ok))}
     duration = np.abs(other["duration"][both] - base["duration"][both]) / base["duration"][both]
     out |= {"duration_median_abs_rel": float(np.median(duration)),
             "duration_p90_abs_rel": float(np.percentile(duration, 90))}
@@ -123,7 +138,8 @@ def report(name: str, stats: dict[str, float]) -> str:
     pct = {k: 100 * v for k, v in stats.items()}
     return "\n".join([
         f"default vs {name}: {stats['pairs_touched_both']} pairs touched in both, "
-        f"{stats['pairs_touched_one_only']} in one only; CPU {stats['cpu_s_per_trial']:.2f} s per trial",
+        f"{stats['pairs_touched_one_only']} in one only ({stats['trials_compared']} trials; "
+        f"{stats['trials_failed']} failed in either); CPU {stats['cpu_s_per_trial']:.2f} s per trial",
         f"  contact: onset identical {pct['onset_identical_share']:.0f} %, duration |d| median "
         f"{pct['duration_median_abs_rel']:.1f} % P90 {pct['duration_p90_abs_rel']:.1f} %, per-whisker contact "
         f"probability max |d| {stats['contact_probability_max_abs_difference']:.3f}",
