@@ -40,21 +40,26 @@ against them ×1.05, the passive peg through it ×1.08–1.16).
 
 Contact jams. A whisker whose base moment leaves the plausible range (a contact that cannot
 be resolved, e.g. a bent start held against a surface) is parked out of the way (the rest of
-its world goes on); the template simulates it again alone with half the step. (Bullet's own
-contact solver, used before issue 24, jammed thin tips between mesh faces with opposing
-normals; the implicit contact has not jammed in the cases that did.)
+its world goes on); the template simulates it again alone with half the step.
 
-Triangle meshes are the scanned surface itself: contacts are found within
-:data:`~pipeline.engines.bullet_contact.CONTACT_REACH_MM` of it, before a thin link can cross a
-triangle (which has no thickness) within a step.
+Triangle meshes (scans) keep Bullet's own contact solver. The implicit contact above, tried on
+them, jammed most dataset trials of configs/simulate.yaml on the shipped scans (9 of the first
+12): a tip that crosses a face of no thickness within a step gets the far side's normal, or
+lies between two faces of a thin sheet or fold, and the step's problem then has no bounded
+solution. Bullet's solver (inertia only, not the springs: the peg errors above) with a contact
+skin does finish them: a mesh gets a collision margin of :data:`MESH_MARGIN_MM` — a skin Bullet
+detects contacts in, wide enough to catch a link before it crosses — with its vertices moved
+inward by the same distance along their normals, so that the skin's outer side is the scanned
+surface (sphere: ≤ 0.5 mm, tips only; ``benchmarks/bench_penetration.py``). Its friction is
+μ as configured: Bullet multiplies the two bodies' coefficients, and a mesh has 1.
 
 Obstacle shapes cannot be freed in pybullet (``removeBody`` on a static mesh body fails and
 ``removeCollisionShape`` refuses shapes in use), so each world keeps the bodies of every scene
 it has seen and parks those of other scenes far away: memory grows with the number of distinct
 scenes, not of trials.
 
-Point of contact: each touching link's contact points (on the whisker's surface) projected onto
-the link's axis between its nodes, both as found before the step
+Point of contact: each touching link's contact points (on the whisker's surface; on a mesh,
+midway between the surfaces after the step) projected onto the link's axis between its nodes
 (:class:`~pipeline.engines.common.ContactFlags`).
 
 Internal units mm–mg–s (:mod:`pipeline.engines.units`); outputs are converted to SI.
@@ -79,6 +84,8 @@ from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
 __all__ = ["BulletEngine"]
 
 PARKED_MM = 1e6          # obstacles of other scenes and jammed whiskers wait this far away
+MESH_MARGIN_MM = 0.3     # contact skin of triangle meshes (0.1 mm let links through; see above)
+WHISKER_GROUP, MESH_GROUP = 1, 2   # Bullet's own contact: whisker links with meshes only
 
 
 @dataclass
@@ -86,6 +93,7 @@ class _Obstacle:
     body: int
     start_mm: np.ndarray
     velocity_mm_s: np.ndarray
+    mesh: bool               # contact by Bullet's solver (module docstring, Triangle meshes)
 
 
 def _cylinder_shape(client: int, peg: Cylinder) -> int:
@@ -103,10 +111,12 @@ def _box_shape(client: int, box: Box) -> int:
 
 
 def _mesh_shape(client: int, mesh: TriangleMesh) -> int:
+    """A concave mesh moved :data:`MESH_MARGIN_MM` inward along its normals (its contact skin
+    then reaches out to the scanned surface)."""
     import pybullet as p
 
-    return p.createCollisionShape(p.GEOM_MESH, physicsClientId=client,
-                                  vertices=(mesh.vertices_m * U.LENGTH).tolist(),
+    inner = mesh.vertices_m * U.LENGTH - MESH_MARGIN_MM * mesh.vertex_normals
+    return p.createCollisionShape(p.GEOM_MESH, physicsClientId=client, vertices=inner.tolist(),
                                   indices=mesh.faces.astype(int).ravel().tolist())
 
 
@@ -123,23 +133,27 @@ class BulletWorld(World):
         super().__init__(whiskers, config, dt_s)
         self.client = p.connect(p.DIRECT)
         p.setPhysicsEngineParameter(fixedTimeStep=dt_s, numSubSteps=0, deterministicOverlappingPairs=1,
+                                    numSolverIterations=config.solver_iterations,
                                     physicsClientId=self.client)
         p.setGravity(0, 0, 0, physicsClientId=self.client)
         self.bodies = [BulletWhisker(self.client, w) for w in whiskers]
         for w in self.bodies:
-            self._without_bullet_contact(w.body, w.whisker_links)
+            self._contact_group(w.body, w.whisker_links, WHISKER_GROUP, MESH_GROUP, config.contact_friction)
         self._links = {w.body: w.local_link for w in self.bodies}
+        self._owner = {w.body: k for k, w in enumerate(self.bodies)}
         self._scenes: dict[str, list[_Obstacle]] = {}
         self._scene_key: str | None = None
 
     # -- scene ---------------------------------------------------------------------------
-    def _without_bullet_contact(self, body: int, links) -> None:
-        """Bullet's solver never sees a contact (collision masks 0): contacts are found and solved
-        in the implicit step (:mod:`pipeline.engines.bullet_contact`)."""
+    def _contact_group(self, body: int, links, group: int, mask: int, friction: float) -> None:
+        """Which pairs Bullet's own solver sees (collision group and mask; 0: none, the contact is
+        found and solved in the implicit step, :mod:`pipeline.engines.bullet_contact`) and, for
+        those, no bounce and a friction coefficient (Bullet uses the product of the two bodies')."""
         import pybullet as p
 
         for link in links:
-            p.setCollisionFilterGroupMask(body, link, 0, 0, physicsClientId=self.client)
+            p.setCollisionFilterGroupMask(body, link, group, mask, physicsClientId=self.client)
+            p.changeDynamics(body, link, restitution=0.0, lateralFriction=friction, physicsClientId=self.client)
 
     @property
     def obstacles(self) -> list[_Obstacle]:
@@ -159,8 +173,11 @@ class BulletWorld(World):
                 start = np.asarray(obstacle.position_m, float) * U.LENGTH
                 body = p.createMultiBody(0.0, shape, -1, (start + PARKED_MM).tolist(), quat(obstacle.rotation),
                                          physicsClientId=self.client)
-                self._without_bullet_contact(body, [-1])
-                built.append(_Obstacle(body, start, np.asarray(obstacle.velocity_m_s, float) * U.LENGTH))
+                mesh = isinstance(obstacle, TriangleMesh)
+                if mesh:
+                    p.changeDynamics(body, -1, collisionMargin=MESH_MARGIN_MM, physicsClientId=self.client)
+                self._contact_group(body, [-1], MESH_GROUP if mesh else 0, WHISKER_GROUP if mesh else 0, 1.0)
+                built.append(_Obstacle(body, start, np.asarray(obstacle.velocity_m_s, float) * U.LENGTH, mesh))
             self._scenes[scene.key] = built
         self._scene_key = scene.key
 
@@ -212,7 +229,7 @@ class BulletWorld(World):
         running = list(np.flatnonzero(active))
         n_steps = setup.samples * self.steps_per_sample
         thetas = np.asarray(drive(np.arange(1, n_steps + 1) * h), float)     # θ(t + h) of every step
-        obstacles = [(o.body, o.velocity_mm_s) for o in self.obstacles]
+        obstacles = [(o.body, o.velocity_mm_s) for o in self.obstacles if not o.mesh]
         for step in range(n_steps):
             if moving:                                   # contacts with where obstacles will be
                 self._place_obstacles((step + 1) * h)
@@ -225,6 +242,7 @@ class BulletWorld(World):
                                                   config.contact_friction, config.solver_iterations)
                 self._flag_contacts(k, points, normal, flags, result.touched)
             p.stepSimulation(physicsClientId=c)
+            self._collect_mesh_contacts(flags, result.touched)
             if setup.hold_on_contact:
                 for k in np.flatnonzero(flags.touching.any(axis=1)):
                     if held[k] is None:
@@ -253,6 +271,30 @@ class BulletWorld(World):
             segments = np.array([self.bodies[k].link_nodes(point.link) for point in pressed])
             flags.add(k * flags.touching.shape[1] + np.array([point.link for point in pressed]),
                       np.array([point.point_mm for point in pressed]), segments[:, 0], segments[:, 1])
+
+    def _collect_mesh_contacts(self, flags: ContactFlags, touched: np.ndarray) -> None:
+        """Add this step's whisker–mesh contacts of Bullet's solver to ``flags``: a link touches
+        when it penetrates or the solver pushed on it, at the point midway between the surfaces;
+        ``touched`` [w] marks whiskers with any contact point at all."""
+        import pybullet as p
+
+        links, points, segments = [], [], []
+        for obstacle in self.obstacles:
+            if not obstacle.mesh:
+                continue
+            for point in p.getContactPoints(bodyA=obstacle.body, physicsClientId=self.client):
+                k = self._owner.get(point[2])
+                if k is None:
+                    continue
+                touched[k] = True
+                link = self.bodies[k].local_link.get(point[4])
+                if link is not None and (point[8] <= 0.0 or point[9] > 0.0):
+                    links.append(k * flags.touching.shape[1] + link)
+                    points.append([0.5 * (a + b) for a, b in zip(point[5], point[6])])
+                    segments.append(self.bodies[k].link_nodes(link))
+        if links:
+            segments = np.array(segments)
+            flags.add(np.array(links), np.array(points), segments[:, 0], segments[:, 1])
 
     def close(self) -> None:
         import pybullet as p
