@@ -141,6 +141,7 @@ CONTACT_TIME_CONSTANT_S = 2e-4    # solref: at least two of the coarsest steps (
 CONTACT_IMPEDANCE = (0.95, 0.99, 0.001)     # MuJoCo solimp: d0, dwidth, width (mm)
 FRICTION_IMPEDANCE_RATIO = 10.0   # MuJoCo impratio: friction 10× less regularised than the normal
 SOLVER_ITERATIONS = 1000          # PGS sweeps at most (converged: a whisker's contacts in any order)
+NOSLIP_ITERATIONS = 10            # MuJoCo's no-slip pass: friction without the soft contact's creep
 WHISKER_CONTYPE = OBSTACLE_CONAFFINITY = 1
 _Z, _Y, _X = (0.0, 0.0, 1.0), (0.0, 1.0, 0.0), (1.0, 0.0, 0.0)
 
@@ -281,6 +282,7 @@ class MujocoWorld(World):
         option.jacobian = mujoco.mjtJacobian.mjJAC_SPARSE     # same arithmetic for any selection
         option.solver = mujoco.mjtSolver.mjSOL_PGS
         option.iterations = SOLVER_ITERATIONS
+        option.noslip_iterations = NOSLIP_ITERATIONS
         option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
         option.impratio = FRICTION_IMPEDANCE_RATIO
         option.gravity = [0.0, 0.0, 0.0]                 # gravity is a load (pipeline.model.loads)
