@@ -53,8 +53,12 @@ the step (it sank 3× less when the time constant was two steps). Coulomb fricti
 elliptic cone with ``impratio`` 10: a pyramidal cone with soft constraints let contacts creep,
 tangential/normal 0.1–0.29 instead of 0.5 while sliding in a slow peg sweep (RC1, μ = 0.5),
 and the follicle's axial force barely felt μ (Fx/|F| at the peak moment 0.64 with μ = 0,
-0.44 with μ = 0.5; now 0.70 and 0.26); now the ratio is μ while sliding and ≤ μ sticking
-(benchmarks/bench_contact_friction.py). Costs +9 % CPU per dataset trial. Not converged in
+0.44 with μ = 0.5; now 0.70 and 0.26); now the ratio is μ while sliding and ≤ μ sticking.
+Under a growing load the soft contact still let a sticking whisker creep along a peg (axial
+base force 15–25 % of |F| off a frictional elastica); MuJoCo's no-slip pass
+(:data:`NOSLIP_ITERATIONS`, a projected solve of the friction forces without regularisation
+after the main one) removes it: ≤ 4.1 % (benchmarks/bench_contact_statics.py), at no measured
+cost. The cone (benchmarks/bench_contact_friction.py) costs +9 % CPU per dataset trial. Not converged in
 the step: the peaks of whiskers sliding on scans (24 dataset trials, every step halved,
 benchmarks/bench_statistics.py): median change of peak |M| 1.2 %, of peak F_t 3.4 %,
 P90 36 % and 57 % (creeping pyramidal friction: 15 % and 34 %; P90 of 12-trial halves
