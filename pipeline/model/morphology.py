@@ -75,19 +75,31 @@ def diameters_belli(arc_length_mm: float, row: int, col: int) -> tuple[float, fl
     return base_radius_mm * 1e-3, tip_radius_mm * 1e-3
 
 
+def _model_rat_theta_bp(col: int) -> float:
+    return 13.4 * (col + 1) - 48.6
+
+
+def model_rat_radii(row: int, col: int) -> tuple[float, float]:
+    """Base and tip radius (m) of the model rat's whisker at ``row``, ``col``."""
+    return diameters_belli(_model_rat_arc_mm(_model_rat_theta_bp(col)), row, col)
+
+
+def _model_rat_arc_mm(theta_bp: float) -> float:
+    return float(np.exp(-0.0246 * theta_bp + 3.12))
+
+
 def _model_rat_right(row: int, col: int) -> WhiskerSpec:
-    c = col + 1
-    theta_bp = 13.4 * c - 48.6
+    theta_bp = _model_rat_theta_bp(col)
     phi_bp = 1.49 * row ** 2 - 26.3 * row + 68.0
     r_bp = 0.000511 * theta_bp ** 2 - 0.0295 * theta_bp - 0.0162 * phi_bp + 6.5
     th, ph = np.radians(theta_bp), np.radians(phi_bp)
     base_point_mm = (r_bp * np.cos(th), r_bp * np.sin(th), r_bp * np.sin(ph))
-    arc_mm = float(np.exp(-0.0246 * theta_bp + 3.12))
+    arc_mm = _model_rat_arc_mm(theta_bp)
     curvature = 0.000240 * theta_bp + 0.0148
     theta_w = 0.598 * theta_bp - 0.314 * phi_bp + 67.4
     phi_w = 1.04 * phi_bp + 6.68
     zeta_w = 0.876 * theta_bp + 0.845 * phi_bp + 37.9
-    r_base, r_tip = diameters_belli(arc_mm, row, col)
+    r_base, r_tip = model_rat_radii(row, col)
     return WhiskerSpec(name=f"R{ROW_LETTERS[row - 1]}{col}", side=1, row=row, col=col,
                        arc_length_m=arc_mm * 1e-3, curvature_per_m=curvature * 1e3,
                        base_point_m=tuple(float(v) * 1e-3 for v in base_point_mm),
@@ -207,7 +219,11 @@ def from_csv(path: str | Path) -> Morphology:
 
 
 def load_morphology(name_or_path: str) -> Morphology:
-    """'model_rat' or a CSV path."""
+    """A shipped array ('model_rat', 'mouse', pipeline.model.mouse) or a CSV path."""
     if name_or_path == "model_rat":
         return model_rat()
+    if name_or_path == "mouse":
+        from pipeline.model.mouse import mouse
+
+        return mouse()
     return from_csv(name_or_path)
