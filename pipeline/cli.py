@@ -50,6 +50,9 @@ _JSON = typer.Option(False, "--json", help="Print the result as JSON (numbers in
                                            "names say; no progress output).")
 _ENGINE = typer.Option(None, "--engine", show_default=False,
                        help="Physics engine. \\[default: config model.engine.name, else bullet]")
+_MORPHOLOGY = typer.Option(None, "--morphology", show_default=False,
+                           help="Whisker array: model_rat, mouse or a CSV table. \\[default: config "
+                                "model.morphology, else model_rat]")
 _CONFIG = typer.Option(None, "--config", show_default=False,
                        help="Model config YAML. \\[default: <project>/configs/model.yaml if present]")
 _MODEL_FILE = typer.Option(None, "--model", show_default=False,
@@ -153,6 +156,13 @@ def _model_path(path: Optional[Path]) -> Optional[str]:
     return None if path is None else str(path.resolve())
 
 
+def _morphology(text: Optional[str]) -> Optional[str]:
+    """``--morphology``: a shipped array's name as it is, a table's path made absolute."""
+    from pipeline.model.morphology import SHIPPED_MORPHOLOGIES
+
+    return text if text is None or text in SHIPPED_MORPHOLOGIES else str(Path(text).resolve())
+
+
 def _follicle_override(text: Optional[str]) -> Optional[dict]:
     if text is None:
         return None
@@ -180,10 +190,13 @@ def _writable_out(path: Optional[Path], option: str = "--out", *, new_file: bool
 
 @app.command()
 def resonance(
-    length_mm: float = typer.Option(..., "--length-mm", help="Arc length S, mm."),
-    base_diameter_um: float = typer.Option(..., "--base-diameter-um", help="Base diameter, µm."),
-    tip_diameter_um: float = typer.Option(..., "--tip-diameter-um", help="Tip diameter, µm."),
+    length_mm: Optional[float] = typer.Option(None, "--length-mm", help="Arc length S, mm."),
+    base_diameter_um: Optional[float] = typer.Option(None, "--base-diameter-um", help="Base diameter, µm."),
+    tip_diameter_um: Optional[float] = typer.Option(None, "--tip-diameter-um", help="Tip diameter, µm."),
     curvature_per_mm: float = typer.Option(0.0, "--curvature-per-mm", help="A of y = A·x², 1/mm."),
+    whisker: Optional[str] = typer.Option(None, "--whisker", help="Instead of the four sizes: this whisker "
+                                                                  "of the morphology (e.g. RC1)."),
+    morphology: Optional[str] = _MORPHOLOGY,
     e_gpa: Optional[float] = typer.Option(None, "--E-gpa", help="Young's modulus, GPa."),
     zeta: Optional[float] = typer.Option(None, "--zeta", help="Damping ratio ζ of eq. 3."),
     links: Optional[int] = typer.Option(None, "--links", help="Links N."),
@@ -198,15 +211,24 @@ def resonance(
 ) -> None:
     """Resonance protocol (Gaussian pulse, abrupt stop): per-mode f and ζ from the ring-down, and
     the paper's two-peak log decrement."""
+    from pipeline.model.morphology import load_morphology
     from pipeline.model.whisker import WhiskerGeometry
     from pipeline.protocols.resonance import run_resonance
 
     material = {"youngs_modulus_gpa": e_gpa, "damping_ratio": zeta, "links": links,
                 "follicle": _follicle_override(follicle), "preset": preset}
-    model = _model_config(config, {"file": _model_path(model_file), "material": material,
+    model = _model_config(config, {"file": _model_path(model_file), "material": material, "morphology": _morphology(morphology),
                                    "engine": {"name": engine, "dt_s": dt_s}})
-    geometry = WhiskerGeometry(length_mm * 1e-3, base_diameter_um * 0.5e-6, tip_diameter_um * 0.5e-6,
-                               curvature_per_mm * 1e3)
+    sizes = (length_mm, base_diameter_um, tip_diameter_um)
+    if (whisker is None) == (None in sizes):
+        raise UserError("give --whisker NAME, or --length-mm, --base-diameter-um and --tip-diameter-um")
+    if whisker is not None:
+        spec = load_morphology(model.morphology)[whisker]
+        geometry = WhiskerGeometry(spec.arc_length_m, spec.base_radius_m, spec.tip_radius_m, spec.curvature_per_m)
+        length_mm = spec.arc_length_m * 1e3
+    else:
+        geometry = WhiskerGeometry(length_mm * 1e-3, base_diameter_um * 0.5e-6, tip_diameter_um * 0.5e-6,
+                                   curvature_per_mm * 1e3)
     result = run_resonance(geometry, model, max(modes, 3)).as_dict(modes)
     if json_output:
         _print_json({k: v for k, v in result.items() if k != "f1_fft_bin_hz"})
@@ -230,6 +252,7 @@ def trial(
                                             "\\[default: 0,0,0,0,0,0]"),
     out: Optional[Path] = typer.Option(None, "--out", help="Write the trial as a one-trial dataset (HDF5)."),
     engine: Optional[EngineName] = _ENGINE,
+    morphology: Optional[str] = _MORPHOLOGY,
     config: Optional[Path] = _CONFIG,
     model_file: Optional[Path] = _MODEL_FILE,
     json_output: bool = _JSON,
@@ -238,7 +261,8 @@ def trial(
     from pipeline.model.kinematics import Pose
     from pipeline.protocols.whisking import default_drive, parse_scene, run_trial
 
-    model = _model_config(config, {"file": _model_path(model_file), "engine": {"name": engine}})
+    model = _model_config(config, {"file": _model_path(model_file), "morphology": _morphology(morphology),
+                                   "engine": {"name": engine}})
     if not (math.isfinite(duration_s) and 0 < duration_s <= MAX_TRIAL_DURATION_S):
         raise UserError(f"--duration-s {duration_s}: must be a number of seconds in (0, {MAX_TRIAL_DURATION_S:g}]")
     _writable_out(out, new_file=True)
@@ -333,6 +357,7 @@ def simulate(
                                                               "scheduler; join with `pipeline datasets join`."),
     root: Optional[Path] = _ROOT_OPTION,
     engine: Optional[EngineName] = _ENGINE,
+    morphology: Optional[str] = _MORPHOLOGY,
     model_file: Optional[Path] = _MODEL_FILE,
     json_output: bool = _JSON,
 ) -> None:
@@ -345,7 +370,7 @@ def simulate(
     settings = load_simulate_config(config, {
         "trials": n, "scenes": {"folder": _model_path(scenes)},
         "dataset": {"name": name, "root": _model_path(root)},
-        "model": {"engine": {"name": engine}, "file": _model_path(model_file)},
+        "model": {"engine": {"name": engine}, "file": _model_path(model_file), "morphology": _morphology(morphology)},
         "cluster": {"kind": "scheduler" if scheduler else "local" if workers is not None else None,
                     "workers": workers, "scheduler": scheduler, "record_every": record_every}})
     summary = run_simulation(settings, resume=resume, shard=shard, progress=not json_output)

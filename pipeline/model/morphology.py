@@ -218,12 +218,18 @@ def from_csv(path: str | Path) -> Morphology:
     return Morphology(whiskers, path.stem)
 
 
-def load_morphology(name_or_path: str) -> Morphology:
-    """A shipped array ('model_rat', 'mouse', pipeline.model.mouse) or a CSV path."""
-    if name_or_path == "model_rat":
-        return model_rat()
-    if name_or_path == "mouse":
-        from pipeline.model.mouse import mouse
+def _mouse() -> Morphology:
+    from pipeline.model.mouse import mouse
 
-        return mouse()
+    return mouse()
+
+
+# The arrays the package ships, by name (pipeline.model.mouse for the mouse).
+SHIPPED_MORPHOLOGIES = {"model_rat": model_rat, "mouse": _mouse}
+
+
+def load_morphology(name_or_path: str) -> Morphology:
+    """A shipped array (SHIPPED_MORPHOLOGIES) or a CSV path."""
+    if name_or_path in SHIPPED_MORPHOLOGIES:
+        return SHIPPED_MORPHOLOGIES[name_or_path]()
     return from_csv(name_or_path)
