@@ -83,6 +83,12 @@ def _provenance_notes(data: DatasetTrials) -> str:
                       default=lambda value: value.tolist() if hasattr(value, "tolist") else str(value))
 
 
+# The simulated animal of a morphology (model.morphology): (common name, species); any other
+# morphology (the model rat, a rat table) is the rat.
+ANIMALS = {"mouse": ("mouse", "Mus musculus")}
+RAT = ("rat", "Rattus norvegicus")
+
+
 def build_nwbfile(data: DatasetTrials):
     """The in-memory ``pynwb.NWBFile`` of ``data``."""
     from hdmf.backends.hdf5.h5_utils import H5DataIO
@@ -93,15 +99,17 @@ def build_nwbfile(data: DatasetTrials):
     block_s = len(data.time_s) / rate
     packages = data.provenance.get("packages", {})
     engine = data.provenance.get("engine")
+    morphology = data.provenance.get("config", {}).get("model", {}).get("morphology", "?")
+    animal, species = ANIMALS.get(morphology, RAT)
     nwbfile = NWBFile(
         session_description=f"Simulated whisker mechanics, dataset {data.label}: {len(data.indices)} trials "
-                            "(scene × head pose × whisk) of the WHISKiT Physics rat whisker model",
+                            f"(scene × head pose × whisk) of the WHISKiT Physics {animal} whisker model",
         identifier=str(uuid.uuid5(uuid.NAMESPACE_URL, f"whisker-pipeline:{data.attrs.get('run_id')}:"
                                   f"{data.label}:{data.indices.tolist()}")),
         session_start_time=_session_start(data.provenance),
         experiment_description="Base signals of every whisker from a physics simulation (whisker-pipeline "
-                               "re-implementation of WHISKiT Physics, Zweifel et al. 2021) of a model rat "
-                               "(Rattus norvegicus) whisker array; no animal was recorded.",
+                               f"re-implementation of WHISKiT Physics, Zweifel et al. 2021) of a model {animal} "
+                               f"({species}) whisker array; no animal was recorded.",
         session_id=data.label.replace("/", "_"),
         keywords=["whisker", "vibrissa", "simulation", "mechanics", "WHISKiT Physics"],
         data_collection=f"engine {json.dumps(engine, default=str)}; output rate {rate:g} Hz; "
@@ -112,9 +120,9 @@ def build_nwbfile(data: DatasetTrials):
         source_script_file_name="pipeline simulate" if data.provenance.get("command") else None,
     )
     nwbfile.subject = Subject(
-        subject_id="model-rat", species="Rattus norvegicus", sex="U", age="P0D/",
-        description="not an animal: the simulated model-rat whisker array (morphology "
-                    f"{data.provenance.get('config', {}).get('model', {}).get('morphology', '?')}); its age is "
+        subject_id=f"model-{animal}", species=species, sex="U", age="P0D/",
+        description=f"not an animal: the simulated model-{animal} whisker array (morphology "
+                    f"{morphology}); its age is "
                     "not part of the model, so the age is the open range 'P0D/' (no bound)")
     nwbfile.add_acquisition(_whisker_table(data))
     wrench = _concatenated(data.base_wrench)
