@@ -219,8 +219,8 @@ def resonance(
                 "follicle": _follicle_override(follicle), "preset": preset}
     model = _model_config(config, {"file": _model_path(model_file), "material": material, "morphology": _morphology(morphology),
                                    "engine": {"name": engine, "dt_s": dt_s}})
-    sizes = (length_mm, base_diameter_um, tip_diameter_um)
-    if (whisker is None) == (None in sizes):
+    sizes_given = [size is not None for size in (length_mm, base_diameter_um, tip_diameter_um)]
+    if any(sizes_given) if whisker is not None else not all(sizes_given):
         raise UserError("give --whisker NAME, or --length-mm, --base-diameter-um and --tip-diameter-um")
     if whisker is not None:
         spec = load_morphology(model.morphology)[whisker]

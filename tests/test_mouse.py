@@ -2,6 +2,7 @@
 published equations, the authors' placement of a whisker and the measured per-whisker means."""
 
 import csv
+import json
 import filecmp
 from pathlib import Path
 
@@ -86,3 +87,21 @@ def test_diameters_follow_the_stated_rule(mouse):
         assert 3e-6 - 1e-12 <= 2 * w.tip_radius_m < 2 * w.base_radius_m
     caudal = [2e6 * w.base_radius_m for w in mouse if w.col == 0]
     assert 80 * 0.88 <= min(caudal) and max(caudal) <= 90 * 1.12
+
+
+def test_resonance_of_a_mouse_whisker_by_name(pipeline_cli):
+    """``pipeline resonance --whisker RC2 --morphology mouse`` runs the whisker's own sizes: its f1
+    is the chain's first mode (engine vs chain within 3 %, as the rat's in Fig. 2)."""
+    from pipeline.config.physics import ModelConfig
+    from pipeline.model.extensions import model_parts
+    from pipeline.model.physics import build_physics
+    from pipeline.model.whisker import WhiskerGeometry
+
+    result = pipeline_cli("resonance", "--whisker", "RC2", "--morphology", "mouse", "--engine", "mujoco", "--json")
+    assert result.returncode == 0, result.stderr
+    spec = load_morphology("mouse")["RC2"]
+    geometry = WhiskerGeometry(spec.arc_length_m, spec.base_radius_m, spec.tip_radius_m, spec.curvature_per_m)
+    chain_f1 = build_physics(geometry, *model_parts(ModelConfig())).planar_modes()[0][0]
+    assert json.loads(result.stdout)["f1_hz"] == pytest.approx(chain_f1, rel=0.03)
+    both = pipeline_cli("resonance", "--whisker", "RC2", "--length-mm", "10")
+    assert both.returncode == 2 and both.stderr.startswith("error: give --whisker NAME, or --length-mm")
