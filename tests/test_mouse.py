@@ -105,3 +105,10 @@ def test_resonance_of_a_mouse_whisker_by_name(pipeline_cli):
     assert json.loads(result.stdout)["f1_hz"] == pytest.approx(chain_f1, rel=0.03)
     both = pipeline_cli("resonance", "--whisker", "RC2", "--length-mm", "10")
     assert both.returncode == 2 and both.stderr.startswith("error: give --whisker NAME, or --length-mm")
+
+
+def test_an_unknown_morphology_is_one_error_line(pipeline_cli, tmp_path):
+    result = pipeline_cli("trial", "--morphology", "hamster", "--duration-s", "0.01", cwd=tmp_path)
+    assert result.returncode == 2
+    assert result.stderr.splitlines() == [f"error: morphology '{tmp_path / 'hamster'}' is neither a shipped "
+                                          "array (model_rat, mouse) nor a table file"]

@@ -232,4 +232,7 @@ def load_morphology(name_or_path: str) -> Morphology:
     """A shipped array (SHIPPED_MORPHOLOGIES) or a CSV path."""
     if name_or_path in SHIPPED_MORPHOLOGIES:
         return SHIPPED_MORPHOLOGIES[name_or_path]()
+    if not Path(name_or_path).is_file():
+        raise UserError(f"morphology '{name_or_path}' is neither a shipped array "
+                        f"({', '.join(SHIPPED_MORPHOLOGIES)}) nor a table file")
     return from_csv(name_or_path)
