@@ -43,7 +43,7 @@ def test_nwb_export_reads_back_with_the_datasets_values(dataset, tmp_path):
     result = run_pipeline("export", "nwb", dataset, "--out", out, "--json")
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout)["trials"] == 3
-    with datasets.open(dataset) as ds, NWBHDF5IO(str(out), "r") as io:
+    with datasets.open_file(dataset) as ds, NWBHDF5IO(str(out), "r") as io:
         nwb = io.read()
         samples = len(ds.time_s)
         wrench = np.concatenate([ds.trial(i)["base_wrench"] for i in range(3)])        # [3·T, W, 6]
