@@ -19,6 +19,7 @@ from typing import Optional
 import click
 import typer
 
+import pipeline
 from pipeline import console
 from pipeline.config.physics import EngineName, PresetName
 from pipeline.diagnosis.choices import FitMethod, ObjectiveName
@@ -36,8 +37,19 @@ app = typer.Typer(
 )
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        from pipeline.provenance import git_commit
+
+        commit = git_commit()
+        typer.echo(f"whisker-pipeline {pipeline.__version__}" + (f" (git {commit})" if commit else ""))
+        raise typer.Exit()
+
+
 @app.callback()
-def _root(debug: bool = typer.Option(False, "--debug", help="Show tracebacks of errors.")) -> None:
+def _root(debug: bool = typer.Option(False, "--debug", help="Show tracebacks of errors."),
+          version: bool = typer.Option(False, "--version", is_eager=True, callback=_print_version,
+                                       help="Print the package version (and git commit) and exit.")) -> None:
     """Stages: build-meshes → simulate; see each command's --help."""
 
 
@@ -71,13 +83,15 @@ def info(json_output: bool = _JSON,
          configs: Optional[Path] = typer.Option(None, "--configs", show_default=False,
                                                 help="Folder of config files to resolve. "
                                                      "\\[default: <project>/configs]")) -> None:
-    """Print versions of the package and its key dependencies, and the resolved configuration."""
-    from pipeline.config.project import CONFIGS_DIR, project_root
+    """Print versions of the package and its key dependencies, the project root and config folder
+    it resolved (and how), and the resolved configuration."""
+    from pipeline.config.project import CONFIGS_DIR, describe_project
     from pipeline.config.registry import resolved_configs
     from pipeline.provenance import describe_environment
 
-    data = {"versions": describe_environment(),
-            "configs": resolved_configs(configs if configs is not None else project_root() / CONFIGS_DIR)}
+    project = describe_project(configs)
+    folder = Path(project["configs_folder"])
+    data = {"versions": describe_environment(), "project": project, "configs": resolved_configs(folder)}
     if json_output:
         _print_json(data)
         return
@@ -87,8 +101,12 @@ def info(json_output: bool = _JSON,
     versions = Table("package", "version", title="whisker-pipeline environment", title_justify="left")
     for name, version in data["versions"].items():
         versions.add_row(name, str(version))
-    resolved = [part for name, config in data["configs"].items() for part in (f"{configs}/{name}:", Pretty(config))]
-    console.show(versions, *resolved, next_steps=["pipeline run workflows/natural.yaml  (what `make demo` runs)"])
+    where = (f"project root: {project['root']}  ({project['found_by']})\n"
+             f"config folder: {folder}" + ("" if folder.is_dir() else "  (not there: every config is built-in defaults)"))
+    resolved = [part for name, config in data["configs"].items()
+                for part in (f"{folder / name}:" if name in project["config_files"] else
+                             f"{name}: built-in defaults (no {folder / name})", Pretty(config, expand_all=True))]
+    console.show(versions, where, *resolved, next_steps=["pipeline run workflows/natural.yaml  (what `make demo` runs)"])
 
 
 @app.command()
@@ -284,7 +302,7 @@ def build_meshes(
     _writable_out(out)
     report = build(scans, out, load_mesh_config(config), force=force, progress=not json_output)
     if json_output:
-        _print_json(report.to_dict())
+        _print_json(console.in_si(report.to_dict()))
     else:
         rows = [{"scan": scan.name, "status": scan.status, **scan.metrics, "build_seconds": scan.seconds or None}
                 for scan in report.scans]
@@ -331,6 +349,10 @@ def simulate(
                                                         "version (same config)."),
     shard: Optional[str] = typer.Option(None, "--shard", help="Run block i of N (i/N, 1-based) without a "
                                                               "scheduler; join with `pipeline datasets join`."),
+    seed: Optional[int] = typer.Option(None, "--seed", min=0, show_default=False,
+                                       help="Dataset seed: trial i draws from (seed, i). \\[default: config seed]"),
+    new_version: bool = typer.Option(False, "--new-version", help="Write a new version even if the newest "
+                                                                  "complete one has the same config."),
     root: Optional[Path] = _ROOT_OPTION,
     engine: Optional[EngineName] = _ENGINE,
     model_file: Optional[Path] = _MODEL_FILE,
@@ -338,21 +360,35 @@ def simulate(
 ) -> None:
     """Simulate N trials (scenes × head poses × whisks) on dask into a new versioned HDF5 dataset."""
     from pipeline.config.simulate import load_simulate_config
+    from pipeline.runner.duplicates import refuse_duplicate
     from pipeline.runner.simulate import simulate as run_simulation
 
     if workers is not None and scheduler is not None:
         raise UserError("give --workers or --scheduler, not both")
     settings = load_simulate_config(config, {
-        "trials": n, "scenes": {"folder": _model_path(scenes)},
+        "trials": n, "seed": seed, "scenes": {"folder": _model_path(scenes)},
         "dataset": {"name": name, "root": _model_path(root)},
         "model": {"engine": {"name": engine}, "file": _model_path(model_file)},
         "cluster": {"kind": "scheduler" if scheduler else "local" if workers is not None else None,
                     "workers": workers, "scheduler": scheduler, "record_every": record_every}})
+    if not (resume or shard or new_version):
+        refuse_duplicate(settings)
     summary = run_simulation(settings, resume=resume, shard=shard, progress=not json_output)
     target = _dataset_label(summary["dataset"])
     steps = ([f"pipeline datasets join {settings.dataset.name}  (once every shard is complete)"] if shard else
              _next_for_dataset(target) if summary["complete"] else ["the same command plus --resume"])
     _print_summary(summary, json_output, f"simulate → {target}", steps)
+
+
+@app.command("job-script")
+def job_script(config: Optional[Path] = typer.Option(None, "--config", show_default=False,
+                                                    help="Run config YAML with a batch cluster (slurm, pbs, sge, "
+                                                         "lsf). \\[default: <project>/configs/simulate.yaml]")) -> None:
+    """Print the batch script each worker job of `pipeline simulate` would run (docs/cluster.md)."""
+    from pipeline.config.simulate import load_simulate_config
+    from pipeline.runner.cluster import job_script as batch_job_script
+
+    typer.echo(batch_job_script(load_simulate_config(config).cluster))
 
 
 datasets_app = typer.Typer(help="List, inspect and join simulated datasets (outputs/datasets/).",
