@@ -21,6 +21,7 @@ import typer
 
 import pipeline
 from pipeline import console
+from pipeline.activity import Activity
 from pipeline.config.physics import EngineName, PresetName
 from pipeline.diagnosis.choices import FitMethod, ObjectiveName
 from pipeline.console import print_json as _print_json
@@ -263,16 +264,19 @@ def trial(
     head = Pose.parse(pose) if pose else Pose()
     world = parse_scene(scene)
     drive = default_drive(world, model, duration_s)
-    output = run_trial(model, world, head, duration_s, whiskers, drive)
-    summary = {"scene": world.name, "engine": model.engine.name, "whiskers": len(output.whisker_names),
-               "duration_s": duration_s, "samples": len(output.time_s),
-               "whiskers_in_contact": output.whiskers_in_contact(),
-               "max_moment_N_m": float(output.moment_magnitude().max()),
-               "cpu_seconds": output.metadata["cpu_seconds"]}
-    if out is not None:
-        from pipeline.datasets import write_single_trial
+    with Activity("trial", enabled=not json_output) as activity:
+        activity.step(f"simulating whiskers '{whiskers}' for {duration_s:g} s in {world.name} on {model.engine.name}")
+        output = run_trial(model, world, head, duration_s, whiskers, drive)
+        summary = {"scene": world.name, "engine": model.engine.name, "whiskers": len(output.whisker_names),
+                   "duration_s": duration_s, "samples": len(output.time_s),
+                   "whiskers_in_contact": output.whiskers_in_contact(),
+                   "max_moment_N_m": float(output.moment_magnitude().max()),
+                   "cpu_seconds": output.metadata["cpu_seconds"]}
+        if out is not None:
+            from pipeline.datasets import write_single_trial
 
-        summary["file"] = str(write_single_trial(out, output, model, world, head, drive))
+            activity.step(f"writing {out}")
+            summary["file"] = str(write_single_trial(out, output, model, world, head, drive))
     _print_summary(summary, json_output, "trial: base signals of every whisker",
                    [f"pipeline datasets show {summary['file']}" if out is not None else
                     "add --out trial.h5 to keep the signals (docs/dataset.md)",
@@ -459,13 +463,31 @@ def export_nwb(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a 
                                                                       "<project>/outputs/exports/<name>_v<k>.nwb)."),
                trials: Optional[str] = typer.Option(None, "--trials", help="Trials to export, e.g. 0,2,5-7 "
                                                                            "(default: every ok trial)."),
+               metadata: Optional[Path] = typer.Option(None, "--metadata", show_default=False,
+                                                       help="YAML: experimenter, institution, lab, "
+                                                            "session_description, keywords, subject (docs/export.md)."),
+               experimenter: Optional[list[str]] = typer.Option(None, "--experimenter", show_default=False,
+                                                                help='"Last, First" (repeat for several).'),
+               institution: Optional[str] = typer.Option(None, "--institution", show_default=False),
+               lab: Optional[str] = typer.Option(None, "--lab", show_default=False),
+               session_description: Optional[str] = typer.Option(None, "--session-description",
+                                                                 show_default=False),
+               keyword: Optional[list[str]] = typer.Option(None, "--keyword", show_default=False,
+                                                           help="Keyword to add (repeat for several)."),
+               subject_id: Optional[str] = typer.Option(None, "--subject-id", show_default=False,
+                                                        help="\\[default: model-rat]"),
                root: Optional[Path] = _ROOT_OPTION,
                json_output: bool = _JSON) -> None:
     """One NWB file: base signals, contacts and drive as time series, whisker and trial tables, provenance."""
     from pipeline.exports.nwb import export_nwb as run_export
+    from pipeline.exports.nwb_metadata import load_nwb_metadata
 
     _writable_out(out)
-    summary = run_export(target, root, trials, out)
+    described = load_nwb_metadata(metadata, {
+        "experimenter": experimenter or None, "institution": institution, "lab": lab,
+        "session_description": session_description, "keywords": keyword or None,
+        "subject": {"subject_id": subject_id}})
+    summary = run_export(target, root, trials, out, described)
     _print_summary(summary, json_output, f"export nwb → {summary['nwb']}",
                    ["pynwb: NWBHDF5IO(path, 'r').read()  (docs/export.md)"])
 
@@ -528,7 +550,8 @@ def stats(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a versi
     from pipeline.reports.stats import stats_report
 
     _writable_out(out)
-    summary = stats_report(target, root, out)
+    with Activity("stats", enabled=not json_output) as activity:
+        summary = stats_report(target, root, out, activity)
     if json_output:
         _print_json(summary)
         return
