@@ -1,6 +1,7 @@
 """What a long command is doing, on stderr, so a terminal or a batch log is never silent for
-long: a line when a step starts, then every ``interval_s`` while it runs a line with the step's
-latest state and the time elapsed, and one at the end with the total time.
+long. A command done within ``quiet_s`` prints nothing (an error stays one line); after that,
+the current step, then a line when a step starts and every ``interval_s`` a line with the
+step's latest state and the time elapsed, and one at the end with the total time.
 
     with Activity("trial") as activity:
         activity.step("simulating 30 whiskers for 0.06 s on bullet")
@@ -15,7 +16,8 @@ import threading
 import time
 from typing import TextIO
 
-INTERVAL_S = 5.0          # a line at least this often while a step runs
+QUIET_S = 1.0             # nothing printed for a command done within this time
+INTERVAL_S = 5.0          # then a line at least this often while a step runs
 
 
 def clock(seconds: float) -> str:
@@ -27,21 +29,22 @@ def clock(seconds: float) -> str:
 class Activity:
     """Progress lines of one command (``label: text``); ``enabled=False`` prints nothing (--json)."""
 
-    def __init__(self, label: str, *, enabled: bool = True, interval_s: float = INTERVAL_S,
-                 stream: TextIO | None = None):
-        self.label, self.enabled, self.interval_s = label, enabled, interval_s
+    def __init__(self, label: str, *, enabled: bool = True, quiet_s: float = QUIET_S,
+                 interval_s: float = INTERVAL_S, stream: TextIO | None = None):
+        self.label, self.enabled, self.quiet_s, self.interval_s = label, enabled, quiet_s, interval_s
         self.stream = stream or sys.stderr
         self.state = ""
+        self.shown = quiet_s <= 0            # lines are printed (after quiet_s)
         self.started = time.perf_counter()
         self._stop = threading.Event()
         self._ticker: threading.Thread | None = None
 
     def _print(self, text: str) -> None:
-        if self.enabled:
+        if self.enabled and self.shown:
             print(f"{self.label}: {text}", file=self.stream, flush=True)
 
     def step(self, text: str) -> None:
-        """A new step: print it now."""
+        """A new step: print it now (once ``quiet_s`` has passed)."""
         self.state = text
         self._print(text)
 
@@ -50,6 +53,11 @@ class Activity:
         self.state = text
 
     def _tick(self) -> None:
+        if not self.shown:
+            if self._stop.wait(self.quiet_s):
+                return
+            self.shown = True
+            self._print(self.state)
         while not self._stop.wait(self.interval_s):
             self._print(f"{self.state} (elapsed {clock(time.perf_counter() - self.started)})")
 

@@ -387,12 +387,18 @@ def simulate(
 @app.command("job-script")
 def job_script(config: Optional[Path] = typer.Option(None, "--config", show_default=False,
                                                     help="Run config YAML with a batch cluster (slurm, pbs, sge, "
-                                                         "lsf). \\[default: <project>/configs/simulate.yaml]")) -> None:
+                                                         "lsf). \\[default: <project>/configs/simulate.yaml]"),
+               json_output: bool = _JSON) -> None:
     """Print the batch script each worker job of `pipeline simulate` would run (docs/cluster.md)."""
     from pipeline.config.simulate import load_simulate_config
     from pipeline.runner.cluster import job_script as batch_job_script
 
-    typer.echo(batch_job_script(load_simulate_config(config).cluster))
+    cluster = load_simulate_config(config).cluster
+    script = batch_job_script(cluster)
+    if json_output:
+        _print_json({"kind": cluster.kind, "jobs": cluster.jobs, "script": script})
+    else:
+        typer.echo(script)
 
 
 datasets_app = typer.Typer(help="List, inspect and join simulated datasets (outputs/datasets/).",

@@ -4,12 +4,15 @@ summaries that do not wrap in a log."""
 
 from __future__ import annotations
 
+import io
 import json
+import time
 from pathlib import Path
 
 import yaml
 
 import pipeline
+from pipeline.activity import Activity
 from pipeline.config.simulate import load_simulate_config
 from pipeline.console import in_si
 from pipeline.datasets.schema import CONFIG_FILE, MANIFEST_FILE
@@ -69,15 +72,29 @@ def test_json_numbers_in_millimetres_are_given_in_si():
                                                     "triangles": 7}}]}
 
 
-def test_trial_shows_progress_and_its_summary_does_not_wrap_in_a_log(tmp_path):
+def test_progress_lines_start_after_a_quiet_second_and_then_follow_each_step():
+    lines = io.StringIO()
+    with Activity("job", stream=lines, quiet_s=0.05, interval_s=0.05) as activity:
+        activity.step("first step")                     # within the quiet time: not printed yet
+        time.sleep(0.3)
+        activity.update("read 3/4 items")
+        time.sleep(0.12)
+        activity.step("second step")
+    shown = lines.getvalue().splitlines()
+    assert shown[0] == "job: first step" and shown[-1].startswith("job: done in ")
+    assert "job: second step" in shown and any(line.startswith("job: read 3/4 items (elapsed 0:00:00)")
+                                               for line in shown)
+    quick = io.StringIO()
+    with Activity("job", stream=quick, quiet_s=5.0) as activity:
+        activity.step("done at once")
+    assert quick.getvalue() == ""                        # a short command stays silent
+
+
+def test_a_short_trial_is_silent_and_its_summary_does_not_wrap_in_a_log(tmp_path):
     out = tmp_path / ("a-folder-name-long-enough-to-pass-eighty-columns-" * 2) / "trial.h5"
     result = run_pipeline("trial", "--scene", "wall", "--whiskers", "RC1", "--duration-s", "0.02",
                           "--engine", "mujoco", "--out", out, cwd=tmp_path)
     assert result.returncode == 0, result.stderr
-    progress = result.stderr.splitlines()
-    assert progress[0] == "trial: simulating whiskers 'RC1' for 0.02 s in wall on mujoco"
-    assert progress[1] == f"trial: writing {out}" and progress[-1].startswith("trial: done in ")
+    assert all(line.startswith("trial: ") for line in result.stderr.splitlines())   # progress only
     assert [line for line in result.stdout.splitlines() if str(out) in line], result.stdout   # one line
-    quiet = run_pipeline("trial", "--scene", "none", "--whiskers", "RC1", "--duration-s", "0.01",
-                         "--engine", "mujoco", "--json", cwd=tmp_path)
-    assert quiet.returncode == 0 and quiet.stderr == "" and json.loads(quiet.stdout)["whiskers"] == 1
+    assert max(map(len, result.stdout.splitlines())) > 80

@@ -9,6 +9,7 @@ import subprocess
 
 import h5py
 import numpy as np
+import pandas as pd
 import pytest
 import xarray as xr
 
@@ -73,3 +74,8 @@ def test_open_is_a_lazy_dask_backed_xarray_dataset(tmp_path):
         table = ds.reset_coords()[["status", "scene", "samples"]].to_dataframe()
         assert table.shape == (5, 3)                                # one row per trial
         assert ds.attrs["schema_version"] == 4
+        trials, whiskers = datasets.table(ds, "trial"), datasets.table(ds, "whisker")
+    with datasets.open_file(path) as old:                           # the same tables as the DatasetFile's
+        pd.testing.assert_frame_equal(trials, old.trials)
+        pd.testing.assert_frame_equal(whiskers, old.whiskers)
+    assert trials.shape[0] == 5 and trials["pose_position_m"].columns.tolist() == ["x", "y", "z"]

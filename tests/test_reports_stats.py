@@ -83,7 +83,7 @@ def report(dataset, tmp_path_factory):
     path, _ = dataset
     out = tmp_path_factory.mktemp("report")
     lines = io.StringIO()
-    with Activity("stats", stream=lines, interval_s=0.001) as activity:      # progress, as the command shows it
+    with Activity("stats", stream=lines, quiet_s=0, interval_s=0.001) as activity:   # progress as the command shows it
         summary = stats_report(path, tmp_path_factory.mktemp("root"), out, activity)
     return {**summary, "progress": lines.getvalue().splitlines()}, json.loads((out / "stats.json").read_text()), out
 

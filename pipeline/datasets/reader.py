@@ -343,6 +343,18 @@ def to_xarray(ds: DatasetFile, chunks: dict | None = None):
     return dataset
 
 
+def table(dataset, dim: str = "trial"):
+    """The trial table (``dim`` "trial") or the whisker table ("whisker") of an ``xarray.Dataset``
+    from :func:`to_xarray` as a ``pandas.DataFrame``, one row per trial or whisker, laid out as
+    :attr:`DatasetFile.trials` and :attr:`DatasetFile.whiskers` (columns with components as
+    column groups)."""
+    schema = {"trial": TRIAL_COLUMNS, "whisker": WHISKER_COLUMNS}[dim]
+    columns = {name: dataset.coords[name].values for name in schema if name in dataset.coords}
+    if dim == "whisker":
+        columns = {"name": dataset.coords["whisker"].values, **columns}
+    return table_frame(columns, schema, "trial" if dim == "trial" else "whisker_index")
+
+
 def open_file(target: str | Path, root: str | Path | None = None) -> DatasetFile:
     """Open a dataset as a :class:`DatasetFile`: a data file, a version folder, ``NAME/vK`` or
     ``NAME`` (newest) under ``root`` (default: the project's datasets folder, pipeline.config.project)."""
