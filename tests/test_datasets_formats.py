@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import shutil
 import subprocess
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -15,7 +16,7 @@ import xarray as xr
 
 import pipeline.datasets as datasets
 from pipeline.datasets.schema import ARRAYS
-from test_datasets_io import NAMES, T, write_trials
+from test_datasets_io import NAMES, T, fake_output, write_trials
 
 
 def _variables(path) -> list[str]:
@@ -79,3 +80,20 @@ def test_open_is_a_lazy_dask_backed_xarray_dataset(tmp_path):
         pd.testing.assert_frame_equal(trials, old.trials)
         pd.testing.assert_frame_equal(whiskers, old.whiskers)
     assert trials.shape[0] == 5 and trials["pose_position_m"].columns.tolist() == ["x", "y", "z"]
+
+
+V3_FIXTURE = Path(__file__).parent / "data" / "dataset_v3.h5"   # written by schema version 3 (commit ff67ba6)
+
+
+def test_a_schema_version_3_file_reads_with_version_4_names_and_units():
+    with datasets.open_file(V3_FIXTURE) as ds:
+        assert ds.attrs["schema_version"] == 3 and list(ds.ok) == [0, 2]
+        expected = fake_output(2).base_wrench                      # trial 2: all T samples
+        np.testing.assert_array_equal(ds.base_wrench.sel(trial=2).values, expected)   # as stored
+        np.testing.assert_array_equal(ds.base_force.sel(trial=2).values, expected[..., :3])
+        np.testing.assert_array_equal(ds.trial(2)["base_moment"], expected[..., 3:])
+        assert ds.base_moment.attrs["units"] == "N m" and ds.base_moment.dims[-1] == "xyz"
+    with datasets.open(V3_FIXTURE) as ds:
+        assert set(ds.data_vars) == {"base_force", "base_moment", "contact", "point_of_contact", "protraction_rad"}
+        np.testing.assert_array_equal(ds.base_moment.sel(trial=2, whisker="RC2", xyz="z").values,
+                                      expected[:, 1, 5])
