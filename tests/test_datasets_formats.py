@@ -58,6 +58,20 @@ def test_one_unit_per_variable_and_xarray_labels(tmp_path):
         assert ds.time.attrs["standard_name"] == "time"
 
 
+def test_pint_xarray_and_cf_xarray_read_every_unit(tmp_path):
+    pytest.importorskip("pint_xarray")
+    cf_units = pytest.importorskip("cf_xarray.units")
+    path = tmp_path / "d.h5"
+    write_trials(path, [0])
+    for group in (None, "trials", "whiskers"):
+        with xr.open_dataset(path, engine="h5netcdf", group=group) as ds:
+            quantified = ds.pint.quantify(unit_registry=cf_units.units)        # raises on a unit it cannot parse
+            if group is None:
+                moment = quantified.base_moment.pint.to("mN mm")
+                np.testing.assert_allclose(moment.pint.magnitude, ds.base_moment.values * 1e6, rtol=1e-6)
+                assert sorted(ds.cf.axes["T"]) == ["node_time", "time"]              # the CF time axes
+
+
 def test_open_is_a_lazy_dask_backed_xarray_dataset(tmp_path):
     import dask.array
 
