@@ -1,7 +1,8 @@
 """What a long command is doing, on stderr, so a terminal or a batch log is never silent for
-long. A command done within ``quiet_s`` prints nothing (an error stays one line); after that,
-the current step, then a line when a step starts and every ``interval_s`` a line with the
-step's latest state and the time elapsed, and one at the end with the total time.
+long. A command done within ``quiet_s`` prints nothing (a bad input, found up front, stays one
+``error:`` line); after that, the current step, then a line when a step starts and every
+``interval_s`` a line with the step's latest state and the time elapsed, and one at the end
+with the total time.
 
     with Activity("trial") as activity:
         activity.step("simulating 30 whiskers for 0.06 s on bullet")
@@ -16,7 +17,7 @@ import threading
 import time
 from typing import TextIO
 
-QUIET_S = 1.0             # nothing printed for a command done within this time
+QUIET_S = 2.0             # nothing printed for a command done within this time
 INTERVAL_S = 5.0          # then a line at least this often while a step runs
 
 

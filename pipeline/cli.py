@@ -71,6 +71,14 @@ _PRESET = typer.Option(None, "--preset", show_default=False,
                        help="Material preset to start from. \\[default: config material.preset]")
 
 
+def _busy(label: str, text: str, json_output: bool) -> Activity:
+    """Progress of a command that may run for a while (``with _busy(...)``): silent for a
+    second, then ``label: text`` and a line every few seconds on stderr; none with --json."""
+    activity = Activity(label, enabled=not json_output)
+    activity.update(text)
+    return activity
+
+
 def _print_summary(summary: dict, json_output: bool, title: str = "", next_steps: Iterable[str] = ()) -> None:
     """``summary`` as JSON, or as a table of rounded values with units and the next steps."""
     if json_output:
@@ -226,7 +234,8 @@ def resonance(
                                    "engine": {"name": engine, "dt_s": dt_s}})
     geometry = WhiskerGeometry(length_mm * 1e-3, base_diameter_um * 0.5e-6, tip_diameter_um * 0.5e-6,
                                curvature_per_mm * 1e3)
-    result = run_resonance(geometry, model, max(modes, 3)).as_dict(modes)
+    with _busy("resonance", f"ring-down of a {length_mm:g} mm whisker on {model.engine.name}", json_output):
+        result = run_resonance(geometry, model, max(modes, 3)).as_dict(modes)
     if json_output:
         _print_json({k: v for k, v in result.items() if k != "f1_fft_bin_hz"})
         return
@@ -437,7 +446,9 @@ def datasets_show(target: str = typer.Argument(..., help="NAME, NAME/vK, a versi
     """Summary of one dataset version (trials, scenes, arrays, provenance)."""
     from pipeline.datasets.catalog import describe
 
-    info = describe(target, root, check=verify)
+    with _busy("datasets show", f"{target}: re-hashing files and scanning ok trials" if verify else target,
+               json_output):
+        info = describe(target, root, check=verify)
     _print_summary(info, json_output, f"dataset {info['label']}", _next_for_dataset(_dataset_label(info["path"])))
 
 
@@ -449,7 +460,8 @@ def datasets_join(name: str = typer.Argument(..., help="Dataset name whose shard
     """Join the complete shards of a --shard run into a new version (virtual datasets, no copy)."""
     from pipeline.datasets.join import join_shards
 
-    version = join_shards(root, name, run)
+    with _busy("datasets join", f"joining the shards of {name}", json_output):
+        version = join_shards(root, name, run)
     if json_output:
         _print_json({"dataset": str(version)})
         return
@@ -493,7 +505,8 @@ def export_nwb(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a 
         "experimenter": experimenter or None, "institution": institution, "lab": lab,
         "session_description": session_description, "keywords": keyword or None,
         "subject": {"subject_id": subject_id}})
-    summary = run_export(target, root, trials, out, described)
+    with _busy("export nwb", f"reading {target} and writing the NWB file", json_output):
+        summary = run_export(target, root, trials, out, described)
     _print_summary(summary, json_output, f"export nwb → {summary['nwb']}",
                    ["pynwb: NWBHDF5IO(path, 'r').read()  (docs/export.md)"])
 
@@ -509,7 +522,9 @@ def export_whiskit(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK
     from pipeline.exports.whiskit import export_whiskit as run_export
 
     _writable_out(out)
-    _print_summary(run_export(target, trial, out, root), json_output, f"export whiskit → {out}",
+    with _busy("export whiskit", f"writing trial {trial} of {target} into {out}", json_output):
+        summary = run_export(target, trial, out, root)
+    _print_summary(summary, json_output, f"export whiskit → {out}",
                    [f"pipeline compare-whiskit WHISKIT_OUTPUT_DIR {target} --trial {trial}"])
 
 
@@ -529,7 +544,8 @@ def compare_whiskit(folder: Path = typer.Argument(..., help="WHISKiT output fold
     """Per whisker and base signal: RMS difference and correlation of WHISKiT output vs a dataset trial."""
     from pipeline.exports.whiskit import compare_whiskit as run_compare
 
-    result = run_compare(folder, target, trial, root, rate_hz, first_row_s)
+    with _busy("compare-whiskit", f"reading {folder} and trial {trial} of {target}", json_output):
+        result = run_compare(folder, target, trial, root, rate_hz, first_row_s)
     if json_output:
         _print_json(result)
         return
@@ -632,10 +648,12 @@ def calibrate(
     if library or where or len(files) > 1:
         if save_model is not None:
             raise UserError("--save-model saves the fit of one measurement FILE, not a joint fit over sets")
-        data, lines = run_calibrate_sets(files, library, where, hold_out, params, material)
+        with _busy("calibrate", f"fitting {params} jointly to the resonance tables", json_output):
+            data, lines = run_calibrate_sets(files, library, where, hold_out, params, material)
     elif len(files) == 1:
-        data, lines = run_calibrate(files[0], params, method, objective, material, engine, bootstrap, grid_points,
-                                    save_model)
+        with _busy("calibrate", f"fitting {params} to {files[0]}", json_output):
+            data, lines = run_calibrate(files[0], params, method, objective, material, engine, bootstrap,
+                                        grid_points, save_model)
     else:
         raise UserError("calibrate needs a measurement FILE or --library")
     if json_output:
@@ -668,8 +686,9 @@ def diagnose(
         raise UserError(f"--report {report} is a file; give a folder for report.md and the figures")
     if library == (file is not None):
         raise UserError("diagnose needs exactly one of FILE or --library")
-    data, lines = run_diagnose(file, _model_config(config, {"material": {"preset": preset}}).material, report, engine,
-                               candidates, library, save_model)
+    material = _model_config(config, {"material": {"preset": preset}}).material
+    with _busy("diagnose", f"fitting the model extensions to {file or 'the measurement library'}", json_output):
+        data, lines = run_diagnose(file, material, report, engine, candidates, library, save_model)
     if json_output:
         _print_json(data)
         return
@@ -691,7 +710,8 @@ def synth(
     from pipeline.diagnosis.commands import run_synth
 
     _writable_out(out, new_file=True)
-    data = run_synth(config, out, seed, _model_path(model_file))
+    with _busy("synth", f"simulating the measurement of {config}", json_output):
+        data = run_synth(config, out, seed, _model_path(model_file))
     _print_summary(data, json_output, "synthetic measurement",
                    [f"pipeline diagnose {out}  (does the diagnosis find the hidden extensions?)",
                     f"pipeline calibrate {out}"])

@@ -171,14 +171,20 @@ def build_nwbfile(data: DatasetTrials, metadata: NwbMetadata | None = None):
 EXPORTS_DIR = Path("outputs/exports")
 
 
+def refuse_existing_export(path: str | Path) -> Path:
+    """``path`` if no file is there; UserError otherwise (an export never replaces a file)."""
+    path = Path(path)
+    if path.exists():
+        raise UserError(f"--out {path} exists (an export never replaces a file: remove it or choose another)")
+    return path
+
+
 def write_nwb(data: DatasetTrials, path: str | Path, metadata: NwbMetadata | None = None) -> dict[str, Any]:
     """Write ``data`` (described by ``metadata``) to the new NWB file ``path`` (parents created); a
     summary of what was written."""
     from pynwb import NWBHDF5IO
 
-    path = Path(path)
-    if path.exists():
-        raise UserError(f"--out {path} exists (an export never replaces a file: remove it or choose another)")
+    path = refuse_existing_export(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with NWBHDF5IO(str(path), "w") as io:
         io.write(build_nwbfile(data, metadata))
@@ -192,5 +198,7 @@ def export_nwb(target: str | Path, root: str | Path | None = None, trials: Optio
     """``pipeline export nwb``: ``trials`` (``"0,2,5-7"``, default every ok trial) of a dataset into
     ``out`` (default <project>/outputs/exports/<name>_v<k>.nwb, pipeline.config.project), described
     by ``metadata``."""
+    if out is not None:
+        refuse_existing_export(out)                # before the trials are read
     data = read_trials(target, root, trials)
     return write_nwb(data, out or project_root() / EXPORTS_DIR / f"{data.label.replace('/', '_')}.nwb", metadata)
