@@ -11,9 +11,10 @@ $(STAMP): pyproject.toml scripts/bootstrap.sh
 	bash scripts/bootstrap.sh
 	touch $(STAMP)
 
-# Tests also need Debian's chromium (headless web-viewer test); `make demo` does not.
+# Tests also need Debian's chromium (headless web-viewer test) and hdf5-tools (h5dump 1.10 reads a
+# fresh dataset file); `make demo` does not.
 $(TEST_STAMP): pyproject.toml scripts/bootstrap.sh
-	EXTRA_PACKAGES=chromium bash scripts/bootstrap.sh
+	EXTRA_PACKAGES="chromium hdf5-tools" bash scripts/bootstrap.sh
 	touch $(STAMP) $(TEST_STAMP)
 
 install: $(STAMP)

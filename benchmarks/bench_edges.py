@@ -27,6 +27,7 @@ import numpy as np
 from pipeline.config.loader import load_config
 from pipeline.config.simulate import SimulateConfig
 from pipeline.datasets.checks import EDGE_JUMP_LIMIT, edge_jump_ratios, free_whiskers, non_finite
+from pipeline.datasets.schema import WRENCH_PARTS
 from pipeline.runner.scenes import scene_catalogue
 from pipeline.runner.simulate import _layout
 from pipeline.runner.trial import RunSpec, Simulator
@@ -48,7 +49,8 @@ def measure(engine: str, trials: int) -> None:
             continue
         samples = result.record.samples
         finite &= not non_finite(result.arrays, samples, layout.node_every)
-        wrench, contact = result.arrays["base_wrench"][:samples], result.arrays["contact"][:samples]
+        wrench = np.concatenate([result.arrays[part][:samples] for part in WRENCH_PARTS], axis=-1)
+        contact = result.arrays["contact"][:samples]
         ratios.append(edge_jump_ratios(wrench)[free_whiskers(contact)])
         if index:
             cpu.append(result.record.physics_cpu_seconds)

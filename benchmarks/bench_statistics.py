@@ -47,9 +47,9 @@ FIELDS = ("touched", "onset", "duration", "peak_moment", "peak_transverse", "poc
 def trial_table(arrays: dict[str, np.ndarray], samples: int) -> dict[str, np.ndarray]:
     """Per whisker [W] of one trial's arrays: the FIELDS (NaN where a whisker never touched)."""
     contact = arrays["contact"][:samples].any(axis=2)                       # [T, W]
-    wrench = arrays["base_wrench"][:samples].astype(float)                  # [T, W, 6]
-    moment = np.linalg.norm(wrench[..., 3:], axis=-1)
-    transverse = np.hypot(wrench[..., 1], wrench[..., 2])
+    force = arrays["base_force"][:samples].astype(float)                    # [T, W, 3]
+    moment = np.linalg.norm(arrays["base_moment"][:samples].astype(float), axis=-1)
+    transverse = np.hypot(force[..., 1], force[..., 2])
     touched = contact.any(axis=0)
     peak = np.argmax(np.where(contact, moment, -np.inf), axis=0)            # sample of peak |M| in contact
     columns = np.arange(contact.shape[1])

@@ -19,7 +19,9 @@ from typing import Optional
 import click
 import typer
 
+import pipeline
 from pipeline import console
+from pipeline.activity import Activity
 from pipeline.config.physics import EngineName, PresetName
 from pipeline.diagnosis.choices import FitMethod, ObjectiveName
 from pipeline.console import print_json as _print_json
@@ -36,8 +38,19 @@ app = typer.Typer(
 )
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        from pipeline.provenance import git_commit
+
+        commit = git_commit()
+        typer.echo(f"whisker-pipeline {pipeline.__version__}" + (f" (git {commit})" if commit else ""))
+        raise typer.Exit()
+
+
 @app.callback()
-def _root(debug: bool = typer.Option(False, "--debug", help="Show tracebacks of errors.")) -> None:
+def _root(debug: bool = typer.Option(False, "--debug", help="Show tracebacks of errors."),
+          version: bool = typer.Option(False, "--version", is_eager=True, callback=_print_version,
+                                       help="Print the package version (and git commit) and exit.")) -> None:
     """Stages: build-meshes → simulate; see each command's --help."""
 
 
@@ -61,6 +74,14 @@ _PRESET = typer.Option(None, "--preset", show_default=False,
                        help="Material preset to start from. \\[default: config material.preset]")
 
 
+def _busy(label: str, text: str, json_output: bool) -> Activity:
+    """Progress of a command that may run for a while (``with _busy(...)``): silent for a
+    second, then ``label: text`` and a line every few seconds on stderr; none with --json."""
+    activity = Activity(label, enabled=not json_output)
+    activity.update(text)
+    return activity
+
+
 def _print_summary(summary: dict, json_output: bool, title: str = "", next_steps: Iterable[str] = ()) -> None:
     """``summary`` as JSON, or as a table of rounded values with units and the next steps."""
     if json_output:
@@ -74,13 +95,15 @@ def info(json_output: bool = _JSON,
          configs: Optional[Path] = typer.Option(None, "--configs", show_default=False,
                                                 help="Folder of config files to resolve. "
                                                      "\\[default: <project>/configs]")) -> None:
-    """Print versions of the package and its key dependencies, and the resolved configuration."""
-    from pipeline.config.project import CONFIGS_DIR, project_root
+    """Print versions of the package and its key dependencies, the project root and config folder
+    it resolved (and how), and the resolved configuration."""
+    from pipeline.config.project import CONFIGS_DIR, describe_project
     from pipeline.config.registry import resolved_configs
     from pipeline.provenance import describe_environment
 
-    data = {"versions": describe_environment(),
-            "configs": resolved_configs(configs if configs is not None else project_root() / CONFIGS_DIR)}
+    project = describe_project(configs)
+    folder = Path(project["configs_folder"])
+    data = {"versions": describe_environment(), "project": project, "configs": resolved_configs(folder)}
     if json_output:
         _print_json(data)
         return
@@ -90,8 +113,12 @@ def info(json_output: bool = _JSON,
     versions = Table("package", "version", title="whisker-pipeline environment", title_justify="left")
     for name, version in data["versions"].items():
         versions.add_row(name, str(version))
-    resolved = [part for name, config in data["configs"].items() for part in (f"{configs}/{name}:", Pretty(config))]
-    console.show(versions, *resolved, next_steps=["pipeline run workflows/natural.yaml  (what `make demo` runs)"])
+    where = (f"project root: {project['root']}  ({project['found_by']})\n"
+             f"config folder: {folder}" + ("" if folder.is_dir() else "  (not there: every config is built-in defaults)"))
+    resolved = [part for name, config in data["configs"].items()
+                for part in (f"{folder / name}:" if name in project["config_files"] else
+                             f"{name}: built-in defaults (no {folder / name})", Pretty(config, expand_all=True))]
+    console.show(versions, where, *resolved, next_steps=["pipeline run workflows/natural.yaml  (what `make demo` runs)"])
 
 
 @app.command()
@@ -229,7 +256,8 @@ def resonance(
     else:
         geometry = WhiskerGeometry(length_mm * 1e-3, base_diameter_um * 0.5e-6, tip_diameter_um * 0.5e-6,
                                    curvature_per_mm * 1e3)
-    result = run_resonance(geometry, model, max(modes, 3)).as_dict(modes)
+    with _busy("resonance", f"ring-down of a {length_mm:g} mm whisker on {model.engine.name}", json_output):
+        result = run_resonance(geometry, model, max(modes, 3)).as_dict(modes)
     if json_output:
         _print_json({k: v for k, v in result.items() if k != "f1_fft_bin_hz"})
         return
@@ -269,16 +297,19 @@ def trial(
     head = Pose.parse(pose) if pose else Pose()
     world = parse_scene(scene)
     drive = default_drive(world, model, duration_s)
-    output = run_trial(model, world, head, duration_s, whiskers, drive)
-    summary = {"scene": world.name, "engine": model.engine.name, "whiskers": len(output.whisker_names),
-               "duration_s": duration_s, "samples": len(output.time_s),
-               "whiskers_in_contact": output.whiskers_in_contact(),
-               "max_moment_N_m": float(output.moment_magnitude().max()),
-               "cpu_seconds": output.metadata["cpu_seconds"]}
-    if out is not None:
-        from pipeline.datasets import write_single_trial
+    with Activity("trial", enabled=not json_output) as activity:
+        activity.step(f"simulating whiskers '{whiskers}' for {duration_s:g} s in {world.name} on {model.engine.name}")
+        output = run_trial(model, world, head, duration_s, whiskers, drive)
+        summary = {"scene": world.name, "engine": model.engine.name, "whiskers": len(output.whisker_names),
+                   "duration_s": duration_s, "samples": len(output.time_s),
+                   "whiskers_in_contact": output.whiskers_in_contact(),
+                   "max_moment_N_m": float(output.moment_magnitude().max()),
+                   "cpu_seconds": output.metadata["cpu_seconds"]}
+        if out is not None:
+            from pipeline.datasets import write_single_trial
 
-        summary["file"] = str(write_single_trial(out, output, model, world, head, drive))
+            activity.step(f"writing {out}")
+            summary["file"] = str(write_single_trial(out, output, model, world, head, drive))
     _print_summary(summary, json_output, "trial: base signals of every whisker",
                    [f"pipeline datasets show {summary['file']}" if out is not None else
                     "add --out trial.h5 to keep the signals (docs/dataset.md)",
@@ -308,7 +339,7 @@ def build_meshes(
     _writable_out(out)
     report = build(scans, out, load_mesh_config(config), force=force, progress=not json_output)
     if json_output:
-        _print_json(report.to_dict())
+        _print_json(console.in_si(report.to_dict()))
     else:
         rows = [{"scan": scan.name, "status": scan.status, **scan.metrics, "build_seconds": scan.seconds or None}
                 for scan in report.scans]
@@ -355,6 +386,10 @@ def simulate(
                                                         "version (same config)."),
     shard: Optional[str] = typer.Option(None, "--shard", help="Run block i of N (i/N, 1-based) without a "
                                                               "scheduler; join with `pipeline datasets join`."),
+    seed: Optional[int] = typer.Option(None, "--seed", min=0, show_default=False,
+                                       help="Dataset seed: trial i draws from (seed, i). \\[default: config seed]"),
+    new_version: bool = typer.Option(False, "--new-version", help="Write a new version even if the newest "
+                                                                  "complete one has the same config."),
     root: Optional[Path] = _ROOT_OPTION,
     engine: Optional[EngineName] = _ENGINE,
     morphology: Optional[str] = _MORPHOLOGY,
@@ -363,21 +398,41 @@ def simulate(
 ) -> None:
     """Simulate N trials (scenes × head poses × whisks) on dask into a new versioned HDF5 dataset."""
     from pipeline.config.simulate import load_simulate_config
+    from pipeline.runner.duplicates import refuse_duplicate
     from pipeline.runner.simulate import simulate as run_simulation
 
     if workers is not None and scheduler is not None:
         raise UserError("give --workers or --scheduler, not both")
     settings = load_simulate_config(config, {
-        "trials": n, "scenes": {"folder": _model_path(scenes)},
+        "trials": n, "seed": seed, "scenes": {"folder": _model_path(scenes)},
         "dataset": {"name": name, "root": _model_path(root)},
         "model": {"engine": {"name": engine}, "file": _model_path(model_file), "morphology": _morphology(morphology)},
         "cluster": {"kind": "scheduler" if scheduler else "local" if workers is not None else None,
                     "workers": workers, "scheduler": scheduler, "record_every": record_every}})
+    if not (resume or shard or new_version):
+        refuse_duplicate(settings)
     summary = run_simulation(settings, resume=resume, shard=shard, progress=not json_output)
     target = _dataset_label(summary["dataset"])
     steps = ([f"pipeline datasets join {settings.dataset.name}  (once every shard is complete)"] if shard else
              _next_for_dataset(target) if summary["complete"] else ["the same command plus --resume"])
     _print_summary(summary, json_output, f"simulate → {target}", steps)
+
+
+@app.command("job-script")
+def job_script(config: Optional[Path] = typer.Option(None, "--config", show_default=False,
+                                                    help="Run config YAML with a batch cluster (slurm, pbs, sge, "
+                                                         "lsf). \\[default: <project>/configs/simulate.yaml]"),
+               json_output: bool = _JSON) -> None:
+    """Print the batch script each worker job of `pipeline simulate` would run (docs/cluster.md)."""
+    from pipeline.config.simulate import load_simulate_config
+    from pipeline.runner.cluster import job_script as batch_job_script
+
+    cluster = load_simulate_config(config).cluster
+    script = batch_job_script(cluster)
+    if json_output:
+        _print_json({"kind": cluster.kind, "jobs": cluster.jobs, "script": script})
+    else:
+        typer.echo(script)
 
 
 datasets_app = typer.Typer(help="List, inspect and join simulated datasets (outputs/datasets/).",
@@ -416,7 +471,9 @@ def datasets_show(target: str = typer.Argument(..., help="NAME, NAME/vK, a versi
     """Summary of one dataset version (trials, scenes, arrays, provenance)."""
     from pipeline.datasets.catalog import describe
 
-    info = describe(target, root, check=verify)
+    with _busy("datasets show", f"{target}: re-hashing files and scanning ok trials" if verify else target,
+               json_output):
+        info = describe(target, root, check=verify)
     _print_summary(info, json_output, f"dataset {info['label']}", _next_for_dataset(_dataset_label(info["path"])))
 
 
@@ -428,7 +485,8 @@ def datasets_join(name: str = typer.Argument(..., help="Dataset name whose shard
     """Join the complete shards of a --shard run into a new version (virtual datasets, no copy)."""
     from pipeline.datasets.join import join_shards
 
-    version = join_shards(root, name, run)
+    with _busy("datasets join", f"joining the shards of {name}", json_output):
+        version = join_shards(root, name, run)
     if json_output:
         _print_json({"dataset": str(version)})
         return
@@ -448,13 +506,32 @@ def export_nwb(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a 
                                                                       "<project>/outputs/exports/<name>_v<k>.nwb)."),
                trials: Optional[str] = typer.Option(None, "--trials", help="Trials to export, e.g. 0,2,5-7 "
                                                                            "(default: every ok trial)."),
+               metadata: Optional[Path] = typer.Option(None, "--metadata", show_default=False,
+                                                       help="YAML: experimenter, institution, lab, "
+                                                            "session_description, keywords, subject (docs/export.md)."),
+               experimenter: Optional[list[str]] = typer.Option(None, "--experimenter", show_default=False,
+                                                                help='"Last, First" (repeat for several).'),
+               institution: Optional[str] = typer.Option(None, "--institution", show_default=False),
+               lab: Optional[str] = typer.Option(None, "--lab", show_default=False),
+               session_description: Optional[str] = typer.Option(None, "--session-description",
+                                                                 show_default=False),
+               keyword: Optional[list[str]] = typer.Option(None, "--keyword", show_default=False,
+                                                           help="Keyword to add (repeat for several)."),
+               subject_id: Optional[str] = typer.Option(None, "--subject-id", show_default=False,
+                                                        help="\\[default: model-rat]"),
                root: Optional[Path] = _ROOT_OPTION,
                json_output: bool = _JSON) -> None:
     """One NWB file: base signals, contacts and drive as time series, whisker and trial tables, provenance."""
     from pipeline.exports.nwb import export_nwb as run_export
+    from pipeline.exports.nwb_metadata import load_nwb_metadata
 
     _writable_out(out)
-    summary = run_export(target, root, trials, out)
+    described = load_nwb_metadata(metadata, {
+        "experimenter": experimenter or None, "institution": institution, "lab": lab,
+        "session_description": session_description, "keywords": keyword or None,
+        "subject": {"subject_id": subject_id}})
+    with _busy("export nwb", f"reading {target} and writing the NWB file", json_output):
+        summary = run_export(target, root, trials, out, described)
     _print_summary(summary, json_output, f"export nwb → {summary['nwb']}",
                    ["pynwb: NWBHDF5IO(path, 'r').read()  (docs/export.md)"])
 
@@ -470,7 +547,9 @@ def export_whiskit(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK
     from pipeline.exports.whiskit import export_whiskit as run_export
 
     _writable_out(out)
-    _print_summary(run_export(target, trial, out, root), json_output, f"export whiskit → {out}",
+    with _busy("export whiskit", f"writing trial {trial} of {target} into {out}", json_output):
+        summary = run_export(target, trial, out, root)
+    _print_summary(summary, json_output, f"export whiskit → {out}",
                    [f"pipeline compare-whiskit WHISKIT_OUTPUT_DIR {target} --trial {trial}"])
 
 
@@ -490,7 +569,8 @@ def compare_whiskit(folder: Path = typer.Argument(..., help="WHISKiT output fold
     """Per whisker and base signal: RMS difference and correlation of WHISKiT output vs a dataset trial."""
     from pipeline.exports.whiskit import compare_whiskit as run_compare
 
-    result = run_compare(folder, target, trial, root, rate_hz, first_row_s)
+    with _busy("compare-whiskit", f"reading {folder} and trial {trial} of {target}", json_output):
+        result = run_compare(folder, target, trial, root, rate_hz, first_row_s)
     if json_output:
         _print_json(result)
         return
@@ -517,7 +597,8 @@ def stats(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a versi
     from pipeline.reports.stats import stats_report
 
     _writable_out(out)
-    summary = stats_report(target, root, out)
+    with Activity("stats", enabled=not json_output) as activity:
+        summary = stats_report(target, root, out, activity)
     if json_output:
         _print_json(summary)
         return
@@ -592,10 +673,12 @@ def calibrate(
     if library or where or len(files) > 1:
         if save_model is not None:
             raise UserError("--save-model saves the fit of one measurement FILE, not a joint fit over sets")
-        data, lines = run_calibrate_sets(files, library, where, hold_out, params, material)
+        with _busy("calibrate", f"fitting {params} jointly to the resonance tables", json_output):
+            data, lines = run_calibrate_sets(files, library, where, hold_out, params, material)
     elif len(files) == 1:
-        data, lines = run_calibrate(files[0], params, method, objective, material, engine, bootstrap, grid_points,
-                                    save_model)
+        with _busy("calibrate", f"fitting {params} to {files[0]}", json_output):
+            data, lines = run_calibrate(files[0], params, method, objective, material, engine, bootstrap,
+                                        grid_points, save_model)
     else:
         raise UserError("calibrate needs a measurement FILE or --library")
     if json_output:
@@ -628,8 +711,9 @@ def diagnose(
         raise UserError(f"--report {report} is a file; give a folder for report.md and the figures")
     if library == (file is not None):
         raise UserError("diagnose needs exactly one of FILE or --library")
-    data, lines = run_diagnose(file, _model_config(config, {"material": {"preset": preset}}).material, report, engine,
-                               candidates, library, save_model)
+    material = _model_config(config, {"material": {"preset": preset}}).material
+    with _busy("diagnose", f"fitting the model extensions to {file or 'the measurement library'}", json_output):
+        data, lines = run_diagnose(file, material, report, engine, candidates, library, save_model)
     if json_output:
         _print_json(data)
         return
@@ -651,7 +735,8 @@ def synth(
     from pipeline.diagnosis.commands import run_synth
 
     _writable_out(out, new_file=True)
-    data = run_synth(config, out, seed, _model_path(model_file))
+    with _busy("synth", f"simulating the measurement of {config}", json_output):
+        data = run_synth(config, out, seed, _model_path(model_file))
     _print_summary(data, json_output, "synthetic measurement",
                    [f"pipeline diagnose {out}  (does the diagnosis find the hidden extensions?)",
                     f"pipeline calibrate {out}"])

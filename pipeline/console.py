@@ -33,6 +33,30 @@ def print_json(data: object) -> None:
     print(json.dumps(jsonable(data), indent=2, default=str))
 
 
+# key suffix in millimetres → (its SI suffix, factor to SI)
+MM_SUFFIXES = {"_mm": ("_m", 1e-3), "_mm2": ("_m2", 1e-6), "_mm3": ("_m3", 1e-9)}
+
+
+def in_si(data: Any) -> Any:
+    """``data`` with every number under a key in mm, mm² or mm³ (``max_edge_mm``,
+    ``unsupported_area_removed_mm2``) converted to m, m², m³ and its key renamed to match
+    (``max_edge_m``), at any depth; what ``--json`` prints."""
+    if isinstance(data, Mapping):
+        converted = {}
+        for key, value in data.items():
+            suffix = next((s for s in MM_SUFFIXES if isinstance(key, str) and key.endswith(s)), None)
+            if suffix is None:
+                converted[key] = in_si(value)
+                continue
+            si, factor = MM_SUFFIXES[suffix]
+            scaled = value * factor if isinstance(value, (int, float)) and not isinstance(value, bool) else value
+            converted[key[: -len(suffix)] + si] = in_si(scaled)
+        return converted
+    if isinstance(data, (list, tuple)):
+        return [in_si(item) for item in data]
+    return data
+
+
 def number(value: float, digits: int = 3) -> str:
     """``value`` to ``digits`` significant digits, without exponent between 1e-4 and 1e6."""
     if not math.isfinite(value):
@@ -155,15 +179,21 @@ def _cell(key: str, value: Any) -> str:
     return "" if value is None else value_text(key, value)
 
 
+LOG_WIDTH = 1000     # stdout not a terminal (a log, a pipe): lines as long as their content, unwrapped
+
+
 def show(*renderables: Any, next_steps: Iterable[str] = ()) -> None:
-    """Print tables (or text) to stdout, then one "next:" line per suggested command."""
+    """Print tables (or text) to stdout, then one "next:" line per suggested command. On a
+    terminal, tables fit its width; in a log (stdout not a terminal) nothing is wrapped."""
     from rich.console import Console
     from rich.markup import escape
 
     console = Console()
+    if not console.is_terminal:
+        console = Console(width=LOG_WIDTH)
     for item in renderables:
         if isinstance(item, str):
-            console.print(item, markup=False, highlight=False)
+            console.print(item, markup=False, highlight=False, soft_wrap=True)
             continue
         needed = getattr(item, "min_width", None) or 0           # rows_table: what no cell is cut at
         (console if needed <= console.width else Console(width=needed)).print(item)

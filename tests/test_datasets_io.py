@@ -63,14 +63,16 @@ def test_layout_attributes_and_chunks(tmp_path):
     path = tmp_path / "d.h5"
     write_trials(path, [0])
     with h5py.File(path, "r") as f:
-        assert f.attrs["schema"] == "whisker-pipeline/dataset" and f.attrs["schema_version"] == 3
+        assert f.attrs["schema"] == "whisker-pipeline/dataset" and f.attrs["schema_version"] == 4
         assert f.attrs["sampling_rate_hz"] == 1000.0
-        wrench = f["base_wrench"]
-        assert wrench.shape == (5, T, 3, 6) and wrench.dtype == np.float32
-        assert wrench.chunks == (1, T, 3, 6) and wrench.compression == "gzip" and wrench.shuffle
-        assert wrench.compression_opts == 4
-        assert list(wrench.attrs["axes"]) == ["trial", "time", "whisker", "signal"]
-        assert list(wrench.attrs["units"]) == ["N", "N", "N", "N*m", "N*m", "N*m"]
+        force, moment = f["base_force"], f["base_moment"]
+        assert force.shape == moment.shape == (5, T, 3, 3) and force.dtype == np.float32
+        assert force.chunks == (1, T, 3, 3) and force.compression == "gzip" and force.shuffle
+        assert force.compression_opts == 4
+        assert list(force.attrs["axes"]) == ["trial", "time", "whisker", "xyz"]
+        assert (force.attrs["units"], moment.attrs["units"]) == ("N", "N m")
+        assert (force.attrs["long_name"], moment.attrs["long_name"]) == ("base force", "base moment")
+        assert f["time"].attrs["standard_name"] == "time" and "units" not in f["whisker"].attrs
         assert f["contact"].shape == (5, T, 3, LINKS)
         assert f["node_positions_m"].shape == (5, T // 10, 3, LINKS + 1, 3)
         assert f["trials/duration_s"].attrs["units"] == "s"
@@ -81,7 +83,7 @@ def test_layout_attributes_and_chunks(tmp_path):
 def test_round_trip_with_named_axes(tmp_path):
     path = tmp_path / "d.h5"
     outputs = write_trials(path, [0, 1, 3])
-    with datasets.open(path) as ds:
+    with datasets.open_file(path) as ds:
         assert list(ds.ok) == [0, 1, 3] and list(ds.pending) == [2, 4]
         mz = ds.base_wrench.sel(whisker="RC2", signal="Mz")
         assert mz.dims == ("trial", "time") and mz.signal_units.item() == "N*m"
@@ -111,7 +113,7 @@ def test_each_trial_is_written_once(tmp_path):
     with DatasetWriter.resume(path) as writer:
         assert not writer.write(2, TrialRecord(status="failed", error="again"), None)
         assert writer.write(4, TrialRecord(status="failed", error="boom " * 200), None)
-    with datasets.open(path) as ds:
+    with datasets.open_file(path) as ds:
         assert ds.trials["status"][2] == "ok" and list(ds.failed) == [4]
         assert ds.trials["error"][4].startswith("boom boom") and len(ds.trials["error"][4]) <= 512
 
@@ -134,13 +136,13 @@ def test_killed_writer_leaves_a_readable_file_that_resumes(tmp_path):
                    cwd=REPO, timeout=60)
     with pytest.raises(OSError):
         h5py.File(path, "r+").close()                  # HDF5 still marks it open for writing
-    with datasets.open(path) as ds:                    # ... yet SWMR readers see the finished trials
+    with datasets.open_file(path) as ds:                    # ... yet SWMR readers see the finished trials
         assert list(ds.ok) == [0, 1, 2]
     outputs = write_trials(path, [3, 4])               # resume: recovered copy, then more trials
-    with datasets.open(path) as ds:
+    with datasets.open_file(path) as ds:
         assert list(ds.ok) == [0, 1, 2, 3, 4]
-        assert np.array_equal(ds.base_wrench.values[4], trial_arrays(
-            outputs[4], sinusoidal_whisk(duration_s=0.05)(outputs[4].time_s), layout())["base_wrench"])
+        assert np.array_equal(ds.base_force.values[4], trial_arrays(
+            outputs[4], sinusoidal_whisk(duration_s=0.05)(outputs[4].time_s), layout())["base_force"])
     h5py.File(path, "r+").close()
 
 
@@ -149,7 +151,7 @@ def test_single_trial_file(tmp_path):
     path = datasets.write_single_trial(tmp_path / "one.h5", output, ModelConfig(), active_pegs(),
                                        Pose((0.01, 0.0, 0.0)))
     assert not list(tmp_path.glob("*.partial"))
-    with datasets.open(path) as ds:
+    with datasets.open_file(path) as ds:
         assert list(ds.ok) == [0] and ds.trials["scene"][0] == "pegs-active"
         assert np.array_equal(ds.node_positions_m.values[0], output.node_positions_m)
         assert ds.provenance["config"]["material"]["links"] == 20 and ds.provenance["packages"]["h5py"]
@@ -202,11 +204,12 @@ def test_lock_excludes_a_second_writer(tmp_path):
 def test_torch_style_dataset_opens_lazily_per_process(tmp_path):
     path = tmp_path / "d.h5"
     outputs = write_trials(path, [1, 3])
-    ds = datasets.TrialDataset(path, arrays=("base_wrench", "point_of_contact"))
+    ds = datasets.TrialDataset(path, arrays=("base_wrench", "point_of_contact", "base_moment"))
     assert len(ds) == 2 and ds._file is None
     item = ds[1]
     assert item["trial"] == 3 and item["scene"] == "mesh:rock" and item["samples"] == 30
     assert np.array_equal(item["base_wrench"][:30], outputs[3].base_wrench)
+    assert np.array_equal(item["base_moment"][:30], outputs[3].base_wrench[..., 3:])
     clone = pickle.loads(pickle.dumps(ds))             # what a DataLoader does per worker
     assert clone._file is None and clone[0]["trial"] == 1
     with pytest.raises(IndexError):

@@ -37,23 +37,24 @@ def test_xarray_opens_named_dims_with_coordinates_and_units(tmp_path):
     path = tmp_path / "d.h5"
     outputs = write_trials(path, [0, 1, 3])
     with open_xr(path) as ds:
-        assert ds.base_wrench.dims == ("trial", "time", "whisker", "signal")
+        assert ds.base_force.dims == ds.base_moment.dims == ("trial", "time", "whisker", "xyz")
         assert ds.contact.dims == ("trial", "time", "whisker", "link")
         assert ds.node_positions_m.dims == ("trial", "node_time", "whisker", "node", "xyz")
         assert not [d for d in ds.sizes if d.startswith("phony_dim")]
         assert ds.whisker.values.tolist() == NAMES and isinstance(ds.whisker.values[0], str)
-        assert ds.signal.values.tolist() == ["Fx", "Fy", "Fz", "Mx", "My", "Mz"]
-        assert ds.signal_units.sel(signal="Mz").item() == "N*m"
+        assert ds.xyz.values.tolist() == ["x", "y", "z"]
+        assert (ds.base_force.units, ds.base_moment.units) == ("N", "N m")     # one unit per variable
         np.testing.assert_allclose(ds.time.values, np.arange(1, T + 1) / 1000.0)
         assert ds.time.attrs["units"] == "s" and ds.sizes["link"] == LINKS
-        assert all("units" in v.attrs for v in ds.variables.values())
-        mz = ds.base_wrench.sel(whisker="RC2", signal="Mz")
+        assert all("long_name" in v.attrs for v in ds.variables.values())
+        assert all("units" in v.attrs for v in ds.variables.values() if v.dtype.kind not in "OUS")
+        mz = ds.base_moment.sel(whisker="RC2", xyz="z")
         np.testing.assert_array_equal(mz.sel(trial=3, time=slice(0.0105, 0.0205)).values,
                                       outputs[3].base_wrench[10:20, 1, 5])
         assert mz.sel(trial=0, time=0.0119, method="nearest").item() == outputs[0].base_wrench[11, 1, 5]
-        mean = ds.base_wrench.isel(trial=[0, 1, 3]).mean("time")
+        mean = ds.base_force.isel(trial=[0, 1, 3]).mean("time")
         np.testing.assert_allclose(mean.sel(trial=0, whisker="LA0").values,
-                                   outputs[0].base_wrench[:, 2].mean(axis=0), rtol=1e-5)
+                                   outputs[0].base_wrench[:, 2, :3].mean(axis=0), rtol=1e-5)
     tree = xr.open_datatree(path, engine="h5netcdf")
     try:
         trials, whiskers = tree["trials"].to_dataset(), tree["whiskers"].to_dataset()
@@ -63,7 +64,8 @@ def test_xarray_opens_named_dims_with_coordinates_and_units(tmp_path):
         assert trials.pose_rotation.dims == ("trial", "world_axis", "head_axis")
         assert whiskers.rest_rotation.dims == ("whisker", "head_axis", "whisker_axis")
         assert whiskers.name.values.tolist() == NAMES
-        assert all("units" in v.attrs for v in [*trials.variables.values(), *whiskers.variables.values()])
+        columns = [*trials.variables.values(), *whiskers.variables.values()]
+        assert all("units" in v.attrs for v in columns if v.dtype.kind not in "OUS")
     finally:
         tree.close()
 
@@ -72,18 +74,18 @@ def test_dimension_scales_survive_a_killed_writer_and_its_recovery(tmp_path):
     path = tmp_path / "d.h5"
     subprocess.run([sys.executable, "-c", KILLER.format(tests=str(REPO / "tests"), path=str(path))],
                    cwd=REPO, timeout=60)
-    with datasets.open(path) as ds:                     # SWMR reader of the killed writer's file
+    with datasets.open_file(path) as ds:                     # SWMR reader of the killed writer's file
         assert list(ds.ok) == [0, 1, 2] and ds.base_wrench.dims == ("trial", "time", "whisker", "signal")
     write_trials(path, [3])                             # resume: recovered copy, dims attached again
     with open_xr(path) as ds:
-        assert ds.base_wrench.dims == ("trial", "time", "whisker", "signal")
-        assert ds.whisker.values.tolist() == NAMES and not np.isnan(ds.base_wrench[3]).all()
+        assert ds.base_moment.dims == ("trial", "time", "whisker", "xyz")
+        assert ds.whisker.values.tolist() == NAMES and not np.isnan(ds.base_moment[3]).all()
 
 
 def test_reader_returns_xarray_and_pandas(tmp_path):
     path = tmp_path / "d.h5"
     outputs = write_trials(path, [0, 3])
-    with datasets.open(path) as ds:
+    with datasets.open_file(path) as ds:
         assert isinstance(ds.base_wrench, xr.DataArray) and isinstance(ds.arrays, xr.Dataset)
         assert set(ds.arrays.data_vars) == set(ARRAYS)
         assert isinstance(ds.trials, pd.DataFrame) and isinstance(ds.whiskers, pd.DataFrame)
@@ -103,13 +105,18 @@ def test_reader_returns_xarray_and_pandas(tmp_path):
 
 
 def test_schema_version_1_files_still_open():
-    with datasets.open(V1_FIXTURE) as ds:
+    with datasets.open_file(V1_FIXTURE) as ds:
         assert ds.attrs["schema_version"] == 1 and list(ds.ok) == [0, 2] and list(ds.pending) == [1]
         wrench = ds.base_wrench
         assert wrench.dims == ("trial", "time", "whisker", "signal")
         assert wrench.whisker.values.tolist() == NAMES
         np.testing.assert_allclose(wrench.time.values, np.arange(1, 13) / 1000.0)
         np.testing.assert_array_equal(wrench.sel(trial=2).values, fake_output(2, samples=12).base_wrench)
+        moment = ds.base_moment                                    # version 4's names, from base_wrench
+        assert moment.dims == ("trial", "time", "whisker", "xyz") and moment.attrs["units"] == "N m"
+        np.testing.assert_array_equal(moment.sel(trial=2).values, fake_output(2, samples=12).base_wrench[..., 3:])
+        assert set(ds.arrays.data_vars) >= {"base_force", "base_moment"}
+        np.testing.assert_array_equal(ds.trial(2)["base_force"], ds.trial(2)["base_wrench"][..., :3])
         assert ds.node_positions_m.dims[1] == "node_time" and ds.node_positions_m.sizes["node_time"] == 3
         assert ds.trials["scene"][0] == "mesh:rock" and "rest_rotation" not in ds.whiskers.columns
         np.testing.assert_allclose(ds.trials["pose_position_m"].loc[2], [0.01, 0.02, 0.03])
@@ -134,7 +141,7 @@ def test_whisker_frames_match_the_model_at_every_protraction(tmp_path):
     write_trials(path, [0])
     array = build_array(model_rat().select(NAMES), MaterialConfig())
     theta = xr.DataArray(np.linspace(-0.6, 0.9, 7), dims="time")
-    with datasets.open(path) as ds:
+    with datasets.open_file(path) as ds:
         frames = whisker_frames(ds.whiskers, theta)
         rest = whisker_frames(ds.whiskers)
     for k, whisker in enumerate(array.whiskers):
@@ -174,7 +181,7 @@ def test_to_world_frame_uses_each_trials_pose(tmp_path):
             writer.write(i, TrialRecord(status="ok", samples=T, pose_rotation=pose.rotation),
                          trial_arrays(outputs[i], drive(outputs[i].time_s), plan))
     array = build_array(model_rat().select(NAMES), MaterialConfig())
-    with datasets.open(path) as ds:
+    with datasets.open_file(path) as ds:
         world = to_world_frame(ds.base_wrench, ds.whiskers, ds.trials, ds.protraction_rad)
         theta = ds.protraction_rad.values
     for i, pose in enumerate(poses):
@@ -214,7 +221,7 @@ def test_world_frame_follows_the_engines_whiskers(tmp_path):
     output = run_trial(model, empty(), pose, 0.06, names, drive)
     path = datasets.write_single_trial(tmp_path / "t.h5", output, model, empty(), pose, drive)
     array = build_array(model_rat().select(names.split(",")), model.material)
-    with datasets.open(path) as ds:
+    with datasets.open_file(path) as ds:
         nodes = ds.node_positions_m.isel(trial=0).values.astype(float)            # [T, W, N+1, 3]
         chord = np.zeros(ds.base_wrench.shape[1:])                                # rest first link
         for k, whisker in enumerate(array.whiskers):

@@ -43,7 +43,7 @@ def test_nwb_export_reads_back_with_the_datasets_values(dataset, tmp_path):
     result = run_pipeline("export", "nwb", dataset, "--out", out, "--json")
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout)["trials"] == 3
-    with datasets.open(dataset) as ds, NWBHDF5IO(str(out), "r") as io:
+    with datasets.open_file(dataset) as ds, NWBHDF5IO(str(out), "r") as io:
         nwb = io.read()
         samples = len(ds.time_s)
         wrench = np.concatenate([ds.trial(i)["base_wrench"] for i in range(3)])        # [3·T, W, 6]
@@ -88,6 +88,29 @@ def test_nwb_export_passes_nwbinspector_without_critical_issues(dataset, tmp_pat
     messages = list(inspect_nwbfile(nwbfile_path=str(path)))
     serious = [m for m in messages if m.importance.value >= Importance.CRITICAL.value]
     assert not serious, [(m.importance.name, m.check_function_name, m.message) for m in serious]
+
+
+def test_nwb_export_with_a_metadata_file_passes_the_dandi_config_with_no_issue(dataset, tmp_path):
+    from nwbinspector import inspect_nwbfile, load_config
+    from pynwb import NWBHDF5IO
+
+    (tmp_path / "meta.yaml").write_text(yaml.safe_dump({
+        "experimenter": ["Doe, Jane"], "institution": "University of Somewhere", "lab": "Whisker Lab",
+        "keywords": ["natural scenes"], "subject": {"subject_id": "model-rat-2", "age": "P90D"}}))
+    out = tmp_path / "described.nwb"
+    result = run_pipeline("export", "nwb", dataset, "--out", out, "--metadata", tmp_path / "meta.yaml",
+                          "--lab", "Touch Lab", "--json")                   # a flag over the file
+    assert result.returncode == 0, result.stderr
+    messages = list(inspect_nwbfile(nwbfile_path=str(out), config=load_config("dandi")))
+    assert not messages, [(m.importance.name, m.check_function_name, m.message) for m in messages]
+    with NWBHDF5IO(str(out), "r") as io:
+        nwb = io.read()
+        assert list(nwb.experimenter) == ["Doe, Jane"] and nwb.institution == "University of Somewhere"
+        assert nwb.lab == "Touch Lab" and "natural scenes" in list(nwb.keywords)
+        assert (nwb.subject.subject_id, nwb.subject.age) == ("model-rat-2", "P90D")
+        assert "pose_rotation" not in nwb.trials.colnames and "pose_euler_zyx_rad" in nwb.trials.colnames
+    bad = run_pipeline("export", "nwb", dataset, "--out", tmp_path / "bad.nwb", "--subject-id", "a/b")
+    assert bad.returncode == 2 and bad.stderr.startswith("error:") and "subject_id" in bad.stderr
 
 
 def test_whiskit_layout_round_trips_exactly(dataset, tmp_path):

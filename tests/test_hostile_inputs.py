@@ -496,7 +496,7 @@ def test_join_refuses_shards_of_different_partitions_then_joins_one(shard_runs):
     joined = cli("datasets", "join", "tiny", "--root", root, "--json")
     assert joined.returncode == 0, joined.stderr
     version = Path(json.loads(joined.stdout)["dataset"])
-    with datasets.open(version / "data.h5") as ds:
+    with datasets.open_file(version / "data.h5") as ds:
         assert ds.pending.size == 0
         assert not np.isnan(ds.base_wrench.values[ds.ok]).all(axis=(1, 2, 3)).any()
     moved = folder / "moved"
@@ -539,7 +539,7 @@ def fill(disk: Path, leave_bytes: int) -> Path:
 
 def assert_ok_trials_readable(data_file: Path) -> tuple[int, int]:
     """Every ok trial has finite data; returns (ok, pending)."""
-    with datasets.open(data_file) as ds:
+    with datasets.open_file(data_file) as ds:
         for index in ds.ok:
             samples = int(ds.trials["samples"][index])
             assert np.isfinite(ds.base_wrench.values[index, :samples]).all(), index
@@ -607,7 +607,7 @@ def wait_for_written(data: Path, count: int, timeout_s: float = 120) -> None:
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         try:
-            with datasets.open(data) as ds:
+            with datasets.open_file(data) as ds:
                 if len(ds.ok) + len(ds.failed) >= count:
                     return
         except Exception:          # not created yet, or caught mid-creation

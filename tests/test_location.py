@@ -80,7 +80,7 @@ def test_simulate_and_list_from_another_directory_then_move_the_version(tmp_path
         assert [row["dataset"] for row in json.loads(listing.stdout)] == ["ref/v1"], (cwd, extra)
 
     # the version holds its mesh under its sha256 and names it relative to itself
-    with datasets.open(version) as ds:
+    with datasets.open_file(version) as ds:
         assert ds.provenance["config_file"]["sha256"] == file_sha256(config_file)
         scenes = [SceneEntry(**s) for s in decode_attr(ds.file.attrs["scenes"])]
         before = {i: ds.trial(i) for i in range(2)}
@@ -93,7 +93,7 @@ def test_simulate_and_list_from_another_directory_then_move_the_version(tmp_path
     shutil.move(str(version), str(moved))
     shutil.rmtree(home)
     assert manifest.verify(moved) == []
-    with datasets.open(moved) as ds:
+    with datasets.open_file(moved) as ds:
         assert ds.trials["scene"].tolist() == ["mesh:box", "pegs-active"]
         for i in range(2):
             after = ds.trial(i)

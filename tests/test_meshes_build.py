@@ -197,6 +197,8 @@ def test_cli_exits_2_with_error_lines_after_building_the_others(mixed, tmp_path)
     assert "Traceback" not in result.stderr
     summary = json.loads(result.stdout)
     assert (summary["built"], summary["failed"]) == (1, len(EXPECTED_ERRORS))
+    built = [scan["metrics"] for scan in summary["scans"] if scan["status"] == "built"][0]
+    assert 0 < built["max_edge_m"] <= 3e-3 and "max_edge_mm" not in built      # --json is SI
     assert (out / "good.obj").is_file()
 
 

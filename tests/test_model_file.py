@@ -202,7 +202,7 @@ def test_trial_runs_the_model_on_both_engines_and_records_it(tmp_path, data_file
         summary = json.loads(ok("trial", "--model", path, "--engine", engine, "--whiskers", "RC1,RD2",
                                 "--scene", "pegs-active", "--duration-s", "0.03", "--out", out, "--json"))
         moments[engine] = summary["max_moment_N_m"]
-        with datasets.open(out) as ds:
+        with datasets.open_file(out) as ds:
             record = ds.provenance["model_file"]
             assert record["sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
             assert record["content"] == path.read_text()
@@ -226,7 +226,7 @@ def _simulate_records(tmp_path: Path, model: Path, trials: int) -> None:
         "cluster": {"workers": 1, "record_every": 0}}))
     summary = json.loads(ok("simulate", "--config", config, "--model", model, "--json"))
     assert summary["ok"] == trials
-    with datasets.open(summary["dataset"]) as ds:
+    with datasets.open_file(summary["dataset"]) as ds:
         record = ds.provenance["model_file"]
         assert record["path"] == str(model.resolve()) and record["content"] == model.read_text()
         assert record["sha256"] == hashlib.sha256(model.read_bytes()).hexdigest()

@@ -3,6 +3,7 @@ dataset, only ok trials count, and the dataset is read one trial at a time."""
 
 from __future__ import annotations
 
+import io
 import json
 import subprocess
 import sys
@@ -11,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pipeline.activity import Activity
 from pipeline.datasets.reader import lazy_dataset_class
 from pipeline.datasets.schema import TrialRecord
 from pipeline.datasets.writer import DatasetWriter, Layout, trial_arrays, whisker_table
@@ -80,12 +82,18 @@ def transverse(wrench):
 def report(dataset, tmp_path_factory):
     path, _ = dataset
     out = tmp_path_factory.mktemp("report")
-    summary = stats_report(path, tmp_path_factory.mktemp("root"), out)
-    return summary, json.loads((out / "stats.json").read_text()), out
+    lines = io.StringIO()
+    with Activity("stats", stream=lines, quiet_s=0, interval_s=0.001) as activity:   # progress as the command shows it
+        summary = stats_report(path, tmp_path_factory.mktemp("root"), out, activity)
+    return {**summary, "progress": lines.getvalue().splitlines()}, json.loads((out / "stats.json").read_text()), out
 
 
-def test_report_files_exist(report):
+def test_report_files_exist_and_each_step_was_shown(report):
     summary, stats, out = report
+    steps = [line for line in summary["progress"] if "elapsed" not in line]
+    assert steps[:3] == ["stats: reading the 4 ok trials of synthetic/v1", "stats: computing the statistics",
+                         f"stats: drawing the figures into {out}"] and steps[-1].startswith("stats: done in ")
+    assert all(line.startswith("stats: ") for line in summary["progress"])
     assert summary["trials_used"] == 4 and summary["dataset"] == "synthetic/v1"
     assert (out / "report.md").is_file() and (out / "stats.json").is_file()
     pngs = sorted(p.name for p in out.glob("*.png"))

@@ -50,7 +50,7 @@ def wait_for_trials(data_file: Path, count: int, process: subprocess.Popen, time
     while time.monotonic() < deadline:
         assert process.poll() is None, process.communicate()
         try:
-            with datasets.open(data_file) as ds:
+            with datasets.open_file(data_file) as ds:
                 done = len(ds.ok) + len(ds.failed)
         except Exception:         # not created yet, or caught mid-creation
             done = 0
@@ -121,7 +121,7 @@ def test_interrupted_then_lost_run_resumes_to_the_same_data(tmp_path, reference)
     os.killpg(process.pid, signal.SIGINT)
     _, err = process.communicate(timeout=120)
     assert "interrupted:" in err and "--resume" in err
-    with datasets.open(data) as ds:
+    with datasets.open_file(data) as ds:
         first = len(ds.ok) + len(ds.failed)
     assert 2 <= first < TRIALS
 
@@ -129,7 +129,7 @@ def test_interrupted_then_lost_run_resumes_to_the_same_data(tmp_path, reference)
     wait_for_trials(data, first + 2, process)
     os.killpg(process.pid, signal.SIGKILL)
     process.wait()
-    with datasets.open(data) as ds:                      # what was written stays readable
+    with datasets.open_file(data) as ds:                      # what was written stays readable
         second = len(ds.ok) + len(ds.failed)
     assert first + 2 <= second
 

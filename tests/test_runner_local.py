@@ -57,7 +57,7 @@ def pipeline_cli(*args, timeout=300, **kwargs) -> subprocess.CompletedProcess:
 
 def assert_same_trials(a: Path, b: Path) -> None:
     """Two datasets hold identical trials (timings and worker names aside)."""
-    with datasets.open(a) as da, datasets.open(b) as db:
+    with datasets.open_file(a) as da, datasets.open_file(b) as db:
         assert da.pending.size == db.pending.size == 0
         for name in da.trials.columns.get_level_values(0).unique():
             if name not in TIMING_COLUMNS:
@@ -87,7 +87,7 @@ def test_local_cluster_run_writes_a_complete_version(tmp_path):
     assert sorted(p.name for p in (version / "recordings").glob("*.rrd")) == ["trial_000000.rrd",
                                                                              "trial_000002.rrd"]
     stored = SimulateConfig.model_validate(yaml.safe_load((version / "config.yaml").read_text()))
-    with datasets.open(version) as ds:
+    with datasets.open_file(version) as ds:
         assert ds.trials["scene"].tolist() == ["mesh:box", "pegs-active"] * 2
         assert ds.trials["pose_attempts"][1] == 0 and ds.trials["pose_attempts"][0] >= 1
         assert ds.provenance["config"]["model"]["whiskers"] == "RC1" and ds.provenance["git_commit"]
@@ -104,7 +104,8 @@ def test_local_cluster_run_writes_a_complete_version(tmp_path):
         assert again.record.status == recorded[index]["status"]
         assert np.allclose(again.record.pose_position_m, recorded[index]["pose_position_m"])
         if again.arrays is not None:
-            assert np.array_equal(again.arrays["base_wrench"], recorded[index]["base_wrench"], equal_nan=True)
+            for name in ("base_force", "base_moment"):
+                assert np.array_equal(again.arrays[name], recorded[index][name], equal_nan=True)
     simulator.close()
 
     listing = json.loads(pipeline_cli("datasets", "list", "--root", tmp_path / "datasets", "--json").stdout)
@@ -163,7 +164,7 @@ def test_run_on_an_existing_scheduler(tmp_path, external_cluster):
     assert result.returncode == 0, result.stderr
     summary = json.loads(result.stdout)
     assert summary["complete"] and summary["ok"] + summary["failed"] == 4
-    with datasets.open(summary["dataset"]) as ds:
+    with datasets.open_file(summary["dataset"]) as ds:
         assert (ds.trials["samples"][ds.ok] == 20).all()
     both = pipeline_cli("simulate", "--config", config, "--scheduler", address, "--workers", "2")
     assert both.returncode == 2 and "not both" in both.stderr

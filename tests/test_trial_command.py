@@ -24,7 +24,7 @@ def test_trial_out_writes_the_api_result_and_never_overwrites(tmp_path, pipeline
     drive = sinusoidal_whisk(model.whisk.frequency_hz, model.whisk.protraction_deg,
                              model.whisk.retraction_deg, 0.04)
     expected = run_trial(model, active_pegs(), Pose(), 0.04, "RC1,RD1", drive)
-    with datasets.open(out) as ds:
+    with datasets.open_file(out) as ds:
         assert list(ds.whiskers["name"]) == ["RC1", "RD1"]
         assert ds.trials["whisk_kind"][0] == "sinusoid"
         assert ds.trials["whisk_frequency_hz"][0] == model.whisk.frequency_hz
@@ -45,6 +45,6 @@ def test_passive_peg_trial_records_no_whisking(tmp_path, pipeline_cli):
     result = pipeline_cli("trial", "--scene", "peg-passive", "--whiskers", "RC1", "--duration-s", "0.02",
                           "--out", out)
     assert result.returncode == 0, result.stderr
-    with datasets.open(out) as ds:
+    with datasets.open_file(out) as ds:
         assert ds.trials["whisk_kind"][0] == "still"
         assert np.all(ds.file["protraction_rad"][0] == 0)

@@ -154,4 +154,4 @@ def test_the_checks_flag_an_edge_jump_and_refuse_ok_to_non_finite_values(tmp_pat
     broken[7, 0, 4] = np.nan
     assert not write_one(tmp_path / "broken.h5", broken)
     with DatasetFile(tmp_path / "broken.h5") as ds:
-        assert ds.trial_columns["error"][0] == "non-finite values in base_wrench"
+        assert ds.trial_columns["error"][0] == "non-finite values in base_moment"     # My at sample 7

@@ -59,3 +59,18 @@ def datasets_root(root: Path | None = None) -> Path:
 def in_project(path: Path | None, root: Path) -> Path | None:
     """``path`` taken against the project ``root`` if relative."""
     return None if path is None else path if path.is_absolute() else root / path
+
+
+def describe_project(configs: Path | None = None) -> dict:
+    """Where a command without a config file works: the project ``root``, how it was found
+    (``found_by``), its ``configs_folder`` (``configs`` if given) and the ``config_files`` there."""
+    if _home_from_env() is not None:
+        found_by = f"${HOME_ENV}"
+    elif _enclosing_project(Path.cwd()) is not None:
+        found_by = f"the nearest folder at or above the working directory holding {CONFIGS_DIR}/"
+    else:
+        found_by = f"the working directory: no {CONFIGS_DIR}/ folder at or above it"
+    root = project_root()
+    folder = Path(configs).absolute() if configs is not None else root / CONFIGS_DIR
+    files = sorted(p.name for p in folder.glob("*.yaml")) if folder.is_dir() else []
+    return {"root": str(root), "found_by": found_by, "configs_folder": str(folder), "config_files": files}

@@ -19,9 +19,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from pipeline.datasets.schema import WRENCH_PARTS
+from pipeline.datasets.wrench import read_trial
+
 EDGE_JUMP_LIMIT = 2.0          # edge jump / largest jump elsewhere above this is reported
 EDGE_DIFFERENCES = 2           # consecutive-sample changes counted at each end
-CHECKED_ARRAYS = ("base_wrench", "protraction_rad", "node_positions_m")
+CHECKED_ARRAYS = ("base_force", "base_moment", "protraction_rad", "node_positions_m")
 
 
 def edge_jump_ratios(wrench: np.ndarray) -> np.ndarray:
@@ -76,10 +79,11 @@ def scan(ds) -> dict:
     bad, jumps = [], {}
     for index in ds.ok:
         n = int(samples[index])
-        arrays = {name: ds.file[name][index] for name in CHECKED_ARRAYS if name in ds.file}
+        arrays = read_trial(ds.file, index, CHECKED_ARRAYS)
         if non_finite(arrays, n, node_every):
             bad.append(int(index))
-        count = edge_jumps(arrays["base_wrench"][:n], ds.file["contact"][index][:n])
+        wrench = np.concatenate([arrays[part] for part in WRENCH_PARTS], axis=-1)
+        count = edge_jumps(wrench[:n], ds.file["contact"][index][:n])
         if count:
             jumps[int(index)] = count
     return {"non_finite_ok_trials": bad, "edge_jump_trials": len(jumps), "edge_jump_pairs": sum(jumps.values()),

@@ -14,9 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.datasets.schema import (ARRAYS, COORDINATES, SIGNAL_UNITS_VARIABLE, TRIAL_COLUMNS,
-                                      WHISKER_COLUMNS)
-from pipeline.model.outputs import SIGNAL_UNITS
+from pipeline.datasets.schema import ARRAYS, COORDINATES, TRIAL_COLUMNS, WHISKER_COLUMNS
 
 TABLES = {"trials": ("trial", TRIAL_COLUMNS), "whiskers": ("whisker", WHISKER_COLUMNS)}
 SCALE_ATTRIBUTES = ("DIMENSION_LIST", "REFERENCE_LIST", "CLASS", "NAME")
@@ -29,9 +27,14 @@ def storage_dtype(code: str):
     return h5py.string_dtype("utf-8", int(code[1:])) if code[0] == "S" else np.dtype(code)
 
 
-def describe(dataset, units, description: str) -> None:
-    """Set a dataset's ``units`` and ``description`` (and ``_Encoding`` for text)."""
-    dataset.attrs.update(units=units, description=description)
+def describe(dataset, units: str, description: str, long_name: str = "", standard_name: str = "") -> None:
+    """Set a dataset's CF attributes: ``units`` (none for text), ``long_name`` (default: the
+    description), ``standard_name`` if given; plus ``description`` (and ``_Encoding`` for text)."""
+    dataset.attrs.update(long_name=long_name or description, description=description)
+    if units or dataset.dtype.kind != "S":
+        dataset.attrs["units"] = units or "1"
+    if standard_name:
+        dataset.attrs["standard_name"] = standard_name
     if dataset.dtype.kind == "S":
         dataset.attrs["_Encoding"] = "utf-8"
 
@@ -39,14 +42,12 @@ def describe(dataset, units, description: str) -> None:
 def write_coordinates(f, values: dict[str, np.ndarray]) -> None:
     """Create the coordinate variables: ``values`` for the computed ones (trial, time, whisker,
     link, and node_time and node if node positions are stored), the schema's labels for the
-    rest; plus ``signal_units`` along ``signal``."""
+    rest."""
     for name, spec in COORDINATES.items():
         data = values.get(name, spec.labels)
         if len(data):
             describe(f.create_dataset(name, data=np.asarray(data, storage_dtype(spec.dtype))),
-                     spec.units, spec.description)
-    describe(f.create_dataset(SIGNAL_UNITS_VARIABLE, data=np.asarray(SIGNAL_UNITS, storage_dtype("S3"))),
-             "", "units of each base signal")
+                     spec.units, spec.description, standard_name=spec.standard_name)
 
 
 def _variables(f):
@@ -54,8 +55,6 @@ def _variables(f):
     for name, spec in ARRAYS.items():
         if name in f:
             yield f[name], spec.dims
-    if SIGNAL_UNITS_VARIABLE in f:
-        yield f[SIGNAL_UNITS_VARIABLE], ("signal",)
     for group, (row, columns) in TABLES.items():
         for name, meta in columns.items():
             if name in f[group]:
@@ -79,5 +78,3 @@ def attach_dimensions(f) -> None:
     for dataset, dims in variables:
         for axis, dim in enumerate(dims):
             dataset.dims[axis].attach_scale(f[dim])
-    if "base_wrench" in f:
-        f["base_wrench"].attrs["coordinates"] = SIGNAL_UNITS_VARIABLE

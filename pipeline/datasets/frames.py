@@ -9,7 +9,7 @@ and a vector v in the whisker frame is R(θ)·v in the head frame, P·R(θ)·v i
 with the trial's head rotation P (``pose_rotation``). Forces and moments are free vectors here:
 the moment stays about the whisker's base point.
 
-    with pipeline.datasets.open("natural") as ds:
+    with pipeline.datasets.open_file("natural") as ds:
         head = to_head_frame(ds.base_wrench.isel(trial=0), ds.whiskers, ds.protraction_rad.isel(trial=0))
 """
 

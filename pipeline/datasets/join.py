@@ -17,7 +17,7 @@ from pipeline.config.project import datasets_root
 from pipeline.datasets.dimensions import SCALE_ATTRIBUTES, attach_dimensions
 from pipeline.datasets.manifest import write_manifest
 from pipeline.datasets.reader import decode_attr
-from pipeline.datasets.schema import ARRAYS, CONFIG_FILE, DATA_FILE, OK, FAILED, PENDING
+from pipeline.datasets.schema import ARRAYS, CONFIG_FILE, DATA_FILE, FAILED, LIBVER, OK, PENDING
 from pipeline.datasets.versions import MESHES_DIR, SHARDS_DIR, VersionLock, is_locked, new_version
 from pipeline.datasets.writer import recover
 from pipeline.errors import UserError
@@ -91,7 +91,7 @@ def _write_joined(path: Path, label: str, shards: list[tuple[Path, range]]) -> N
     import h5py
 
     partial = path.with_name(path.name + ".partial")
-    with h5py.File(shards[0][0], "r") as first, h5py.File(partial, "w", libver="latest") as out:
+    with h5py.File(shards[0][0], "r") as first, h5py.File(partial, "w", libver=LIBVER) as out:
         out.attrs.update(first.attrs)
         del out.attrs["shard"]
         out.attrs.update(label=label, trial_range=[0, first["trials/status"].shape[0]],

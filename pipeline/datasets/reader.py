@@ -1,11 +1,15 @@
-"""Reading datasets: arrays as lazy ``xarray.DataArray``, the trial and whisker tables as
-``pandas.DataFrame``, provenance.
+"""Reading datasets: one lazy, dask-backed ``xarray.Dataset`` (:func:`open_dataset`, which is
+``pipeline.datasets.open``), or a :class:`DatasetFile` (:func:`open_file`): arrays as lazy
+``xarray.DataArray``, the trial and whisker tables as ``pandas.DataFrame``, provenance.
 
-    import pipeline.datasets as pd
-    with pd.open("natural") as ds:                # NAME, NAME/vK, a version folder or a file
+    import pipeline.datasets as datasets
+    with datasets.open("natural") as ds:          # NAME, NAME/vK, a version folder or a file
+        ok = ds.trial[ds.status == "ok"]          # the trial table: coordinates along trial
+        mz = ds.base_moment.sel(whisker="RC1", xyz="z", trial=ok)   # (trial, time), N m, dask
+        mz.sel(time=slice(0.1, 0.2)).mean("time").compute()         # reads only those trials
+    with datasets.open_file("natural") as ds:     # the DatasetFile of earlier releases
         ok = ds.ok                                # trial indices with status 'ok'
-        mz = ds.base_wrench.sel(whisker="RC1", signal="Mz").isel(trial=ok)   # (trial, time), N*m
-        mz.sel(time=slice(0.1, 0.2)).mean("time")  # reads only the selected trials
+        mz = ds.base_wrench.sel(whisker="RC1", signal="Mz").isel(trial=ok)   # (trial, time), N m
         ds.trials["scene"][ok], ds.whiskers["arc_length_m"], ds.provenance["git_commit"]
 
 Arrays are read only when their values are needed, and only the selected part (xarray's
@@ -14,7 +18,8 @@ components (``pose_position_m``, ``rest_rotation``, ...) are column groups: two-
 labels, e.g. ``ds.trials["pose_position_m"]["x"]``; matrices are flattened row-major with
 labels "xx", "xy", ... (row axis first). Files are opened in SWMR read mode, so a dataset being
 written (or whose writer was killed) reads fine: rows whose ``status`` is pending hold fill
-values (NaN / 0). Files of schema version 1 read the same way.
+values (NaN / 0). Files of older schema versions read the same way: ``base_force`` and
+``base_moment`` (version 4) and ``base_wrench`` (versions 1 to 3) are each made from the other.
 """
 
 from __future__ import annotations
@@ -27,11 +32,12 @@ from typing import Any
 
 import numpy as np
 
-from pipeline.datasets.schema import (ARRAYS, COORDINATES, FAILED, OK, PENDING, SIGNAL_UNITS_VARIABLE,
-                                      TRIAL_COLUMNS, WHISKER_COLUMNS)
+from pipeline.datasets.schema import (ARRAYS, COORDINATES, FAILED, LEGACY_ARRAYS, OK, PENDING, SIGNAL,
+                                      SIGNAL_UNITS_VARIABLE, TRIAL_COLUMNS, WHISKER_COLUMNS, WRENCH_PARTS)
 from pipeline.datasets.versions import resolve
+from pipeline.datasets.wrench import WRENCH, read_trial
 from pipeline.errors import UserError
-from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS
+from pipeline.model.outputs import SIGNAL_UNITS
 
 
 def _first_line(exc: BaseException) -> str:
@@ -62,16 +68,22 @@ def lazy_dataset_class():
     from xarray.core import indexing
 
     class LazyDataset(BackendArray):
-        """An h5py dataset that reads only the part xarray selects (basic indexing)."""
+        """h5py datasets (of equal shape but the last axis) read as one joined along the last
+        axis, only the part xarray selects (basic indexing)."""
 
-        def __init__(self, dataset):
-            self.dataset, self.shape, self.dtype = dataset, dataset.shape, dataset.dtype
+        def __init__(self, *datasets):
+            self.datasets, self.dtype = datasets, datasets[0].dtype
+            self.shape = datasets[0].shape[:-1] + (sum(d.shape[-1] for d in datasets),)
 
         def __getitem__(self, key):
             return indexing.explicit_indexing_adapter(key, self.shape, indexing.IndexingSupport.BASIC, self.read)
 
         def read(self, key: tuple) -> np.ndarray:
-            return np.asarray(self.dataset[key])
+            if len(self.datasets) == 1:
+                return np.asarray(self.datasets[0][key])
+            key = key + (slice(None),) * (len(self.shape) - len(key))
+            whole = np.concatenate([np.asarray(d[key[:-1]]) for d in self.datasets], axis=-1)
+            return whole[..., key[-1]]
 
     return LazyDataset
 
@@ -194,7 +206,7 @@ class DatasetFile:
         time axes and the tables)."""
         links = int(self.attrs["links"])
         coords = {"trial": np.arange(len(self.status)), "time": self.time_s, "whisker": self._whiskers["name"],
-                  "signal": np.array(SIGNALS), "link": np.arange(links), "node": np.arange(links + 1),
+                  "signal": np.array(SIGNAL.labels), "link": np.arange(links), "node": np.arange(links + 1),
                   "xyz": np.array(COORDINATES["xyz"].labels)}
         for name in ("node_time", "node_time_s"):
             if name in self.file:
@@ -202,35 +214,63 @@ class DatasetFile:
         return coords
 
     def array(self, name: str):
-        """One of ``schema.ARRAYS`` as a lazy ``xarray.DataArray`` with its coordinates and units
-        (``base_wrench``: units per signal in the coordinate ``signal_units``)."""
+        """One of ``schema.ARRAYS`` (or ``base_wrench``: force and moment along ``signal``, Fx Fy
+        Fz Mx My Mz, units per signal in the coordinate ``signal_units``) as a lazy
+        ``xarray.DataArray`` with its coordinates and CF attributes."""
         import xarray as xr
         from xarray.core import indexing
 
-        if name not in ARRAYS or name not in self.file:
-            stored = [n for n in ARRAYS if n in self.file]
-            raise KeyError(f"{self.path} has no '{name}' (arrays: {', '.join(stored)})")
-        data, spec, coords = self.file[name], ARRAYS[name], self._coords
-        attrs = {key: decode_attr(data.attrs[key]) for key in ("units", "description", "frame")
-                 if key in data.attrs}
-        variable = xr.Variable(spec.dims, indexing.LazilyIndexedArray(lazy_dataset_class()(data)), attrs)
+        if name in WRENCH_PARTS and WRENCH in self.file:            # schema versions 1 to 3
+            part = WRENCH_PARTS.index(name)
+            spec = ARRAYS[name]
+            wrench = self.array(WRENCH).isel(signal=slice(3 * part, 3 * part + 3))
+            return (wrench.drop_vars(["signal", SIGNAL_UNITS_VARIABLE]).rename(signal="xyz")
+                    .assign_coords(xyz=self._coords["xyz"]).rename(name)
+                    .assign_attrs(units=spec.units, long_name=spec.long_name, description=spec.description))
+        if name == WRENCH and all(part in self.file for part in WRENCH_PARTS):
+            datasets, spec = [self.file[part] for part in WRENCH_PARTS], LEGACY_ARRAYS[WRENCH]
+        elif (name in ARRAYS or name in LEGACY_ARRAYS) and name in self.file:
+            datasets, spec = [self.file[name]], {**ARRAYS, **LEGACY_ARRAYS}[name]
+        else:
+            raise KeyError(f"{self.path} has no '{name}' (arrays: {', '.join([*self.array_names, WRENCH])})")
+        attrs = {key: decode_attr(datasets[0].attrs[key])
+                 for key in ("units", "long_name", "standard_name", "description", "frame")
+                 if key in datasets[0].attrs}
+        if name == WRENCH:
+            attrs.update(units=spec.units, long_name=spec.long_name, description=spec.description)
+        variable = xr.Variable(spec.dims, indexing.LazilyIndexedArray(lazy_dataset_class()(*datasets)), attrs)
+        coords = self._coords
         labels = {d: coords[d] for d in spec.dims}
         if "signal" in spec.dims:
             labels[SIGNAL_UNITS_VARIABLE] = ("signal", np.array(SIGNAL_UNITS))
         return xr.DataArray(variable, coords=labels, name=name)
 
     @property
+    def array_names(self) -> list[str]:
+        """The arrays of ``schema.ARRAYS`` this file has (``base_force`` and ``base_moment`` also
+        when made from an older file's ``base_wrench``)."""
+        return [name for name in ARRAYS if name in self.file or (name in WRENCH_PARTS and WRENCH in self.file)]
+
+    @property
     def arrays(self):
-        """Every stored array as one lazy ``xarray.Dataset``."""
+        """Every array as one lazy ``xarray.Dataset``."""
         import xarray as xr
 
-        return xr.Dataset({name: self.array(name) for name in ARRAYS if name in self.file},
+        return xr.Dataset({name: self.array(name) for name in self.array_names},
                           attrs={"name": self.attrs.get("label") or self.attrs.get("name", ""),
                                  "schema_version": self.attrs.get("schema_version")})
 
     @property
     def base_wrench(self):
         return self.array("base_wrench")
+
+    @property
+    def base_force(self):
+        return self.array("base_force")
+
+    @property
+    def base_moment(self):
+        return self.array("base_moment")
 
     @property
     def contact(self):
@@ -251,7 +291,7 @@ class DatasetFile:
     def trial(self, index: int) -> dict[str, Any]:
         """Trial ``index``: its table row and every stored array (numpy, padded to full length)."""
         row = {name: column[index] for name, column in self._trials.items()}
-        arrays = {name: self.file[name][index] for name in ARRAYS if name in self.file}
+        arrays = read_trial(self.file, index, [*ARRAYS, WRENCH])
         return {"trial": int(index), **row, **arrays}
 
     def close(self) -> None:
@@ -269,7 +309,59 @@ class DatasetFile:
                 f"{len(self._whiskers['name'])} whiskers>")
 
 
-def open_dataset(target: str | Path, root: str | Path | None = None) -> DatasetFile:
-    """Open a dataset: a data file, a version folder, ``NAME/vK`` or ``NAME`` (newest) under ``root``
-    (default: the project's datasets folder, pipeline.config.project)."""
+def _table_coordinates(columns: dict[str, np.ndarray], schema: dict[str, dict], row: str) -> dict:
+    """A table's columns as xarray coordinates along ``row`` (components along their named dims)."""
+    coords = {}
+    for name, values in columns.items():
+        meta = schema.get(name, {})
+        dims = meta.get("dims", ())
+        if [len(COORDINATES[d].labels) for d in dims] != list(values.shape[1:]):
+            dims = tuple(f"{name}_{axis}" for axis in range(1, values.ndim))
+        units = meta.get("units") or ("1" if values.dtype.kind not in "US" else None)
+        attrs = {"long_name": meta.get("doc", name), **({"units": units} if units else {})}
+        coords[name] = ((row, *dims), values, attrs)
+    return coords
+
+
+def to_xarray(ds: DatasetFile, chunks: dict | None = None):
+    """A dataset file as one lazy, dask-backed ``xarray.Dataset``: every array (chunks of one trial
+    unless ``chunks`` says otherwise), the trial and whisker tables as coordinates (numpy) along
+    ``trial`` and ``whisker`` (the whisker names are the ``whisker`` coordinate), the file's
+    attributes (dicts and lists as JSON text);
+    closing it closes the file."""
+    import xarray as xr
+
+    coords = {**_table_coordinates(ds.trial_columns, TRIAL_COLUMNS, "trial"),
+              **_table_coordinates({k: v for k, v in ds.whisker_columns.items() if k != "name"},
+                                   WHISKER_COLUMNS, "whisker")}
+    used = {d for dims, _, _ in coords.values() for d in dims}
+    coords.update({d: (d, np.array(spec.labels), {"long_name": spec.description})
+                   for d, spec in COORDINATES.items() if spec.labels and d in used})
+    dataset = ds.arrays.chunk(chunks or {"trial": 1}).assign_coords(coords).assign_attrs(
+        {key: json.dumps(value) if isinstance(value, (dict, list)) else value for key, value in ds.attrs.items()})
+    dataset.set_close(ds.close)
+    return dataset
+
+
+def table(dataset, dim: str = "trial"):
+    """The trial table (``dim`` "trial") or the whisker table ("whisker") of an ``xarray.Dataset``
+    from :func:`to_xarray` as a ``pandas.DataFrame``, one row per trial or whisker, laid out as
+    :attr:`DatasetFile.trials` and :attr:`DatasetFile.whiskers` (columns with components as
+    column groups)."""
+    schema = {"trial": TRIAL_COLUMNS, "whisker": WHISKER_COLUMNS}[dim]
+    columns = {name: dataset.coords[name].values for name in schema if name in dataset.coords}
+    if dim == "whisker":
+        columns = {"name": dataset.coords["whisker"].values, **columns}
+    return table_frame(columns, schema, "trial" if dim == "trial" else "whisker_index")
+
+
+def open_file(target: str | Path, root: str | Path | None = None) -> DatasetFile:
+    """Open a dataset as a :class:`DatasetFile`: a data file, a version folder, ``NAME/vK`` or
+    ``NAME`` (newest) under ``root`` (default: the project's datasets folder, pipeline.config.project)."""
     return DatasetFile(resolve(target, root))
+
+
+def open_dataset(target: str | Path, root: str | Path | None = None, chunks: dict | None = None):
+    """Open a dataset (as :func:`open_file` finds it) as a lazy, dask-backed ``xarray.Dataset``
+    (:func:`to_xarray`); use it in a ``with`` block or ``.close()`` it."""
+    return to_xarray(open_file(target, root), chunks)

@@ -5,10 +5,14 @@ chunked one trial per chunk; a trial is written data first, then its table row, 
 ``status`` last, each step flushed, so a row whose status is not pending is complete.
 Every array and column names its dimensions; the file holds a coordinate variable per
 dimension (an HDF5 dimension scale, :data:`COORDINATES`), so netCDF readers (xarray with
-h5netcdf) see named dims. Bump ``SCHEMA_VERSION`` on any change a reader would notice;
-version 1 (no dimension scales, ``time_s``/``node_time_s`` for the time axes, no frames in the
-tables) and version 2 (``point_of_contact`` = most proximal link in contact / links) are still
-read.
+h5netcdf) see named dims. Attributes follow the CF conventions: one ``units`` per variable
+(UDUNITS spelling, e.g. "N m"), a ``long_name``, a ``standard_name`` where CF has one. The file
+is written with HDF5's 1.10 file format (``libver="v110"``: SWMR, and readable by HDF5 ≥ 1.10,
+so by MATLAB, R and Julia). Bump ``SCHEMA_VERSION`` on any change a reader would notice; older
+versions are still read: version 1 (no dimension scales, ``time_s``/``node_time_s`` for the
+time axes, no frames in the tables), version 2 (``point_of_contact`` = most proximal link in
+contact / links) and version 3 (force and moment in one array ``base_wrench`` along ``signal``,
+:data:`LEGACY_ARRAYS`, with six units).
 """
 
 from __future__ import annotations
@@ -21,7 +25,8 @@ from pipeline.config.simulate import POSE_REJECTION_REASONS
 from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS
 
 SCHEMA = "whisker-pipeline/dataset"
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
+LIBVER = ("v110", "v110")      # HDF5 file format: 1.10 (SWMR), not "latest" (2.0 layouts)
 DATA_FILE = "data.h5"
 CONFIG_FILE = "config.yaml"
 MANIFEST_FILE = "manifest.json"
@@ -34,31 +39,48 @@ ERROR_BYTES = 512
 class ArraySpec:
     dims: tuple[str, ...]
     dtype: str
-    units: str | tuple[str, ...]
+    units: str
     fill: float
     description: str
+    long_name: str = ""
+    standard_name: str = ""
 
 
+WHISKER_FRAME = "whisker frame (x along the base tangent to the tip, y toward the concave side)"
 ARRAYS: dict[str, ArraySpec] = {
-    "base_wrench": ArraySpec(
-        ("trial", "time", "whisker", "signal"), "f4", SIGNAL_UNITS, float("nan"),
-        "force (N) and moment about the base point (N*m) the follicle exerts on the whisker, "
-        "whisker frame (x along the base tangent to the tip, y toward the concave side)"),
+    "base_force": ArraySpec(
+        ("trial", "time", "whisker", "xyz"), "f4", "N", float("nan"),
+        f"force the follicle exerts on the whisker at its base point, {WHISKER_FRAME}",
+        "base force"),
+    "base_moment": ArraySpec(
+        ("trial", "time", "whisker", "xyz"), "f4", "N m", float("nan"),
+        f"moment about the base point the follicle exerts on the whisker, {WHISKER_FRAME}",
+        "base moment"),
     "contact": ArraySpec(
         ("trial", "time", "whisker", "link"), "u1", "1", 0,
-        "1 if the link touched an obstacle during the sample interval (link 0 at the base)"),
+        "1 if the link touched an obstacle during the sample interval (link 0 at the base)", "contact flag"),
     "point_of_contact": ArraySpec(
         ("trial", "time", "whisker"), "f4", "1", float("nan"),
         "point of contact: arc length from the base to the closest point of the touching link to "
         "the contact, as a fraction of the whisker's arc length S (0 base ... 1 tip; times "
         "whiskers/arc_length_m: m); the most proximal contact at the last step of the sample "
-        "interval that had one; NaN: no contact"),
+        "interval that had one; NaN: no contact", "point of contact (fraction of arc length)"),
     "protraction_rad": ArraySpec(
-        ("trial", "time"), "f4", "rad", float("nan"), "protraction angle theta(t) of the drive"),
+        ("trial", "time"), "f4", "rad", float("nan"), "protraction angle theta(t) of the drive",
+        "protraction angle"),
     "node_positions_m": ArraySpec(
         ("trial", "node_time", "whisker", "node", "xyz"), "f4", "m", float("nan"),
-        "node positions (node 0 = base point ... N = tip), world frame, every k-th sample"),
+        "node positions (node 0 = base point ... N = tip), world frame, every k-th sample",
+        "node position"),
 }
+
+LEGACY_ARRAYS: dict[str, ArraySpec] = {      # schema versions 1 to 3
+    "base_wrench": ArraySpec(
+        ("trial", "time", "whisker", "signal"), "f4", ", ".join(SIGNAL_UNITS), float("nan"),
+        "force (N) and moment about the base point (N m) the follicle exerts on the whisker, " + WHISKER_FRAME,
+        "base force and moment"),
+}
+WRENCH_PARTS = ("base_force", "base_moment")    # base_wrench = the two along signal (Fx Fy Fz Mx My Mz)
 
 
 AXES = ("x", "y", "z")
@@ -72,15 +94,16 @@ class CoordinateSpec:
     units: str
     description: str
     labels: tuple = ()
+    standard_name: str = ""
 
 
 COORDINATES: dict[str, CoordinateSpec] = {
     "trial": CoordinateSpec("i8", "1", "trial index (row of every trial-major array and column)"),
-    "time": CoordinateSpec("f8", "s", "sample time; sample i covers (i/rate, (i+1)/rate] and is stamped at its end"),
-    "node_time": CoordinateSpec("f8", "s", "time of the stored node positions (every k-th sample)"),
+    "time": CoordinateSpec("f8", "s", "sample time; sample i covers (i/rate, (i+1)/rate] and is stamped at its end",
+                            standard_name="time"),
+    "node_time": CoordinateSpec("f8", "s", "time of the stored node positions (every k-th sample)",
+                                 standard_name="time"),
     "whisker": CoordinateSpec("S8", "", "whisker name (side + row + column, e.g. RC1)"),
-    "signal": CoordinateSpec("S2", "", "base signal: force Fx, Fy, Fz (N), moment Mx, My, Mz (N*m)",
-                             tuple(SIGNALS)),
     "link": CoordinateSpec("i4", "1", "link index, 0 at the base"),
     "node": CoordinateSpec("i4", "1", "node index, 0 = base point ... links = tip"),
     "xyz": CoordinateSpec("S1", "", "component along the frame's x, y, z axis", AXES),
@@ -91,6 +114,7 @@ COORDINATES: dict[str, CoordinateSpec] = {
     "whisker_axis": CoordinateSpec("S1", "", "axis of the whisker frame (x base tangent, y concave side)", AXES),
     "world_axis": CoordinateSpec("S1", "", "axis of the scene's world frame", AXES),
 }
+SIGNAL = CoordinateSpec("S2", "", "base signal: force Fx, Fy, Fz (N), moment Mx, My, Mz (N m)", tuple(SIGNALS))
 SIGNAL_UNITS_VARIABLE = "signal_units"   # coordinate along ``signal``: the units of each signal
 
 

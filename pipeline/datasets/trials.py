@@ -19,6 +19,7 @@ import numpy as np
 
 from pipeline.datasets.schema import ARRAYS, OK
 from pipeline.datasets.versions import resolve
+from pipeline.datasets.wrench import READABLE, WRENCH, read_trial
 
 
 class TrialDataset:
@@ -28,9 +29,9 @@ class TrialDataset:
                  root: str | Path | None = None, status: str = OK):
         import h5py
 
-        unknown = [a for a in arrays if a not in ARRAYS]
+        unknown = [a for a in arrays if a not in ARRAYS and a not in READABLE]
         if unknown:
-            raise KeyError(f"unknown arrays {unknown} (known: {', '.join(ARRAYS)})")
+            raise KeyError(f"unknown arrays {unknown} (known: {', '.join([*ARRAYS, WRENCH])})")
         self.path = resolve(target, root)
         self.arrays = tuple(arrays)
         with h5py.File(self.path, "r", swmr=True) as f:
@@ -57,7 +58,7 @@ class TrialDataset:
         f = self._opened()
         index = int(self.indices[item])
         return {"trial": index, "scene": str(self.scenes[item]), "samples": int(self.samples[item]),
-                **{name: f[name][index] for name in self.arrays}}
+                **read_trial(f, index, self.arrays)}
 
     def __getstate__(self) -> dict[str, Any]:
         return {**self.__dict__, "_file": None, "_pid": None}

@@ -24,10 +24,10 @@ import numpy as np
 
 from pipeline.datasets.checks import non_finite
 from pipeline.datasets.dimensions import attach_dimensions, describe, storage_dtype, write_coordinates
-from pipeline.datasets.schema import (ARRAYS, FAILED, OK, PENDING, POSE_REJECTION_REASONS, SCHEMA,
+from pipeline.datasets.schema import (ARRAYS, FAILED, LIBVER, OK, PENDING, POSE_REJECTION_REASONS, SCHEMA,
                                       SCHEMA_VERSION, TRIAL_COLUMNS, WHISKER_COLUMNS, TrialRecord)
 from pipeline.errors import UserError
-from pipeline.model.outputs import SIGNALS, TrialOutput
+from pipeline.model.outputs import TrialOutput
 from pipeline.model.rotations import rotation_zyx
 from pipeline.storage import replacing, require_free_space
 
@@ -64,7 +64,7 @@ class Layout:
 
     def shape(self, name: str) -> tuple[int, ...]:
         w = len(self.whiskers["name"])
-        return {"base_wrench": (self.trials, self.samples, w, len(SIGNALS)),
+        return {"base_force": (self.trials, self.samples, w, 3), "base_moment": (self.trials, self.samples, w, 3),
                 "contact": (self.trials, self.samples, w, self.links),
                 "point_of_contact": (self.trials, self.samples, w),
                 "protraction_rad": (self.trials, self.samples),
@@ -113,7 +113,8 @@ def trial_arrays(output: TrialOutput, protraction_rad: np.ndarray, layout: Layou
         row[:len(value)] = value
         return row
 
-    arrays = {"base_wrench": padded("base_wrench", output.base_wrench),
+    arrays = {"base_force": padded("base_force", output.base_wrench[..., :3]),
+              "base_moment": padded("base_moment", output.base_wrench[..., 3:]),
               "contact": padded("contact", output.contact),
               "point_of_contact": padded("point_of_contact", output.point_of_contact),
               "protraction_rad": padded("protraction_rad", protraction_rad)}
@@ -162,7 +163,7 @@ def create_file(path: Path, layout: Layout, attrs: dict[str, Any]):
     """Create every object of a dataset file (not yet in SWMR mode); returns the open h5py.File."""
     import h5py
 
-    f = h5py.File(path, "w", libver="latest")
+    f = h5py.File(path, "w", libver=LIBVER)
     f.attrs.update(schema=SCHEMA, schema_version=SCHEMA_VERSION, trials=layout.trials,
                    samples=layout.samples, sampling_rate_hz=layout.sampling_rate_hz, links=layout.links,
                    node_every=layout.node_every, units="SI: m, s, rad, N, N*m")
@@ -186,8 +187,10 @@ def create_file(path: Path, layout: Layout, attrs: dict[str, Any]):
         spec, shape = ARRAYS[name], layout.shape(name)
         data = f.create_dataset(name, shape=shape, dtype=spec.dtype, chunks=(1,) + shape[1:],
                                 fillvalue=spec.fill, **compression)
-        data.attrs.update(axes=list(spec.dims), units=spec.units, description=spec.description)
-    f["base_wrench"].attrs.update(signals=list(SIGNALS), frame="whisker")
+        describe(data, spec.units, spec.description, spec.long_name, spec.standard_name)
+        data.attrs["axes"] = list(spec.dims)
+    for name in ("base_force", "base_moment"):
+        f[name].attrs["frame"] = "whisker"
     if layout.node_every:
         f["node_positions_m"].attrs.update(frame="world", every=layout.node_every)
     attach_dimensions(f)
@@ -199,7 +202,7 @@ def recover(path: Path) -> None:
     import h5py
 
     with replacing(path, ".recover.partial") as partial, h5py.File(path, "r", swmr=True) as old, \
-            h5py.File(partial, "w", libver="latest") as new:
+            h5py.File(partial, "w", libver=LIBVER) as new:
         new.attrs.update(old.attrs)
         for key in old:
             old.copy(old[key], new, name=key)
@@ -239,7 +242,7 @@ class DatasetWriter:
         import h5py
 
         try:
-            f = h5py.File(path, "r+", libver="latest")
+            f = h5py.File(path, "r+", libver=LIBVER)
         except OSError as exc:
             if "already open for write" not in str(exc):
                 raise
@@ -248,7 +251,7 @@ class DatasetWriter:
             except (OSError, KeyError) as failure:       # killed while the file was being created
                 raise UserError(f"{path} cannot be recovered ({failure}); remove its folder and start "
                                 "again") from None
-            f = h5py.File(path, "r+", libver="latest")
+            f = h5py.File(path, "r+", libver=LIBVER)
         version = int(f.attrs.get("schema_version", 0))
         if version != SCHEMA_VERSION:
             f.close()

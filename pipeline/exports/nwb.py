@@ -23,6 +23,7 @@ import numpy as np
 
 from pipeline.config.project import project_root
 from pipeline.errors import UserError
+from pipeline.exports.nwb_metadata import NwbMetadata
 from pipeline.exports.source import DatasetTrials, read_trials
 from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS
 
@@ -65,15 +66,31 @@ def _cell(value: Any) -> Any:
     return value.tolist() if isinstance(value, np.ndarray) else str(value) if isinstance(value, np.str_) else value
 
 
+DERIVED_TRIAL_COLUMNS = {"pose_rotation": "pose_euler_zyx_rad"}    # left out: follows from the other
+
+
+def exported_trial_columns(data: DatasetTrials) -> dict[str, np.ndarray]:
+    """The trial table columns an export keeps: all but those that follow from another
+    (:data:`DERIVED_TRIAL_COLUMNS`) and numeric ones that are NaN in every exported trial (e.g.
+    ``pose_distance_m`` of fixed scenes), which carry nothing."""
+    def empty(values: np.ndarray) -> bool:
+        return values.dtype.kind == "f" and bool(np.isnan(values).all())
+
+    return {name: column for name, column in data.trials.items()
+            if name not in DERIVED_TRIAL_COLUMNS and not empty(np.asarray(column))}
+
+
 def _add_trials(nwbfile, data: DatasetTrials, block_s: float) -> None:
-    """Every column of the dataset's trial table, plus ``dataset_trial`` (the row in data.h5)."""
+    """The dataset's trial table (:func:`exported_trial_columns`), plus ``dataset_trial`` (the
+    row in data.h5)."""
+    columns = exported_trial_columns(data)
     nwbfile.add_trial_column("dataset_trial", "trial index in the dataset (its row in data.h5)")
-    for name in data.trials:
+    for name in columns:
         nwbfile.add_trial_column(name, data.column_docs.get(name, name))
     for k, index in enumerate(data.indices):
         duration = float(data.samples[k]) / data.sampling_rate_hz
         nwbfile.add_trial(start_time=k * block_s, stop_time=k * block_s + duration, dataset_trial=int(index),
-                          **{name: _cell(column[k]) for name, column in data.trials.items()})
+                          **{name: _cell(column[k]) for name, column in columns.items()})
 
 
 def _provenance_notes(data: DatasetTrials) -> str:
@@ -89,8 +106,9 @@ ANIMALS = {"mouse": ("mouse", "Mus musculus")}
 RAT = ("rat", "Rattus norvegicus")
 
 
-def build_nwbfile(data: DatasetTrials):
-    """The in-memory ``pynwb.NWBFile`` of ``data``."""
+def build_nwbfile(data: DatasetTrials, metadata: NwbMetadata | None = None):
+    """The in-memory ``pynwb.NWBFile`` of ``data``, described by ``metadata`` (experimenter,
+    institution, lab, session, keywords, subject; default: none, and the simulated animal)."""
     from hdmf.backends.hdf5.h5_utils import H5DataIO
     from pynwb import NWBFile, TimeSeries
     from pynwb.file import Subject
@@ -101,17 +119,22 @@ def build_nwbfile(data: DatasetTrials):
     engine = data.provenance.get("engine")
     morphology = data.provenance.get("config", {}).get("model", {}).get("morphology", "?")
     animal, species = ANIMALS.get(morphology, RAT)
+    metadata = metadata or NwbMetadata()
     nwbfile = NWBFile(
-        session_description=f"Simulated whisker mechanics, dataset {data.label}: {len(data.indices)} trials "
-                            f"(scene × head pose × whisk) of the WHISKiT Physics {animal} whisker model",
+        session_description=metadata.session_description or
+        f"Simulated whisker mechanics, dataset {data.label}: {len(data.indices)} trials "
+        f"(scene × head pose × whisk) of the WHISKiT Physics {animal} whisker model",
         identifier=str(uuid.uuid5(uuid.NAMESPACE_URL, f"whisker-pipeline:{data.attrs.get('run_id')}:"
                                   f"{data.label}:{data.indices.tolist()}")),
         session_start_time=_session_start(data.provenance),
-        experiment_description="Base signals of every whisker from a physics simulation (whisker-pipeline "
-                               f"re-implementation of WHISKiT Physics, Zweifel et al. 2021) of a model {animal} "
-                               f"({species}) whisker array; no animal was recorded.",
+        experiment_description=metadata.experiment_description or
+        "Base signals of every whisker from a physics simulation (whisker-pipeline re-implementation of "
+        f"WHISKiT Physics, Zweifel et al. 2021) of a model {animal} ({species}) whisker array; no animal "
+        "was recorded.",
         session_id=data.label.replace("/", "_"),
-        keywords=["whisker", "vibrissa", "simulation", "mechanics", "WHISKiT Physics"],
+        keywords=list(dict.fromkeys(["whisker", "vibrissa", "simulation", "mechanics", "WHISKiT Physics",
+                                     *metadata.keywords])),
+        experimenter=metadata.experimenter or None, institution=metadata.institution, lab=metadata.lab,
         data_collection=f"engine {json.dumps(engine, default=str)}; output rate {rate:g} Hz; "
                         f"{data.attrs.get('links')} links per whisker; whisker-pipeline "
                         f"{packages.get('whisker-pipeline', '?')} (git {data.provenance.get('git_commit', '?')})",
@@ -119,11 +142,12 @@ def build_nwbfile(data: DatasetTrials):
         source_script=str(data.provenance.get("command", "")) or None,
         source_script_file_name="pipeline simulate" if data.provenance.get("command") else None,
     )
+    subject = metadata.subject
     nwbfile.subject = Subject(
-        subject_id=f"model-{animal}", species=species, sex="U", age="P0D/",
-        description=f"not an animal: the simulated model-{animal} whisker array (morphology "
-                    f"{morphology}); its age is "
-                    "not part of the model, so the age is the open range 'P0D/' (no bound)")
+        subject_id=subject.subject_id or f"model-{animal}", species=subject.species or species,
+        sex=subject.sex, age=subject.age, strain=subject.strain, description=subject.description or
+        f"not an animal: the simulated model-{animal} whisker array (morphology {morphology}); its age is "
+        "not part of the model, so the age is the open range 'P0D/' (no bound)")
     nwbfile.add_acquisition(_whisker_table(data))
     wrench = _concatenated(data.base_wrench)
     for j, (signal, unit) in enumerate(zip(SIGNALS, SIGNAL_UNITS)):
@@ -154,24 +178,34 @@ def build_nwbfile(data: DatasetTrials):
 EXPORTS_DIR = Path("outputs/exports")
 
 
-def write_nwb(data: DatasetTrials, path: str | Path) -> dict[str, Any]:
-    """Write ``data`` to the new NWB file ``path`` (parents created); a summary of what was written."""
-    from pynwb import NWBHDF5IO
-
+def refuse_existing_export(path: str | Path) -> Path:
+    """``path`` if no file is there; UserError otherwise (an export never replaces a file)."""
     path = Path(path)
     if path.exists():
         raise UserError(f"--out {path} exists (an export never replaces a file: remove it or choose another)")
+    return path
+
+
+def write_nwb(data: DatasetTrials, path: str | Path, metadata: NwbMetadata | None = None) -> dict[str, Any]:
+    """Write ``data`` (described by ``metadata``) to the new NWB file ``path`` (parents created); a
+    summary of what was written."""
+    from pynwb import NWBHDF5IO
+
+    path = refuse_existing_export(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with NWBHDF5IO(str(path), "w") as io:
-        io.write(build_nwbfile(data))
+        io.write(build_nwbfile(data, metadata))
     return {"dataset": data.label, "nwb": str(path), "trials": len(data.indices),
             "whiskers": len(data.whisker_names), "sampling_rate_hz": data.sampling_rate_hz,
             "series": [*SIGNALS, "contact", "point_of_contact", "protraction"], "size_mb": round(path.stat().st_size / 1e6, 3)}
 
 
 def export_nwb(target: str | Path, root: str | Path | None = None, trials: Optional[str] = None,
-               out: Optional[str | Path] = None) -> dict[str, Any]:
+               out: Optional[str | Path] = None, metadata: NwbMetadata | None = None) -> dict[str, Any]:
     """``pipeline export nwb``: ``trials`` (``"0,2,5-7"``, default every ok trial) of a dataset into
-    ``out`` (default <project>/outputs/exports/<name>_v<k>.nwb, pipeline.config.project)."""
+    ``out`` (default <project>/outputs/exports/<name>_v<k>.nwb, pipeline.config.project), described
+    by ``metadata``."""
+    if out is not None:
+        refuse_existing_export(out)                # before the trials are read
     data = read_trials(target, root, trials)
-    return write_nwb(data, out or project_root() / EXPORTS_DIR / f"{data.label.replace('/', '_')}.nwb")
+    return write_nwb(data, out or project_root() / EXPORTS_DIR / f"{data.label.replace('/', '_')}.nwb", metadata)

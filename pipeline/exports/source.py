@@ -1,6 +1,6 @@
 """The one place the exporters read a dataset: selected trials as numpy arrays plus its tables.
 
-Everything an exporter needs is copied out of ``pipeline.datasets.open`` here, so a change of the
+Everything an exporter needs is copied out of ``pipeline.datasets.open_file`` here, so a change of the
 dataset reader touches this module only. Units are the dataset's (SI, docs/dataset.md).
 """
 
@@ -87,7 +87,7 @@ def read_trials(target: str | Path, root: str | Path | None = None,
                 trials: Optional[str | Sequence[int]] = None, option: str = "--trials") -> DatasetTrials:
     """Read ``trials`` (indices, or text like ``"0,2,5-7"``; default: every ok trial) of a dataset.
     An unknown or pending trial is a UserError naming ``option``."""
-    with datasets.open(target, root) as ds:
+    with datasets.open_file(target, root) as ds:
         status = ds.status
         if isinstance(trials, str):
             trials = parse_trials(trials, len(status), option)

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pipeline.activity import Activity
 from pipeline.errors import UserError
 
 MOMENT_BINS_NM = np.logspace(-12, -3, 91)
@@ -225,13 +226,15 @@ def array_order(rows: np.ndarray, cols: np.ndarray, sides: np.ndarray) -> np.nda
     return np.lexsort((cols, rows, -np.asarray(sides)))
 
 
-def read_tallies(ds) -> dict[str, Tally]:
+def read_tallies(ds, activity: Activity | None = None) -> dict[str, Tally]:
     """One :class:`Tally` per scene over the ok trials of the open dataset ``ds``, read one trial
-    at a time (only its valid samples)."""
+    at a time (only its valid samples); ``activity`` is told how many are read."""
     names, samples = ds.whiskers["name"], int(ds.attrs["samples"])
     wrench, contact, point_of_contact = ds.base_wrench, ds.contact, ds.point_of_contact
     tallies: dict[str, Tally] = {}
-    for i in ds.ok:
+    for done, i in enumerate(ds.ok):
+        if activity is not None:
+            activity.update(f"read {done}/{len(ds.ok)} ok trials")
         i = int(i)
         n = int(ds.trials["samples"][i]) or samples
         window = dict(trial=i, time=slice(0, n))
@@ -290,9 +293,11 @@ def statistics(tallies: dict[str, Tally], whiskers: dict, rate_hz: float) -> dic
     }
 
 
-def stats_report(target: str | Path, root: str | Path | None, out: str | Path | None = None) -> dict:
+def stats_report(target: str | Path, root: str | Path | None, out: str | Path | None = None,
+                 activity: Activity | None = None) -> dict:
     """Write report.md, the figures and stats.json of a dataset's ok trials into ``out``
-    (default ``reports/stats/<name>_v<k>/``); returns a summary with their paths."""
+    (default ``reports/stats/<name>_v<k>/``); returns a summary with their paths. ``activity``
+    shows each step (and the trials read) on stderr."""
     from pipeline.datasets.reader import DatasetFile
     from pipeline.datasets.versions import resolve
     from pipeline.reports.document import write_json
@@ -308,12 +313,16 @@ def stats_report(target: str | Path, root: str | Path | None, out: str | Path | 
             raise UserError(f"{label}: no trial has status ok ({counts['trials_failed']} failed, "
                             f"{counts['trials_pending']} pending)")
         rate = float(ds.attrs["sampling_rate_hz"])
-        tallies = read_tallies(ds)
+        activity = activity or Activity("stats", enabled=False)
+        activity.step(f"reading the {counts['trials_ok']} ok trials of {label}")
+        tallies = read_tallies(ds, activity)
         whiskers = {k: ds.whiskers[k].to_numpy() for k in ("name", "row", "col", "side")}
     out = Path(out) if out is not None else DEFAULT_OUT / label.replace("/", "_")
     out.mkdir(parents=True, exist_ok=True)
+    activity.step("computing the statistics")
     stats = {"dataset": label, "file": str(path), **counts, "trials_used": counts["trials_ok"],
              **statistics(tallies, whiskers, rate)}
+    activity.step(f"drawing the figures into {out}")
     figures = write_figures(stats, out)
     stats["seconds"] = time.perf_counter() - start
     json_path = write_json(out / "stats.json", stats)

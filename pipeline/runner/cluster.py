@@ -31,17 +31,29 @@ def dashboard_address(config: ClusterConfig) -> str:
     return f"{LOOPBACK}:{config.dashboard_port if config.dashboard else 0}"
 
 
-def _batch_cluster(config: ClusterConfig):
-    """A dask-jobqueue cluster of ``config.kind``, no job submitted yet."""
+WORKER_EXTRA_ARGS = ["--dashboard-address", f"{LOOPBACK}:0"]   # workers' HTTP servers on loopback too
+SCHEDULER_PLACEHOLDER = "tcp://SCHEDULER:8786"    # in a previewed job script: the run's scheduler
+
+
+def _cluster_class(config: ClusterConfig):
     import dask_jobqueue
 
-    cls = {"slurm": dask_jobqueue.SLURMCluster, "pbs": dask_jobqueue.PBSCluster,
-           "sge": dask_jobqueue.SGECluster, "lsf": dask_jobqueue.LSFCluster}[config.kind]
+    return {"slurm": dask_jobqueue.SLURMCluster, "pbs": dask_jobqueue.PBSCluster,
+            "sge": dask_jobqueue.SGECluster, "lsf": dask_jobqueue.LSFCluster}[config.kind]
+
+
+def _batch_options(config: ClusterConfig) -> dict:
     options = config.batch_options()
     options.setdefault("python", sys.executable)
+    return options
+
+
+def _batch_cluster(config: ClusterConfig):
+    """A dask-jobqueue cluster of ``config.kind``, no job submitted yet."""
     try:           # the workers' HTTP (status) servers on loopback too; their comms must face the network
-        return cls(**options, worker_extra_args=["--dashboard-address", f"{LOOPBACK}:0"],
-                   scheduler_options={"dashboard_address": dashboard_address(config), "dashboard": config.dashboard})
+        return _cluster_class(config)(
+            **_batch_options(config), worker_extra_args=WORKER_EXTRA_ARGS,
+            scheduler_options={"dashboard_address": dashboard_address(config), "dashboard": config.dashboard})
     except ValueError as exc:
         raise UserError(f"cluster: {config.kind} options rejected by dask-jobqueue: {exc}") from None
 
@@ -61,12 +73,18 @@ def _submitted(config: ClusterConfig):
 
 def job_script(config: ClusterConfig) -> str:
     """The batch script each worker job of a batch ``config`` runs (``pipeline simulate``
-    submits ``config.jobs`` of them); for inspection, e.g. before a first run on a new cluster."""
-    cluster = _batch_cluster(config)
+    submits ``config.jobs`` of them), for inspection before a first run on a new cluster
+    (``pipeline job-script``). Made without starting a scheduler, so it runs anywhere; the
+    scheduler's address, known only when a run starts, reads ``tcp://SCHEDULER:8786``."""
+    if config.kind not in BATCH_KINDS:
+        raise UserError(f"cluster kind '{config.kind}' submits no batch jobs, so it has no job script: set "
+                        f"cluster.kind to one of {', '.join(BATCH_KINDS)} (with cores and memory)")
     try:
-        return cluster.job_script()
-    finally:
-        cluster.close()
+        job = _cluster_class(config).job_cls(scheduler=SCHEDULER_PLACEHOLDER, name="dask-worker",
+                                             worker_extra_args=WORKER_EXTRA_ARGS, **_batch_options(config))
+    except ValueError as exc:
+        raise UserError(f"cluster: {config.kind} options rejected by dask-jobqueue: {exc}") from None
+    return job.job_script()
 
 
 def _echo_dashboard(client, config: ClusterConfig) -> None:
