@@ -46,7 +46,7 @@ def test_mouse_whiskers_touch_on_both_engines(run):
     trials = TRIALS[run["engine"]]
     assert run["ok"] == trials and run["complete"]
     assert run["whiskers_in_contact_per_trial"] >= 3     # the poses' min_whiskers_reaching
-    with datasets.open(Path(run["dataset"]) / "data.h5") as data:
+    with datasets.open_file(Path(run["dataset"]) / "data.h5") as data:
         assert data.contact.values.reshape(trials, -1).any(axis=1).all()     # every trial touches
         table = data.whiskers
         mouse = load_morphology("mouse").select("R")
