@@ -448,13 +448,15 @@ class MujocoWorld(World):
             self._prisms[scene.key, index] = MeshPrisms(scene.obstacles[index])
         return self._prisms[scene.key, index]
 
-    def _reachable(self, scene: Scene, pose: Pose, duration_s: float) -> tuple[list[_Part], np.ndarray]:
-        """The obstacle parts this world's whiskers can reach at ``pose`` within ``duration_s``
-        (a static mesh cropped to the faces within reach), and [w] a lower bound of each
-        whisker's distance from its base point to the nearest of them (inf if none)."""
-        bases = pose.apply(np.array([w.base_point_m for w in self.whiskers]))
-        reach = self.link_reach_m[:, -1]
-        gaps = np.full(len(self.whiskers), np.inf)
+    def _reachable(self, scene: Scene, pose: Pose, duration_s: float,
+                   members: np.ndarray) -> tuple[list[_Part], np.ndarray]:
+        """The obstacle parts this world's whiskers ``members`` can reach at ``pose`` within
+        ``duration_s`` (a static mesh cropped to the faces within their reach), and [w] a lower
+        bound of each whisker's distance from its base point to the nearest of them (inf if
+        none; always for the others)."""
+        bases = pose.apply(np.array([self.whiskers[k].base_point_m for k in members]))
+        reach = self.link_reach_m[members, -1]
+        gaps = np.full(len(members), np.inf)
         parts: list[_Part] = []
         for index, obstacle in enumerate(scene.obstacles):
             velocity = np.asarray(obstacle.velocity_m_s, float)
@@ -475,7 +477,9 @@ class MujocoWorld(World):
                                    else None)
                     parts.append(_Part(index, obstacle, prisms=mesh_prisms))
             gaps = np.minimum(gaps, gap)
-        return parts, gaps
+        all_gaps = np.full(len(self.whiskers), np.inf)
+        all_gaps[members] = gaps
+        return parts, all_gaps
 
     def _prepare(self, scene: Scene, parts: list[_Part], gaps: np.ndarray, members: np.ndarray) -> None:
         """A model of the whiskers ``members`` and the obstacle ``parts`` (recompiled only when
@@ -528,7 +532,8 @@ class MujocoWorld(World):
         result = WorldResult.zeros(setup.samples, len(self.whiskers), self.links)
         members = np.flatnonzero(active)
         if members.size:
-            parts, gaps = self._reachable(setup.scene, setup.pose, setup.samples / self.config.output_rate_hz)
+            parts, gaps = self._reachable(setup.scene, setup.pose, setup.samples / self.config.output_rate_hz,
+                                          members)
         while members.size:
             self._prepare(setup.scene, parts, gaps, members)
             try:
