@@ -1,6 +1,7 @@
 """Accuracy and cost of the cheap path for free whiskers (pipeline/engines/free_path.py).
 
-Run: .venv/bin/python benchmarks/bench_free_whiskers.py [--engine mujoco|bullet] [--frequencies 6 9 12]
+Run: .venv/bin/python benchmarks/bench_free_whiskers.py [--engine mujoco|bullet] [--cheap mujoco|bullet]
+[--frequencies 6 9 12]   (--cheap: the engine whose coarse path is compared; default --engine)
 
 Every whisker of configs/simulate.yaml's array whisks freely (empty scene, 125 ms, the largest
 whisk of the dataset's range: 45° protraction, 20° retraction) at each frequency, once at the
@@ -23,7 +24,7 @@ import numpy as np
 from pipeline.config.loader import load_config
 from pipeline.config.simulate import SimulateConfig
 from pipeline.engines import create_engine
-from pipeline.engines.free_path import coarse_config
+from pipeline.engines.free_path import FREE_DT_S, coarse_config
 from pipeline.model.kinematics import Pose, sinusoidal_whisk
 from pipeline.protocols.whisking import Whisking
 from pipeline.scenes.library import empty
@@ -45,6 +46,9 @@ def relative_errors(coarse: np.ndarray, full: np.ndarray) -> tuple[np.ndarray, n
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--engine", default="mujoco")
+    parser.add_argument("--cheap", default=None)
+    parser.add_argument("--dt", type=float, default=None, help="the coarse path's longest step, s "
+                        f"(default: the engine's, {FREE_DT_S})")
     parser.add_argument("--frequencies", type=float, nargs="+", default=[6.0, 9.0, 12.0])
     parser.add_argument("--duration", type=float, default=0.125)
     args = parser.parse_args()
@@ -52,9 +56,13 @@ def main() -> None:
                             overrides={"model": {"engine": {"name": args.engine, "free_whiskers": "engine"}}})
     array = Whisking(config.model).array
     full_config = config.model
-    coarse = full_config.model_copy(update={"engine": coarse_config(full_config.engine)})
+    cheap_engine = full_config.engine.model_copy(update={"name": args.cheap or args.engine})
+    coarse_engine = coarse_config(cheap_engine, args.dt)
+    if coarse_engine is None:
+        parser.error(f"{cheap_engine.name} has no coarse path at its step {cheap_engine.dt_s:g} s: give --dt")
+    coarse = full_config.model_copy(update={"engine": coarse_engine})
     print(f"{args.engine}: {len(array.whiskers)} whiskers, full step {full_config.engine.dt_s:g} s, "
-          f"coarse {coarse.engine.dt_s:g} s (f1 tolerance {coarse.engine.f1_tolerance:g})")
+          f"coarse path {coarse.engine.name} at {coarse.engine.dt_s:g} s (f1 tolerance {coarse.engine.f1_tolerance:g})")
     engines = {"full": create_engine(full_config, array), "coarse": create_engine(coarse, array)}
     for frequency in args.frequencies:
         drive = sinusoidal_whisk(frequency, 45.0, 20.0, args.duration)

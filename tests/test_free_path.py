@@ -19,16 +19,18 @@ POSE = Pose((0.001, -0.002, 0.0005), (0.3, 0.1, -0.05))
 PEG_RADIUS_M, PEG_LENGTH_M = 4e-4, 6e-4      # a small peg: its bounding sphere is nearly its shape
 
 
-def _engine(whiskers: str, free_whiskers: str, name: str = "mujoco"):
-    config = ModelConfig(engine=EngineConfig(name=name, free_whiskers=free_whiskers))
+def _engine(whiskers: str, free_whiskers: str):
+    config = ModelConfig(engine=EngineConfig(name="mujoco", free_whiskers=free_whiskers))
     return create_engine(config, build_array(model_rat().select(whiskers), config.material))
 
 
 def test_coarse_config_is_coarser_and_lands_on_the_samples():
-    assert coarse_config(EngineConfig()).dt_s == FREE_DT_S
-    assert coarse_config(EngineConfig(output_rate_hz=3000.0)).dt_s == pytest.approx(1 / 6000)
-    assert coarse_config(EngineConfig(dt_s=5e-4)) is None               # nothing coarser to gain
-    assert coarse_config(EngineConfig()).free_whiskers == "engine"
+    mujoco = EngineConfig(name="mujoco")
+    assert coarse_config(mujoco).dt_s == FREE_DT_S["mujoco"]
+    assert coarse_config(mujoco.model_copy(update={"output_rate_hz": 3000.0})).dt_s == pytest.approx(1 / 6000)
+    assert coarse_config(mujoco.model_copy(update={"dt_s": 5e-4})) is None    # nothing coarser to gain
+    assert coarse_config(mujoco).free_whiskers == "engine"
+    assert coarse_config(EngineConfig(name="bullet")) is None                  # missed 1 %: none
 
 
 @pytest.mark.parametrize("frequency_hz", [6.0, 12.0])
@@ -72,13 +74,12 @@ def _peg_at_clearance(nodes_m: np.ndarray, times_s: np.ndarray, clearance: float
     return scene(high)
 
 
-@pytest.mark.parametrize("name", ["mujoco", "bullet"])
-def test_a_whisker_within_the_margin_never_takes_the_cheap_path(name):
+def test_a_whisker_within_the_margin_never_takes_the_cheap_path():
     """Pegs placed just inside and just outside the cheap path's clearance from RC1's free path,
     and one across it: inside or across, RC1 runs on the full engine (across, it touches);
     outside, it takes the cheap path and the full engine confirms it touches nothing there."""
     drive = sinusoidal_whisk(12.0, 45.0, 20.0, DURATION_S)
-    with _engine("RC1", "coarse", name) as cheap:
+    with _engine("RC1", "coarse") as cheap:
         free = cheap.run(empty(), POSE, drive, DURATION_S)
         padding = cheap.free_path.motion.padding_m[0]
     nodes, times = free.node_positions_m.astype(float)[:, 0], free.time_s
@@ -87,7 +88,7 @@ def test_a_whisker_within_the_margin_never_takes_the_cheap_path(name):
     for clearance, coarse_expected in ((needed - 5e-5, False), (needed + 5e-5, True), (-2 * PEG_RADIUS_M, False)):
         scene = _peg_at_clearance(nodes, times, clearance)
         # new engines: no free motion remembered from an earlier trial to reuse
-        with _engine("RC1", "coarse", name) as cheap, _engine("RC1", "engine", name) as full:
+        with _engine("RC1", "coarse") as cheap, _engine("RC1", "engine") as full:
             took, reference = (e.run(scene, POSE, drive, DURATION_S) for e in (cheap, full))
         assert (took.metadata["coarse_free_whiskers"] == ["RC1"]) is coarse_expected, clearance
         if coarse_expected:

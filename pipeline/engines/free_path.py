@@ -4,8 +4,8 @@ A whisker that touches nothing moves relative to the head as it would in an empt
 without a load that depends on the head's pose (gravity, a world-frame tip force) that motion
 does not depend on the pose (:class:`~pipeline.engines.common.FreeMotion`). Before a trial the
 engine therefore runs the whole array in an empty scene on a second engine of its own kind at a
-coarse step (:data:`FREE_DT_S`, f1 tolerance :data:`FREE_F1_TOLERANCE`), about 3× cheaper
-than the full step, and keeps the outputs of every whisker whose free node paths stay clear of
+coarse step (:data:`FREE_DT_S`, f1 tolerance :data:`FREE_F1_TOLERANCE`), about 2.4× cheaper
+than the full step (MuJoCo; Bullet has no coarse path, see Accuracy), and keeps the outputs of every whisker whose free node paths stay clear of
 the trial's obstacles by FreeMotion's padding (base radius, half the longest link, half the
 farthest a node moves between samples) plus :data:`FREE_PATH_MARGIN_M`; only the others are
 simulated at the full step, with the scene. A kept whisker gets the coarse run's base wrench
@@ -18,9 +18,14 @@ the full step's node positions, at most 0.16 mm (model rat, all 60 whiskers, 6, 
 the largest whisk of configs/simulate.yaml, 45°/20°; benchmarks/bench_free_whiskers.py), which
 :data:`FREE_PATH_MARGIN_M` covers 6×.
 
-Accuracy (benchmarks/bench_free_whiskers.py, MuJoCo): per whisker and component, the RMS
-difference from the full engine over the RMS magnitude of the whisker's force (for force
-components) or moment: ≤ 0.7 % for every whisker at 6, 9 and 12 Hz.
+Accuracy (benchmarks/bench_free_whiskers.py): per whisker and component, the RMS difference
+from the full engine over the RMS magnitude of the whisker's force (for force components) or
+moment. MuJoCo at 2.5·10⁻⁴ s: ≤ 0.23, 0.34, 0.67 % at 6, 9, 12 Hz (every whisker; median
+≤ 0.08 %; over the component's own RMS ≤ 1.33 %), 2.4× less CPU than the full step. Bullet
+missed 1 % on its longest whisker (RA0's Mz) at 2.5·10⁻⁴ s (0.83 % at 6 Hz, 1.40 % at 9 Hz)
+and at 2·10⁻⁴ s (1.60 % at 12 Hz) for 1.6× less CPU, and MuJoCo's path is no stand-in for
+Bullet's engine (RA0's Fx 9.4 % at 12 Hz): Bullet has no coarse path (free whiskers of a Bullet
+trial take the full step; parked ones sleep, pipeline/engines/bullet.py).
 """
 
 from __future__ import annotations
@@ -34,16 +39,23 @@ from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.scenes.library import empty
 from pipeline.scenes.obstacles import Scene
 
-FREE_DT_S = 2.5e-4           # the coarse path's longest step (s); shorter whiskers refine from it
+# the coarse path's longest step (s) per engine; shorter whiskers refine from it. Bullet has none:
+# its coarse runs missed 1 % (RA0's Mz: 1.40 % at 9 Hz with 2.5e-4 s, 1.60 % at 12 Hz with 2e-4 s)
+# for 1.6× less CPU (module docstring, Accuracy)
+FREE_DT_S = {"mujoco": 2.5e-4}
 FREE_F1_TOLERANCE = 0.02     # its f1 tolerance (the full engine's default: 0.01)
 FREE_PATH_MARGIN_M = 1e-3    # clearance kept beyond FreeMotion's padding (module docstring, Safety)
 
 
-def coarse_config(config: EngineConfig) -> EngineConfig | None:
-    """The coarse path's engine config: the coarsest step up to :data:`FREE_DT_S` that divides
-    the output period, or None when that is no coarser than ``config.dt_s``."""
+def coarse_config(config: EngineConfig, longest_s: float | None = None) -> EngineConfig | None:
+    """The coarse path's engine config: the coarsest step up to ``longest_s`` (default: the
+    engine's :data:`FREE_DT_S`) that divides the output period, or None when the engine has no
+    coarse path or that step is no coarser than ``config.dt_s``."""
+    longest_s = FREE_DT_S.get(config.name) if longest_s is None else longest_s
+    if longest_s is None:
+        return None
     period = 1.0 / config.output_rate_hz
-    dt_s = period / np.ceil(period / FREE_DT_S - 1e-9)
+    dt_s = period / np.ceil(period / longest_s - 1e-9)
     if dt_s <= config.dt_s * (1 + 1e-9):
         return None
     return config.model_copy(update={"dt_s": float(dt_s), "f1_tolerance": max(config.f1_tolerance, FREE_F1_TOLERANCE),
