@@ -82,7 +82,9 @@ normal points out, as the pose sampler assumes) by half the distance to the next
 behind, clamped to :data:`PRISM_DEPTH_MM`; one contact point per capsule–prism pair (MuJoCo's
 multi-point convex contacts made whiskers jam between prisms). Only the faces some link can
 reach at the trial's pose are built, and the model is recompiled when that set changes
-(~0.05 ms per face). Alternative measured and dropped: the scan as one rigid 2-D ``flex``
+(~0.05 ms per face); a world crops to the reach of the whiskers it simulates in the trial,
+not of all its whiskers (the others take the free path, :mod:`pipeline.engines.free_path`).
+Alternative measured and dropped: the scan as one rigid 2-D ``flex``
 (every triangle a double-sided collision element inflated by a skin, Bullet's kind of contact):
 0.14 s and 30 MB to compile 40 363 faces and about as fast to step, but fast tips passed
 through it — full array, 100 ms beside a 40 k-face scan: 105 node paths crossing the surface
