@@ -96,3 +96,15 @@ def test_a_whisker_within_the_margin_never_takes_the_cheap_path():
         else:
             np.testing.assert_array_equal(took.base_wrench, reference.base_wrench)   # the full engine's
     assert reference.contact.any()                            # the peg across the path is touched
+
+
+@pytest.mark.parametrize("choice", ["coarse", "engine"])
+def test_simulate_config_chooses_the_path_of_free_whiskers(choice):
+    from pipeline.config.simulate import SimulateConfig
+    from pipeline.runner.simulate import _layout
+    from pipeline.runner.trial import RunSpec, Simulator
+
+    config = SimulateConfig(free_whiskers=choice)
+    assert SimulateConfig().free_whiskers == "coarse"
+    simulator = Simulator(RunSpec(config, (), _layout(config)))
+    assert simulator.whisking.config.engine.free_whiskers == choice
