@@ -10,7 +10,8 @@ the trial's obstacles by FreeMotion's padding (base radius, half the longest lin
 farthest a node moves between samples) plus :data:`FREE_PATH_MARGIN_M`; only the others are
 simulated at the full step, with the scene. A kept whisker gets the coarse run's base wrench
 and node positions, no contact and no point of contact, as a whisker that touches nothing
-gets from the full engine.
+gets from the full engine. The coarse run sees the trial's pose and drive only: a trial whose
+head moves (a moving base) must pass that motion on to it or leave the cheap path out.
 
 Safety. The decision uses the coarse run's own bent shapes at every output sample, so the
 deflection is not bounded but computed; what is left is the difference between the coarse and
