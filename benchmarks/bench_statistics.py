@@ -7,7 +7,8 @@ Run: .venv/bin/python benchmarks/bench_statistics.py [--trials 0-11] [--variants
 The trials are those of configs/simulate.yaml (as `pipeline simulate` draws them: scene, head
 pose, whisk; run `pipeline build-meshes` first). Variants: ``default`` (the config), ``half``
 (``engine.dt_s`` and ``engine.f1_tolerance`` halved: every whisker's step halved), ``bullet``
-(the same trials on the other engine). Per (trial, whisker): touched or not, contact onset and
+(the same trials on the other engine), ``full-free`` (``free_whiskers: engine``: whiskers that
+cannot touch on the full step instead of the cheap path, pipeline/engines/free_path.py). Per (trial, whisker): touched or not, contact onset and
 duration (samples of 1 ms), peak |M| (N·m), peak transverse force |F_t| = |(F_y, F_z)| (N) and
 the point of contact at the peak |M| (fraction of S). Each variant is compared with ``default``:
 
@@ -40,7 +41,8 @@ from pipeline.runner.simulate import _layout
 from pipeline.runner.trial import RunSpec, Simulator
 
 REPO = Path(__file__).resolve().parents[1]
-VARIANTS = {"default": {}, "half": {"dt_s": 5e-5, "f1_tolerance": 0.005}, "bullet": {"name": "bullet"}}
+VARIANTS = {"default": {}, "half": {"model": {"engine": {"dt_s": 5e-5, "f1_tolerance": 0.005}}},
+            "bullet": {"model": {"engine": {"name": "bullet"}}}, "full-free": {"free_whiskers": "engine"}}
 FIELDS = ("touched", "onset", "duration", "peak_moment", "peak_transverse", "poc_at_peak")
 
 
@@ -68,8 +70,7 @@ def run_variant(name: str, trials: list[int], cache: Path | None) -> dict[str, n
     if path is not None and path.is_file():
         return dict(np.load(path))
     config, _ = load_config(SimulateConfig, REPO / "configs" / "simulate.yaml", env_prefix="PIPELINE_SIMULATE_",
-                            overrides={"model": {"engine": VARIANTS[name]},
-                                       "scenes": {"folder": str(REPO / "outputs" / "meshes")}})
+                            overrides=VARIANTS[name] | {"scenes": {"folder": str(REPO / "outputs" / "meshes")}})
     simulator = Simulator(RunSpec(config, scene_catalogue(config.scenes), _layout(config)))
     rows, cpu = [], []
     for index in trials:

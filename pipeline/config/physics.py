@@ -116,6 +116,7 @@ class MaterialConfig(StrictModel):
 
 
 EngineName = Literal["bullet", "mujoco"]     # the physics engines (pipeline/engines)
+FreeWhiskers = Literal["engine", "coarse"]   # how an engine simulates whiskers that cannot touch
 
 
 class EngineConfig(StrictModel):
@@ -134,6 +135,8 @@ class EngineConfig(StrictModel):
     output_rate_hz: float = Field(1000.0, gt=0, le=100_000)
     contact_friction: float = Field(0.5, ge=0, le=2.0, description="Coulomb μ whisker–object")
     solver_iterations: int = Field(50, ge=1, le=1000, description="Bullet: most Gauss–Seidel sweeps of a step's contact solve")
+    free_whiskers: FreeWhiskers = Field("engine", description="whiskers that cannot touch anything in a trial: "
+                                        "'engine' (the full step) or 'coarse' (pipeline/engines/free_path.py)")
 
 
 class WhiskConfig(StrictModel):

@@ -18,7 +18,7 @@ from typing import Annotated, Literal
 
 from pydantic import AfterValidator, Field, PrivateAttr, field_validator, model_validator
 
-from pipeline.config.physics import ModelConfig, StrictModel
+from pipeline.config.physics import FreeWhiskers, ModelConfig, StrictModel
 from pipeline.config.project import MESHES_DIR
 
 
@@ -244,6 +244,9 @@ class SimulateConfig(StrictModel):
     trials: int = Field(20, ge=1, le=10_000_000, description="trials in a run (--n)")
     seed: int = Field(0, ge=0, le=2**63 - 1, description="dataset seed; trial i draws from (seed, i)")
     model: ModelConfig = ModelConfig()
+    free_whiskers: FreeWhiskers = Field("coarse", description="whiskers that cannot touch anything in a trial: "
+                                        "'coarse' (cheap, pipeline/engines/free_path.py) or 'engine' (the full "
+                                        "step); overrides model.engine.free_whiskers")
     scenes: ScenesConfig = ScenesConfig()
     poses: PoseSamplingConfig = PoseSamplingConfig()
     whisk: WhiskSamplingConfig = WhiskSamplingConfig()

@@ -6,7 +6,9 @@ the same for every backend:
 
 1. check the trial (:func:`~pipeline.engines.common.start_trial`);
 2. reuse the outputs of whiskers whose free motion in an earlier trial provably keeps clear
-   of this trial's obstacles (:class:`~pipeline.engines.common.FreeMotion`);
+   of this trial's obstacles (:class:`~pipeline.engines.common.FreeMotion`) and, with
+   ``engine.free_whiskers: coarse``, take those whose free motion at a coarse step keeps clear
+   from that cheap path (:mod:`pipeline.engines.free_path`);
 3. run each world for its remaining whiskers (:meth:`World.run`);
 4. simulate every whisker whose contact jammed again alone, with half its step, up to
    ``engine.jam_refinements`` times;
@@ -39,6 +41,7 @@ import numpy as np
 
 from pipeline.config.physics import EngineConfig
 from pipeline.engines.common import FreeMotion, blocked_at_start, empty_signals, start_trial
+from pipeline.engines.free_path import FreePath
 from pipeline.engines.stepping import refinement_levels, step_groups, steps_per_sample
 from pipeline.errors import SimulationError
 from pipeline.model.array import ArrayModel, WhiskerModel
@@ -131,6 +134,7 @@ class Engine(ABC):
             for members, dt_s in step_groups(self.levels, config.dt_s)]
         self.build_seconds = time.perf_counter() - start
         self.free = FreeMotion(array.whiskers)
+        self.free_path = FreePath.of(type(self), array, config)
         self.inertia = [BaseInertia.of(w.physics) for w in array.whiskers]
 
     def step_levels(self, array: ArrayModel, config: EngineConfig) -> np.ndarray:
@@ -168,12 +172,16 @@ class Engine(ABC):
         setup = TrialSetup(scene, pose, drive.continued(times[-1], interval), samples, tuple(initial),
                            tuple(rates), tuple(loads), stop_drive_on_contact)
         started_by_drive = np.full(len(self.array.whiskers), driven)
-        self.free.select(drive, samples, depends_on_pose=any(l.depends_on_pose for ls in loads for l in ls))
+        depends_on_pose = any(l.depends_on_pose for ls in loads for l in ls)
+        self.free.select(drive, samples, depends_on_pose=depends_on_pose)
         reused = started_by_drive & self.free.reusable(pose, scene, times)
+        coarse = np.zeros_like(reused)
+        if self.free_path is not None and driven and not depends_on_pose:
+            coarse = ~reused & self.free_path.clear(scene, pose, drive, duration_s, times)
         result = WorldResult.zeros(samples, len(self.array.whiskers), self.array.links)
         steps, refined = 0, {}
         for members, world in self.worlds:
-            active = ~reused[members]
+            active = ~(reused | coarse)[members]
             if not active.any():
                 continue
             part = world.run(setup.only(members), active)
@@ -187,12 +195,15 @@ class Engine(ABC):
             result.put(members[active], part, active)
         for k in np.flatnonzero(reused):
             result.wrench[:, k], result.nodes[:, k] = self.free.recall(k, pose)
-        for k in np.flatnonzero(started_by_drive & ~reused & ~result.touched):
+        for k in np.flatnonzero(coarse):
+            result.wrench[:, k], result.nodes[:, k] = self.free_path.recall(k, pose)
+        for k in np.flatnonzero(started_by_drive & ~reused & ~coarse & ~result.touched):
             self.free.remember(k, result.wrench[:, k], result.nodes[:, k], pose)
         metadata = {"engine": self.name, "dt_s": self.config.dt_s,
                     "dt_per_whisker_s": (self.config.dt_s / 2.0 ** self.levels).tolist(),
                     "jam_refined": refined, "whisker_steps": steps,
                     "reused_free_motion": int(reused.sum()),
+                    "coarse_free_whiskers": [self.array.names[k] for k in np.flatnonzero(coarse)],
                     "wall_seconds": time.perf_counter() - start_wall,
                     "cpu_seconds": time.process_time() - start_cpu,
                     "build_seconds": self.build_seconds}
@@ -231,6 +242,8 @@ class Engine(ABC):
         for _, world in self.worlds:
             world.close()
         self.worlds = []
+        if self.free_path is not None:
+            self.free_path.close()
 
     def __enter__(self):
         return self

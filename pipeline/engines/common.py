@@ -233,12 +233,12 @@ class FreeMotion:
     same drive and duration would not touch anything either: its outputs can be reused.
     Clear means every node, at every output sample, farther from the obstacles than the
     whisker's base radius plus half its longest link plus half the farthest a node or an
-    obstacle moves between two samples, plus :data:`CLEARANCE_MARGIN_M`.
+    obstacle moves between two samples, plus ``margin_m`` (:data:`CLEARANCE_MARGIN_M`).
     """
 
-    def __init__(self, whiskers):
+    def __init__(self, whiskers, margin_m: float = CLEARANCE_MARGIN_M):
         self.padding_m = np.array([w.chain.node_radii_m[0] + 0.5 * w.chain.link_lengths_m.max()
-                                   for w in whiskers]) + CLEARANCE_MARGIN_M
+                                   for w in whiskers]) + margin_m
         self.key: object = None
         self.motions: dict[int, tuple[np.ndarray, np.ndarray, float]] = {}   # wrench, head nodes, pad
 

@@ -82,7 +82,9 @@ normal points out, as the pose sampler assumes) by half the distance to the next
 behind, clamped to :data:`PRISM_DEPTH_MM`; one contact point per capsule–prism pair (MuJoCo's
 multi-point convex contacts made whiskers jam between prisms). Only the faces some link can
 reach at the trial's pose are built, and the model is recompiled when that set changes
-(~0.05 ms per face). Alternative measured and dropped: the scan as one rigid 2-D ``flex``
+(~0.05 ms per face); a world crops to the reach of the whiskers it simulates in the trial,
+not of all its whiskers (the others take the free path, :mod:`pipeline.engines.free_path`).
+Alternative measured and dropped: the scan as one rigid 2-D ``flex``
 (every triangle a double-sided collision element inflated by a skin, Bullet's kind of contact):
 0.14 s and 30 MB to compile 40 363 faces and about as fast to step, but fast tips passed
 through it — full array, 100 ms beside a 40 k-face scan: 105 node paths crossing the surface
@@ -448,13 +450,15 @@ class MujocoWorld(World):
             self._prisms[scene.key, index] = MeshPrisms(scene.obstacles[index])
         return self._prisms[scene.key, index]
 
-    def _reachable(self, scene: Scene, pose: Pose, duration_s: float) -> tuple[list[_Part], np.ndarray]:
-        """The obstacle parts this world's whiskers can reach at ``pose`` within ``duration_s``
-        (a static mesh cropped to the faces within reach), and [w] a lower bound of each
-        whisker's distance from its base point to the nearest of them (inf if none)."""
-        bases = pose.apply(np.array([w.base_point_m for w in self.whiskers]))
-        reach = self.link_reach_m[:, -1]
-        gaps = np.full(len(self.whiskers), np.inf)
+    def _reachable(self, scene: Scene, pose: Pose, duration_s: float,
+                   members: np.ndarray) -> tuple[list[_Part], np.ndarray]:
+        """The obstacle parts this world's whiskers ``members`` can reach at ``pose`` within
+        ``duration_s`` (a static mesh cropped to the faces within their reach), and [w] a lower
+        bound of each whisker's distance from its base point to the nearest of them (inf if
+        none; always for the others)."""
+        bases = pose.apply(np.array([self.whiskers[k].base_point_m for k in members]))
+        reach = self.link_reach_m[members, -1]
+        gaps = np.full(len(members), np.inf)
         parts: list[_Part] = []
         for index, obstacle in enumerate(scene.obstacles):
             velocity = np.asarray(obstacle.velocity_m_s, float)
@@ -475,7 +479,9 @@ class MujocoWorld(World):
                                    else None)
                     parts.append(_Part(index, obstacle, prisms=mesh_prisms))
             gaps = np.minimum(gaps, gap)
-        return parts, gaps
+        all_gaps = np.full(len(self.whiskers), np.inf)
+        all_gaps[members] = gaps
+        return parts, all_gaps
 
     def _prepare(self, scene: Scene, parts: list[_Part], gaps: np.ndarray, members: np.ndarray) -> None:
         """A model of the whiskers ``members`` and the obstacle ``parts`` (recompiled only when
@@ -528,7 +534,8 @@ class MujocoWorld(World):
         result = WorldResult.zeros(setup.samples, len(self.whiskers), self.links)
         members = np.flatnonzero(active)
         if members.size:
-            parts, gaps = self._reachable(setup.scene, setup.pose, setup.samples / self.config.output_rate_hz)
+            parts, gaps = self._reachable(setup.scene, setup.pose, setup.samples / self.config.output_rate_hz,
+                                          members)
         while members.size:
             self._prepare(setup.scene, parts, gaps, members)
             try:

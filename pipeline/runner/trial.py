@@ -87,7 +87,9 @@ class Simulator:
 
     def __init__(self, spec: RunSpec):
         self.spec = spec
-        self.whisking = Whisking(spec.config.model)
+        model = spec.config.model
+        engine = model.engine.model_copy(update={"free_whiskers": spec.config.free_whiskers})
+        self.whisking = Whisking(model.model_copy(update={"engine": engine}))
         self._scenes: dict[str, object] = {}
         self._samplers: dict[str, object] = {}
 

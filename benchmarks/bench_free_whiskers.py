@@ -1,0 +1,87 @@
+"""Accuracy and cost of the cheap path for free whiskers (pipeline/engines/free_path.py).
+
+Run: .venv/bin/python benchmarks/bench_free_whiskers.py [--engine mujoco|bullet] [--cheap mujoco|bullet]
+[--frequencies 6 9 12]   (--cheap: the engine whose coarse path is compared; default --engine)
+
+Every whisker of configs/simulate.yaml's array whisks freely (empty scene, 125 ms, the largest
+whisk of the dataset's range: 45° protraction, 20° retraction) at each frequency, once at the
+full step and once on the coarse path. Per whisker and base-wrench component (Fx, Fy, Fz, Mx,
+My, Mz) the error is the RMS difference over the RMS magnitude of the whisker's force (force
+components) or moment (moment components), as printed per frequency: the largest over the
+array, the whisker it is at, the median, the largest RMS difference over the component's own
+RMS, the largest node-position difference (what the cheap path's safety margin must cover) and
+the CPU seconds of both paths.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.config.loader import load_config
+from pipeline.config.simulate import SimulateConfig
+from pipeline.engines import create_engine
+from pipeline.engines.free_path import FREE_DT_S, coarse_config
+from pipeline.model.kinematics import Pose, sinusoidal_whisk
+from pipeline.protocols.whisking import Whisking
+from pipeline.scenes.library import empty
+
+REPO = Path(__file__).resolve().parents[1]
+COMPONENTS = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
+
+
+def relative_errors(coarse: np.ndarray, full: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """([W, 6] RMS error over the RMS force or moment magnitude, [W, 6] over the component's RMS)
+    of base wrenches [T, W, 6]."""
+    error = np.sqrt(((coarse - full) ** 2).mean(axis=0))
+    magnitude = np.stack([np.sqrt((full[..., part] ** 2).sum(-1).mean(0)) for part in (slice(0, 3), slice(3, 6))],
+                         axis=1)                                                # [W, 2]
+    own = np.sqrt((full ** 2).mean(axis=0))
+    return error / np.repeat(magnitude, 3, axis=1), error / np.maximum(own, 1e-30)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--engine", default="mujoco")
+    parser.add_argument("--cheap", default=None)
+    parser.add_argument("--dt", type=float, default=None, help="the coarse path's longest step, s "
+                        f"(default: the engine's, {FREE_DT_S})")
+    parser.add_argument("--frequencies", type=float, nargs="+", default=[6.0, 9.0, 12.0])
+    parser.add_argument("--duration", type=float, default=0.125)
+    args = parser.parse_args()
+    config, _ = load_config(SimulateConfig, REPO / "configs" / "simulate.yaml", env_prefix="PIPELINE_SIMULATE_",
+                            overrides={"model": {"engine": {"name": args.engine, "free_whiskers": "engine"}}})
+    array = Whisking(config.model).array
+    full_config = config.model
+    cheap_engine = full_config.engine.model_copy(update={"name": args.cheap or args.engine})
+    coarse_engine = coarse_config(cheap_engine, args.dt)
+    if coarse_engine is None:
+        parser.error(f"{cheap_engine.name} has no coarse path at its step {cheap_engine.dt_s:g} s: give --dt")
+    coarse = full_config.model_copy(update={"engine": coarse_engine})
+    print(f"{args.engine}: {len(array.whiskers)} whiskers, full step {full_config.engine.dt_s:g} s, "
+          f"coarse path {coarse.engine.name} at {coarse.engine.dt_s:g} s (f1 tolerance {coarse.engine.f1_tolerance:g})")
+    engines = {"full": create_engine(full_config, array), "coarse": create_engine(coarse, array)}
+    for frequency in args.frequencies:
+        drive = sinusoidal_whisk(frequency, 45.0, 20.0, args.duration)
+        outputs, cpu = {}, {}
+        for name, engine in engines.items():
+            start = time.process_time()
+            outputs[name] = engine.run(empty(), Pose(), drive, args.duration)
+            cpu[name] = time.process_time() - start
+        full, cheap = (np.asarray(outputs[n].base_wrench, float) for n in ("full", "coarse"))
+        of_magnitude, of_component = relative_errors(cheap, full)
+        worst = np.unravel_index(of_magnitude.argmax(), of_magnitude.shape)
+        nodes = np.abs(outputs["coarse"].node_positions_m.astype(float) - outputs["full"].node_positions_m).max()
+        print(f"{frequency:4.1f} Hz: max {100 * of_magnitude.max():.2f} % ({array.whiskers[worst[0]].name} "
+              f"{COMPONENTS[worst[1]]}), median {100 * np.median(of_magnitude):.3f} %; of the component's own "
+              f"RMS max {100 * of_component.max():.2f} %; nodes ≤ {1e3 * nodes:.3f} mm; "
+              f"CPU full {cpu['full']:.2f} s, coarse {cpu['coarse']:.2f} s", flush=True)
+    for engine in engines.values():
+        engine.close()
+
+
+if __name__ == "__main__":
+    main()

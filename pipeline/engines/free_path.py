@@ -1,0 +1,101 @@
+"""The cheap path for whiskers that cannot touch anything in a trial (``engine.free_whiskers: coarse``).
+
+A whisker that touches nothing moves relative to the head as it would in an empty scene, and
+without a load that depends on the head's pose (gravity, a world-frame tip force) that motion
+does not depend on the pose (:class:`~pipeline.engines.common.FreeMotion`). Before a trial the
+engine therefore runs the whole array in an empty scene on a second engine of its own kind at a
+coarse step (:data:`FREE_DT_S`, f1 tolerance :data:`FREE_F1_TOLERANCE`), about 2.7× cheaper
+than the full step (MuJoCo; Bullet has no coarse path, see Accuracy), and keeps the outputs of every whisker whose free node paths stay clear of
+the trial's obstacles by FreeMotion's padding (base radius, half the longest link, half the
+farthest a node moves between samples) plus :data:`FREE_PATH_MARGIN_M`; only the others are
+simulated at the full step, with the scene. A kept whisker gets the coarse run's base wrench
+and node positions, no contact and no point of contact, as a whisker that touches nothing
+gets from the full engine. The coarse run sees the trial's pose and drive only: a trial whose
+head moves (a moving base) must pass that motion on to it or leave the cheap path out.
+
+Safety. The decision uses the coarse run's own bent shapes at every output sample, so the
+deflection is not bounded but computed; what is left is the difference between the coarse and
+the full step's node positions, at most 0.16 mm (model rat, all 60 whiskers, 6, 9 and 12 Hz at
+the largest whisk of configs/simulate.yaml, 45°/20°; benchmarks/bench_free_whiskers.py), which
+:data:`FREE_PATH_MARGIN_M` covers 6×.
+
+Accuracy (benchmarks/bench_free_whiskers.py): per whisker and component, the RMS difference
+from the full engine over the RMS magnitude of the whisker's force (for force components) or
+moment. MuJoCo at 2.5·10⁻⁴ s: ≤ 0.23, 0.34, 0.67 % at 6, 9, 12 Hz (every whisker; median
+≤ 0.11 %; over the component's own RMS ≤ 1.33 %), 2.0–2.7× less CPU than the full step. Bullet
+missed 1 % on its longest whisker (RA0's Mz) at 2.5·10⁻⁴ s (0.83 % at 6 Hz, 1.40 % at 9 Hz)
+and at 2·10⁻⁴ s (1.60 % at 12 Hz) for 1.6× less CPU, and MuJoCo's path is no stand-in for
+Bullet's engine (RA0's Fx 9.4 % at 12 Hz): Bullet has no coarse path (free whiskers of a Bullet
+trial take the full step; parked ones sleep, pipeline/engines/bullet.py).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.config.physics import EngineConfig
+from pipeline.engines.common import CLEARANCE_MARGIN_M, FreeMotion
+from pipeline.model.array import ArrayModel
+from pipeline.model.kinematics import Pose, ProtractionDrive
+from pipeline.scenes.library import empty
+from pipeline.scenes.obstacles import Scene
+
+# the coarse path's longest step (s) per engine; shorter whiskers refine from it. Bullet has none:
+# its coarse runs missed 1 % (RA0's Mz: 1.40 % at 9 Hz with 2.5e-4 s, 1.60 % at 12 Hz with 2e-4 s)
+# for 1.6× less CPU (module docstring, Accuracy)
+FREE_DT_S = {"mujoco": 2.5e-4}
+FREE_F1_TOLERANCE = 0.05     # its f1 tolerance (the full engine's default: 0.01): 0.02 cost 0.15 s more, same accuracy
+FREE_PATH_MARGIN_M = 1e-3    # clearance kept beyond FreeMotion's padding (module docstring, Safety)
+
+
+def coarse_config(config: EngineConfig, longest_s: float | None = None) -> EngineConfig | None:
+    """The coarse path's engine config: the coarsest step up to ``longest_s`` (default: the
+    engine's :data:`FREE_DT_S`) that divides the output period, or None when the engine has no
+    coarse path or that step is no coarser than ``config.dt_s``."""
+    longest_s = FREE_DT_S.get(config.name) if longest_s is None else longest_s
+    if longest_s is None:
+        return None
+    period = 1.0 / config.output_rate_hz
+    dt_s = period / np.ceil(period / longest_s - 1e-9)
+    if dt_s <= config.dt_s * (1 + 1e-9):
+        return None
+    return config.model_copy(update={"dt_s": float(dt_s), "f1_tolerance": max(config.f1_tolerance, FREE_F1_TOLERANCE),
+                                     "free_whiskers": "engine"})
+
+
+class FreePath:
+    """The coarse path of an engine (built on first use): which whiskers it covers in a trial,
+    and their outputs."""
+
+    def __init__(self, make_engine, array: ArrayModel, config: EngineConfig):
+        """``make_engine(array, config)`` builds an engine of the caller's kind."""
+        self.make_engine, self.array, self.config = make_engine, array, config
+        self.engine = None
+        self.motion = FreeMotion(array.whiskers, margin_m=CLEARANCE_MARGIN_M + FREE_PATH_MARGIN_M)
+
+    @classmethod
+    def of(cls, make_engine, array: ArrayModel, config: EngineConfig) -> "FreePath | None":
+        """The coarse path if ``config`` asks for it and a coarser step exists, else None."""
+        coarse = coarse_config(config) if config.free_whiskers == "coarse" else None
+        return cls(make_engine, array, coarse) if coarse is not None else None
+
+    def clear(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float,
+              times_s: np.ndarray) -> np.ndarray:
+        """[W] whether each whisker's coarse free motion keeps clear of ``scene`` at ``pose``
+        (then :meth:`recall` gives its outputs); runs the coarse engine in an empty scene."""
+        if self.engine is None:
+            self.engine = self.make_engine(self.array, self.config)
+        output = self.engine.run(empty(), pose, drive, duration_s)
+        self.motion.select(drive, len(times_s), depends_on_pose=False)
+        for k in range(len(self.array.whiskers)):
+            self.motion.remember(k, output.base_wrench[:, k], output.node_positions_m[:, k], pose)
+        return self.motion.reusable(pose, scene, times_s)
+
+    def recall(self, k: int, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
+        """Whisker k's coarse wrench [T, 6] (N, N·m) and node positions [T, N+1, 3] (m, world)."""
+        return self.motion.recall(k, pose)
+
+    def close(self) -> None:
+        if self.engine is not None:
+            self.engine.close()
+            self.engine = None

@@ -1,0 +1,110 @@
+"""The cheap path for free whiskers (pipeline/engines/free_path.py): accurate, and never taken by a
+whisker that can touch (obstacles placed to graze its free path and its safety margin)."""
+
+import numpy as np
+import pytest
+
+from pipeline.config.physics import EngineConfig, ModelConfig
+from pipeline.engines import create_engine
+from pipeline.engines.common import clearance_m
+from pipeline.engines.free_path import FREE_DT_S, FREE_PATH_MARGIN_M, coarse_config
+from pipeline.model.array import build_array
+from pipeline.model.kinematics import Pose, sinusoidal_whisk
+from pipeline.model.morphology import model_rat
+from pipeline.scenes import Scene, empty
+from pipeline.scenes.obstacles import Cylinder
+
+DURATION_S = 0.04
+POSE = Pose((0.001, -0.002, 0.0005), (0.3, 0.1, -0.05))
+PEG_RADIUS_M, PEG_LENGTH_M = 4e-4, 6e-4      # a small peg: its bounding sphere is nearly its shape
+
+
+def _engine(whiskers: str, free_whiskers: str):
+    config = ModelConfig(engine=EngineConfig(name="mujoco", free_whiskers=free_whiskers))
+    return create_engine(config, build_array(model_rat().select(whiskers), config.material))
+
+
+def test_coarse_config_is_coarser_and_lands_on_the_samples():
+    mujoco = EngineConfig(name="mujoco")
+    assert coarse_config(mujoco).dt_s == FREE_DT_S["mujoco"]
+    assert coarse_config(mujoco.model_copy(update={"output_rate_hz": 3000.0})).dt_s == pytest.approx(1 / 6000)
+    assert coarse_config(mujoco.model_copy(update={"dt_s": 5e-4})) is None    # nothing coarser to gain
+    assert coarse_config(mujoco).free_whiskers == "engine"
+    assert coarse_config(EngineConfig(name="bullet")) is None                  # missed 1 %: none
+
+
+@pytest.mark.parametrize("frequency_hz", [6.0, 12.0])
+def test_free_whiskers_match_the_full_engine_within_one_percent(frequency_hz):
+    """RA0 and RD6 are the array's worst whiskers in benchmarks/bench_free_whiskers.py."""
+    drive = sinusoidal_whisk(frequency_hz, 45.0, 20.0, 0.125)
+    with _engine("RA0,RD6", "engine") as full, _engine("RA0,RD6", "coarse") as cheap:
+        reference, coarse = (e.run(empty(), POSE, drive, 0.125) for e in (full, cheap))
+    assert coarse.metadata["coarse_free_whiskers"] == ["RA0", "RD6"]
+    assert reference.metadata["coarse_free_whiskers"] == []
+    a, b = coarse.base_wrench.astype(float), reference.base_wrench.astype(float)
+    error = np.sqrt(((a - b) ** 2).mean(axis=0))                                   # [W, 6]
+    for part in (slice(0, 3), slice(3, 6)):
+        magnitude = np.sqrt((b[..., part] ** 2).sum(-1).mean(0))                   # [W]
+        assert np.all(error[:, part] <= 0.01 * magnitude[:, None])
+    assert not coarse.contact.any() and np.isnan(coarse.point_of_contact).all()
+    assert np.abs(coarse.node_positions_m - reference.node_positions_m).max() < 0.2 * FREE_PATH_MARGIN_M
+
+
+def _peg_at_clearance(nodes_m: np.ndarray, times_s: np.ndarray, clearance: float) -> Scene:
+    """A small peg beside the tip's path whose bounding sphere keeps ``clearance`` (m) from the
+    nearest node of ``nodes_m`` [T, N+1, 3] over the trial (found by bisection along the outward
+    normal of the whisk plane at the tip's middle sample)."""
+    tip = nodes_m[:, -1]
+    middle = len(tip) // 2
+    normal = np.cross(tip[middle + 1] - tip[middle - 1], tip[middle] - nodes_m[middle, 0])
+    normal /= np.linalg.norm(normal)
+    points, times = nodes_m.reshape(-1, 3), np.repeat(times_s, nodes_m.shape[1])
+
+    def scene(offset: float) -> Scene:
+        return Scene("peg", (Cylinder(PEG_RADIUS_M, PEG_LENGTH_M, tuple(map(float, tip[middle] + offset * normal)),
+                                           axis=tuple(map(float, normal))),))
+
+    low, high = 0.0, 0.02
+    for _ in range(60):
+        middle_offset = 0.5 * (low + high)
+        if clearance_m(points, times, scene(middle_offset)).min() < clearance:
+            low = middle_offset
+        else:
+            high = middle_offset
+    return scene(high)
+
+
+def test_a_whisker_within_the_margin_never_takes_the_cheap_path():
+    """Pegs placed just inside and just outside the cheap path's clearance from RC1's free path,
+    and one across it: inside or across, RC1 runs on the full engine (across, it touches);
+    outside, it takes the cheap path and the full engine confirms it touches nothing there."""
+    drive = sinusoidal_whisk(12.0, 45.0, 20.0, DURATION_S)
+    with _engine("RC1", "coarse") as cheap:
+        free = cheap.run(empty(), POSE, drive, DURATION_S)
+        padding = cheap.free_path.motion.padding_m[0]
+    nodes, times = free.node_positions_m.astype(float)[:, 0], free.time_s
+    step = np.linalg.norm(np.diff(nodes, axis=0), axis=-1).max()
+    needed = padding + 0.5 * step                           # FreeMotion's clearance with the margin
+    for clearance, coarse_expected in ((needed - 5e-5, False), (needed + 5e-5, True), (-2 * PEG_RADIUS_M, False)):
+        scene = _peg_at_clearance(nodes, times, clearance)
+        # new engines: no free motion remembered from an earlier trial to reuse
+        with _engine("RC1", "coarse") as cheap, _engine("RC1", "engine") as full:
+            took, reference = (e.run(scene, POSE, drive, DURATION_S) for e in (cheap, full))
+        assert (took.metadata["coarse_free_whiskers"] == ["RC1"]) is coarse_expected, clearance
+        if coarse_expected:
+            assert not reference.contact.any()               # the margin was safe
+        else:
+            np.testing.assert_array_equal(took.base_wrench, reference.base_wrench)   # the full engine's
+    assert reference.contact.any()                            # the peg across the path is touched
+
+
+@pytest.mark.parametrize("choice", ["coarse", "engine"])
+def test_simulate_config_chooses_the_path_of_free_whiskers(choice):
+    from pipeline.config.simulate import SimulateConfig
+    from pipeline.runner.simulate import _layout
+    from pipeline.runner.trial import RunSpec, Simulator
+
+    config = SimulateConfig(free_whiskers=choice)
+    assert SimulateConfig().free_whiskers == "coarse"
+    simulator = Simulator(RunSpec(config, (), _layout(config)))
+    assert simulator.whisking.config.engine.free_whiskers == choice
