@@ -209,6 +209,16 @@ class BulletWorld(World):
         self._place_obstacles(0.0)
         p.performCollisionDetection(physicsClientId=self.client)    # bounding boxes, where contacts are looked up
 
+    def _place_head(self, whiskers, position_m: np.ndarray, rotation: np.ndarray) -> None:
+        """The bases of ``whiskers`` (indices) where a head at ``position_m`` (m), ``rotation`` has them."""
+        import pybullet as p
+
+        orientation = quat(rotation)
+        for k in whiskers:
+            base = (position_m + rotation @ self.bodies[k].model.base_point_m) * U.LENGTH
+            p.resetBasePositionAndOrientation(self.bodies[k].body, base.tolist(), orientation,
+                                              physicsClientId=self.client)
+
     def _park(self, k: int, drive: ProtractionDrive) -> None:
         """Move whisker k far away at rest: it no longer touches anything."""
         w = self.bodies[k]
@@ -230,15 +240,22 @@ class BulletWorld(World):
         n_steps = setup.samples * self.steps_per_sample
         thetas = np.asarray(drive(np.arange(1, n_steps + 1) * h), float)     # θ(t + h) of every step
         obstacles = [(o.body, o.velocity_mm_s) for o in self.obstacles if not o.mesh]
+        loads, head = setup.loads, setup.head
+        if head is not None:            # the head frame at every step's end, and its inertial load
+            head_frames = zip(*head.frames(np.arange(1, n_steps + 1) * h))
+            head_inertia = head.inertia(np.arange(1, n_steps + 1) * h)
         for step in range(n_steps):
             if moving:                                   # contacts with where obstacles will be
                 self._place_obstacles((step + 1) * h)
+            if head is not None:                         # ... and where the head will be
+                self._place_head(running, *next(head_frames))
+                loads = [own + head_inertia[step] for own in setup.loads]
             contacts = find_contacts(c, obstacles, self._links) if obstacles else {}
             for k in running:
                 w = self.bodies[k]
                 target = held[k] if held[k] is not None else w.rest_driven + w.rates * thetas[step]
                 points = contacts.get(w.body, ())
-                normal = w.apply_implicit_torques(target, h, setup.loads[k], points,
+                normal = w.apply_implicit_torques(target, h, loads[k], points,
                                                   config.contact_friction, config.solver_iterations)
                 self._flag_contacts(k, points, normal, flags, result.touched)
             p.stepSimulation(physicsClientId=c)

@@ -448,12 +448,14 @@ class MujocoWorld(World):
             self._prisms[scene.key, index] = MeshPrisms(scene.obstacles[index])
         return self._prisms[scene.key, index]
 
-    def _reachable(self, scene: Scene, pose: Pose, duration_s: float) -> tuple[list[_Part], np.ndarray]:
+    def _reachable(self, scene: Scene, pose: Pose, duration_s: float,
+                   travel_m: np.ndarray | float = 0.0) -> tuple[list[_Part], np.ndarray]:
         """The obstacle parts this world's whiskers can reach at ``pose`` within ``duration_s``
         (a static mesh cropped to the faces within reach), and [w] a lower bound of each
-        whisker's distance from its base point to the nearest of them (inf if none)."""
+        whisker's distance from its base point to the nearest of them (inf if none); a moving
+        head takes each base point up to ``travel_m`` [w] (m) from where it starts."""
         bases = pose.apply(np.array([w.base_point_m for w in self.whiskers]))
-        reach = self.link_reach_m[:, -1]
+        reach = self.link_reach_m[:, -1] + travel_m
         gaps = np.full(len(self.whiskers), np.inf)
         parts: list[_Part] = []
         for index, obstacle in enumerate(scene.obstacles):
@@ -475,7 +477,7 @@ class MujocoWorld(World):
                                    else None)
                     parts.append(_Part(index, obstacle, prisms=mesh_prisms))
             gaps = np.minimum(gaps, gap)
-        return parts, gaps
+        return parts, np.maximum(gaps - travel_m, 0.0)
 
     def _prepare(self, scene: Scene, parts: list[_Part], gaps: np.ndarray, members: np.ndarray) -> None:
         """A model of the whiskers ``members`` and the obstacle ``parts`` (recompiled only when
@@ -528,7 +530,10 @@ class MujocoWorld(World):
         result = WorldResult.zeros(setup.samples, len(self.whiskers), self.links)
         members = np.flatnonzero(active)
         if members.size:
-            parts, gaps = self._reachable(setup.scene, setup.pose, setup.samples / self.config.output_rate_hz)
+            duration = setup.samples / self.config.output_rate_hz
+            travel = 0.0 if setup.head is None else setup.head.base_travel_m(
+                np.array([w.base_point_m for w in self.whiskers]), np.arange(0.0, duration + self.dt_s, self.dt_s))
+            parts, gaps = self._reachable(setup.scene, setup.pose, duration, travel)
         while members.size:
             self._prepare(setup.scene, parts, gaps, members)
             try:
@@ -568,11 +573,20 @@ class MujocoWorld(World):
         qpos, qvel, qfrc = d.qpos, d.qvel, d.qfrc_applied
         kinematic, armature, spring_rate = self.kinematic, self.armature, self.spring_rate
         step_function = mujoco.mj_step
+        loads, head = setup.loads, setup.head
+        if head is not None:            # the head frame at every step's start, and its inertial load
+            positions, rotations = head.frames(times[:n_steps + 1])
+            head_position, head_quat = positions * U.LENGTH, [quat_wxyz(r) for r in rotations]
+            head_inertia = head.inertia(times[:n_steps + 1])
+            loaded = list(range(n_w)) if head_inertia[0] else loaded
         for step in range(n_steps + 1):
             np.multiply(spring_rate, qvel, out=qfrc)
             qfrc[kinematic] = armature * (((targets[step] - qpos[kinematic]) / h - qvel[kinematic]) / h)
+            if head is not None:
+                d.mocap_pos[0], d.mocap_quat[0] = head_position[step], head_quat[step]
+                loads = [own + head_inertia[step] for own in setup.loads]
             if loaded:
-                self._apply_loads(setup.loads, loaded)
+                self._apply_loads(loads, loaded)
             sample, due = divmod(step, spp)
             records = due == 0 and sample > 0
             if due < 2:
