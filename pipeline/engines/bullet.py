@@ -123,6 +123,33 @@ def _mesh_shape(client: int, mesh: TriangleMesh) -> int:
 SHAPES = {Cylinder: _cylinder_shape, Box: _box_shape, TriangleMesh: _mesh_shape}
 
 
+class BulletPlan:
+    """What a world's whiskers and the head do at each step of a trial: ``theta`` [steps, w] the
+    protraction (rad) each whisker's base reaches at the step's end, and with a head trajectory
+    ``head_position_m`` [steps, 3], ``head_rotation`` [steps, 3, 3] and ``head_inertia`` (per
+    step, the loads to add) at the step's end. Built from the drive and trajectory (open loop);
+    :meth:`set_protraction` and :meth:`set_head` rewrite rows (closed loop)."""
+
+    def __init__(self, setup: TrialSetup, n_steps: int, h: float, whiskers: int):
+        ends = np.arange(1, n_steps + 1) * h
+        self.theta = np.broadcast_to(np.asarray(setup.drive(ends), float)[:, None], (n_steps, whiskers))
+        if setup.head is not None:
+            self.head_position_m, self.head_rotation = setup.head.frames(ends)
+            self.head_inertia = setup.head.inertia(ends)
+
+    def set_protraction(self, steps: slice, theta_rad: np.ndarray) -> None:
+        """Steps ``steps`` end at protraction ``theta_rad`` [n, w] (rad) per whisker."""
+        if not self.theta.flags.writeable:
+            self.theta = self.theta.copy()
+        self.theta[steps] = theta_rad
+
+    def set_head(self, steps: slice, positions_m: np.ndarray, rotations: np.ndarray, inertia: list) -> None:
+        """Steps ``steps`` end with the head at ``positions_m`` [n, 3], ``rotations`` [n, 3, 3],
+        its inertial loads ``inertia`` (per step a tuple of loads)."""
+        self.head_position_m[steps], self.head_rotation[steps] = positions_m, rotations
+        self.head_inertia[steps] = inertia
+
+
 class BulletWorld(World):
     """One pybullet client stepping some whiskers at one step size ``dt_s`` (no native gravity:
     gravity is a load)."""
@@ -226,34 +253,42 @@ class BulletWorld(World):
         w.reset(np.full(3, PARKED_MM) * (k + 2), list(IDENTITY_QUAT), drive, self.dt_s, rest, rest)
 
     def run(self, setup: TrialSetup, active: np.ndarray) -> WorldResult:
+        result = WorldResult.zeros(setup.samples, len(self.bodies), self.whiskers[0].chain.links)
+        for _ in self.stepping(setup, active, result):
+            pass
+        return result
+
+    def stepping(self, setup: TrialSetup, active: np.ndarray, result: WorldResult, controlled: bool = False):
+        """A generator that simulates the ``active`` whiskers for the trial's output intervals into
+        ``result``: it first yields its :class:`BulletPlan` (every step's protraction per whisker
+        and head frame, from the drive and head trajectory), then the index of every sample it
+        records, after recording it. A controller (``controlled``) rewrites the plan's rows of
+        the next interval before asking for the next sample (:mod:`pipeline.engines.session`)."""
         import pybullet as p
 
         c, h, drive, config = self.client, self.dt_s, setup.drive, self.config
         self.set_scene(setup.scene)
         self._reset(setup, active)
-        n_w, n_links = len(self.bodies), self.whiskers[0].chain.links
-        result = WorldResult.zeros(setup.samples, n_w, n_links)
+        n_w = len(self.bodies)
         flags = ContactFlags(node_arc_fractions(self.whiskers))
         held: list[np.ndarray | None] = [None] * n_w      # drive stopped at contact
         moving = any(o.velocity_mm_s.any() for o in self.obstacles)
         running = list(np.flatnonzero(active))
         n_steps = setup.samples * self.steps_per_sample
-        thetas = np.asarray(drive(np.arange(1, n_steps + 1) * h), float)     # θ(t + h) of every step
+        plan = BulletPlan(setup, n_steps, h, n_w)
         obstacles = [(o.body, o.velocity_mm_s) for o in self.obstacles if not o.mesh]
         loads, head = setup.loads, setup.head
-        if head is not None:            # the head frame at every step's end, and its inertial load
-            head_frames = zip(*head.frames(np.arange(1, n_steps + 1) * h))
-            head_inertia = head.inertia(np.arange(1, n_steps + 1) * h)
+        yield plan
         for step in range(n_steps):
             if moving:                                   # contacts with where obstacles will be
                 self._place_obstacles((step + 1) * h)
             if head is not None:                         # ... and where the head will be
-                self._place_head(running, *next(head_frames))
-                loads = [own + head_inertia[step] for own in setup.loads]
+                self._place_head(running, plan.head_position_m[step], plan.head_rotation[step])
+                loads = [own + plan.head_inertia[step] for own in setup.loads]
             contacts = find_contacts(c, obstacles, self._links) if obstacles else {}
             for k in running:
                 w = self.bodies[k]
-                target = held[k] if held[k] is not None else w.rest_driven + w.rates * thetas[step]
+                target = held[k] if held[k] is not None else w.rest_driven + w.rates * plan.theta[step, k]
                 points = contacts.get(w.body, ())
                 normal = w.apply_implicit_torques(target, h, loads[k], points,
                                                   config.contact_friction, config.solver_iterations)
@@ -274,7 +309,7 @@ class BulletWorld(World):
                     result.jammed[k] = jam_message(self.whiskers[k].name, result.wrench[sample, k], (step + 1) * h)
                     self._park(k, drive)
                     running.remove(k)
-        return result
+                yield sample
 
     def _flag_contacts(self, k: int, points, normal_forces: np.ndarray, flags: ContactFlags,
                        touched: np.ndarray) -> None:

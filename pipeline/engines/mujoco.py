@@ -251,6 +251,42 @@ class _Part:
         return (self.index, None if self.faces is None else self.faces.tobytes())
 
 
+class MujocoPlan:
+    """What a world's kinematic joints and the head do at each step of a trial (internal units):
+    ``targets`` [steps + 1, kinematic] the driven hinges' and obstacle slides' positions at the
+    end of each step, ``head_position_mm`` [steps + 1, 3], ``head_quat`` (w, x, y, z) and
+    ``head_inertia`` (per step, the loads to add) at each step's start; the head rows only with
+    a head trajectory. Built from the drive and trajectory (open loop); :meth:`set_protraction`
+    and :meth:`set_head` rewrite rows (closed loop)."""
+
+    def __init__(self, world: "MujocoWorld", offset: np.ndarray, theta_rate: np.ndarray, setup: TrialSetup,
+                 n_steps: int):
+        h = world.dt_s
+        self.times = np.arange(n_steps + 2) * h
+        self.offset, self.theta_rate = offset, theta_rate
+        self.slide_rate = np.concatenate([np.zeros(world.n_driven), world.obstacle_velocity])
+        thetas = np.asarray(setup.drive(self.times), float)
+        self.targets = offset + theta_rate * thetas[1:, None] + self.slide_rate * self.times[1:, None]
+        self.whisker_of_joint = np.repeat(np.arange(len(world.members)), 3)     # driven hinges Z, Y, X
+        head = setup.head
+        if head is not None:
+            positions, rotations = head.frames(self.times[:n_steps + 1])
+            self.head_position_mm, self.head_quat = positions * U.LENGTH, [quat_wxyz(r) for r in rotations]
+            self.head_inertia = head.inertia(self.times[:n_steps + 1])
+
+    def set_protraction(self, steps: slice, theta_rad: np.ndarray) -> None:
+        """Steps ``steps`` end at protraction ``theta_rad`` [n, members] (rad) per whisker."""
+        n = self.whisker_of_joint.size
+        self.targets[steps, :n] = (self.offset[:n] + self.theta_rate[:n] * theta_rad[:, self.whisker_of_joint])
+
+    def set_head(self, steps: slice, positions_m: np.ndarray, rotations: np.ndarray, inertia: list) -> None:
+        """Steps ``steps`` start with the head at ``positions_m`` [n, 3], ``rotations`` [n, 3, 3],
+        its inertial loads ``inertia`` (per step a tuple of loads)."""
+        self.head_position_mm[steps] = positions_m * U.LENGTH
+        self.head_quat[steps] = [quat_wxyz(r) for r in rotations]
+        self.head_inertia[steps] = inertia
+
+
 class MujocoWorld(World):
     """One MjModel: whiskers stepping at one step size ``dt_s``, and what they can reach."""
 
@@ -548,7 +584,19 @@ class MujocoWorld(World):
 
     def _simulate(self, setup: TrialSetup) -> WorldResult:
         """Integrate the current model (its ``members``; ``setup`` for them) for the trial's
-        output intervals.
+        output intervals, open loop (:meth:`_stepping` with the plan it makes)."""
+        result = WorldResult.zeros(setup.samples, len(self.members), self.links)
+        for _ in self._stepping(setup, result):
+            pass
+        return result
+
+    def _stepping(self, setup: TrialSetup, result: WorldResult, controlled: bool = False):
+        """A generator that integrates the current model for the trial's output intervals into
+        ``result``: it first yields its :class:`MujocoPlan` (the kinematic targets and head frames
+        of every step, from the drive and head trajectory), then the index of every sample it
+        records, after recording it. A controller (``controlled``) rewrites the plan's rows of
+        the next interval before asking for the next sample (:mod:`pipeline.engines.session`);
+        the moving head's inertial load is then applied at every step.
 
         The per-step work in Python is kept to array operations on views taken once: the
         kinematic targets of every step are computed before the loop (rows rewritten when a
@@ -558,11 +606,8 @@ class MujocoWorld(World):
         m, d, h, spp = self.model, self.data, self.dt_s, self.steps_per_sample
         offset, theta_rate = self._reset(setup.pose, setup.drive, setup.initial, setup.initial_rates)
         n_w, n_steps = len(self.members), setup.samples * spp
-        times = np.arange(n_steps + 2) * h
-        thetas = np.asarray(setup.drive(times), float)
-        slide_rate = np.concatenate([np.zeros(self.n_driven), self.obstacle_velocity])
-        targets = offset + theta_rate * thetas[1:, None] + slide_rate * times[1:, None]   # [step, kinematic]
-        result = WorldResult.zeros(setup.samples, n_w, self.links)
+        plan = MujocoPlan(self, offset, theta_rate, setup, n_steps)
+        targets = plan.targets
         flags = ContactFlags(self.node_fractions[self.members])
         held = np.zeros(n_w, bool)
         loaded = [k for k in range(n_w) if setup.loads[k]]
@@ -574,17 +619,15 @@ class MujocoWorld(World):
         kinematic, armature, spring_rate = self.kinematic, self.armature, self.spring_rate
         step_function = mujoco.mj_step
         loads, head = setup.loads, setup.head
-        if head is not None:            # the head frame at every step's start, and its inertial load
-            positions, rotations = head.frames(times[:n_steps + 1])
-            head_position, head_quat = positions * U.LENGTH, [quat_wxyz(r) for r in rotations]
-            head_inertia = head.inertia(times[:n_steps + 1])
-            loaded = list(range(n_w)) if head_inertia[0] else loaded
+        if head is not None and (controlled or plan.head_inertia[0]):
+            loaded = list(range(n_w))
+        yield plan
         for step in range(n_steps + 1):
             np.multiply(spring_rate, qvel, out=qfrc)
             qfrc[kinematic] = armature * (((targets[step] - qpos[kinematic]) / h - qvel[kinematic]) / h)
             if head is not None:
-                d.mocap_pos[0], d.mocap_quat[0] = head_position[step], head_quat[step]
-                loads = [own + head_inertia[step] for own in setup.loads]
+                d.mocap_pos[0], d.mocap_quat[0] = plan.head_position_mm[step], plan.head_quat[step]
+                loads = [own + plan.head_inertia[step] for own in setup.loads]
             if loaded:
                 self._apply_loads(loads, loaded)
             sample, due = divmod(step, spp)
@@ -606,7 +649,8 @@ class MujocoWorld(World):
                         rows = slice(3 * k, 3 * k + 3)
                         targets[step + 1:, rows] = qpos[kinematic[rows]]
                     held |= newly
-        return result
+            if records:
+                yield sample - 1
 
     def _blown_up(self, time_s: float) -> None:
         """Raise :class:`_Jam` for the whiskers whose accelerations MuJoCo found non-finite or
