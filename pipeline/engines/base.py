@@ -120,6 +120,15 @@ class World(ABC):
         intervals (the others' rows stay zero). A whisker whose contact jammed (non-physical
         base moment or acceleration) is taken out and reported in ``jammed``."""
 
+    @abstractmethod
+    def stepping(self, setup: TrialSetup, active: np.ndarray, result: WorldResult, travel_m: float | None = None):
+        """A generator over the trial's output samples for the ``active`` whiskers: it yields the
+        backend's step plan first (``interval(sample, steps_per_sample)`` → the rows it steps
+        through before recording a sample, with their times; ``set_protraction`` and ``set_head``
+        rewrite rows), then each sample's index once ``result`` holds it. A controller may rewrite
+        the plan between samples (:mod:`pipeline.engines.session`); ``travel_m``: how far its head
+        may take each base point from its start (m; None: as the setup's head trajectory does)."""
+
     def close(self) -> None:
         """Release the simulator."""
 

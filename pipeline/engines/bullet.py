@@ -131,11 +131,22 @@ class BulletPlan:
     :meth:`set_protraction` and :meth:`set_head` rewrite rows (closed loop)."""
 
     def __init__(self, setup: TrialSetup, n_steps: int, h: float, whiskers: int):
-        ends = np.arange(1, n_steps + 1) * h
+        self.ends = ends = np.arange(1, n_steps + 1) * h
         self.theta = np.broadcast_to(np.asarray(setup.drive(ends), float)[:, None], (n_steps, whiskers))
         if setup.head is not None:
             self.head_position_m, self.head_rotation = setup.head.frames(ends)
             self.head_inertia = setup.head.inertia(ends)
+
+    def moves(self, step: int) -> bool:
+        """Whether the head frame of ``step`` differs from the step before's."""
+        return not (np.array_equal(self.head_position_m[step], self.head_position_m[step - 1])
+                    and np.array_equal(self.head_rotation[step], self.head_rotation[step - 1]))
+
+    def interval(self, sample: int, spp: int) -> tuple[slice, np.ndarray, np.ndarray]:
+        """(rows, their protractions' times, their head frames' times) that the generator steps
+        through before it records ``sample``."""
+        rows = slice(sample * spp, (sample + 1) * spp)
+        return rows, self.ends[rows], self.ends[rows]
 
     def set_protraction(self, steps: slice, theta_rad: np.ndarray) -> None:
         """Steps ``steps`` end at protraction ``theta_rad`` [n, w] (rad) per whisker."""
@@ -258,12 +269,13 @@ class BulletWorld(World):
             pass
         return result
 
-    def stepping(self, setup: TrialSetup, active: np.ndarray, result: WorldResult, controlled: bool = False):
+    def stepping(self, setup: TrialSetup, active: np.ndarray, result: WorldResult, travel_m: float | None = None):
         """A generator that simulates the ``active`` whiskers for the trial's output intervals into
         ``result``: it first yields its :class:`BulletPlan` (every step's protraction per whisker
         and head frame, from the drive and head trajectory), then the index of every sample it
-        records, after recording it. A controller (``controlled``) rewrites the plan's rows of
-        the next interval before asking for the next sample (:mod:`pipeline.engines.session`)."""
+        records, after recording it. A controller may rewrite the plan's rows of the next
+        interval before asking for the next sample (:mod:`pipeline.engines.session`).
+        ``travel_m`` is not needed: every whisker looks for contacts with every obstacle."""
         import pybullet as p
 
         c, h, drive, config = self.client, self.dt_s, setup.drive, self.config
@@ -282,7 +294,7 @@ class BulletWorld(World):
         for step in range(n_steps):
             if moving:                                   # contacts with where obstacles will be
                 self._place_obstacles((step + 1) * h)
-            if head is not None:                         # ... and where the head will be
+            if head is not None and (step == 0 or plan.moves(step)):     # ... and where the head will be
                 self._place_head(running, plan.head_position_m[step], plan.head_rotation[step])
                 loads = [own + plan.head_inertia[step] for own in setup.loads]
             contacts = find_contacts(c, obstacles, self._links) if obstacles else {}

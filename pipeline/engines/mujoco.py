@@ -274,6 +274,13 @@ class MujocoPlan:
             self.head_position_mm, self.head_quat = positions * U.LENGTH, [quat_wxyz(r) for r in rotations]
             self.head_inertia = head.inertia(self.times[:n_steps + 1])
 
+    def interval(self, sample: int, spp: int) -> tuple[slice, np.ndarray, np.ndarray]:
+        """(rows, their targets' times, their head frames' times) that the generator steps through
+        before it records ``sample`` (at the start of the step after the interval: one step's
+        targets beyond the sample's time)."""
+        rows = slice(0 if sample == 0 else sample * spp + 1, (sample + 1) * spp + 1)
+        return rows, self.times[1:][rows], self.times[rows]
+
     def set_protraction(self, steps: slice, theta_rad: np.ndarray) -> None:
         """Steps ``steps`` end at protraction ``theta_rad`` [n, members] (rad) per whisker."""
         n = self.whisker_of_joint.size
@@ -566,10 +573,7 @@ class MujocoWorld(World):
         result = WorldResult.zeros(setup.samples, len(self.whiskers), self.links)
         members = np.flatnonzero(active)
         if members.size:
-            duration = setup.samples / self.config.output_rate_hz
-            travel = 0.0 if setup.head is None else setup.head.base_travel_m(
-                np.array([w.base_point_m for w in self.whiskers]), np.arange(0.0, duration + self.dt_s, self.dt_s))
-            parts, gaps = self._reachable(setup.scene, setup.pose, duration, travel)
+            parts, gaps = self._reach(setup)
         while members.size:
             self._prepare(setup.scene, parts, gaps, members)
             try:
@@ -582,6 +586,26 @@ class MujocoWorld(World):
             break
         return result
 
+    def _reach(self, setup: TrialSetup, travel_m: float | None = None) -> tuple[list[_Part], np.ndarray]:
+        """:meth:`_reachable` for the trial, its head's path taking each base point up to
+        ``travel_m`` (m; None: as far as the setup's head trajectory takes it)."""
+        duration = setup.samples / self.config.output_rate_hz
+        if travel_m is None:
+            travel_m = 0.0 if setup.head is None else setup.head.base_travel_m(
+                np.array([w.base_point_m for w in self.whiskers]), np.arange(0.0, duration + self.dt_s, self.dt_s))
+        return self._reachable(setup.scene, setup.pose, duration, travel_m)
+
+    def stepping(self, setup: TrialSetup, active: np.ndarray, result: WorldResult, travel_m: float | None = None):
+        """:meth:`_stepping` for the ``active`` whiskers (all of them: ``result`` is in their
+        order), the head taking each base point up to ``travel_m`` (m) from its start. A jam
+        ends it with a :class:`~pipeline.errors.SimulationError` (no step refinement)."""
+        members = np.flatnonzero(active)
+        self._prepare(setup.scene, *self._reach(setup, travel_m), members)
+        try:
+            yield from self._stepping(setup.only(members), result)
+        except _Jam as jam:
+            raise SimulationError(str(jam)) from None
+
     def _simulate(self, setup: TrialSetup) -> WorldResult:
         """Integrate the current model (its ``members``; ``setup`` for them) for the trial's
         output intervals, open loop (:meth:`_stepping` with the plan it makes)."""
@@ -590,13 +614,12 @@ class MujocoWorld(World):
             pass
         return result
 
-    def _stepping(self, setup: TrialSetup, result: WorldResult, controlled: bool = False):
+    def _stepping(self, setup: TrialSetup, result: WorldResult):
         """A generator that integrates the current model for the trial's output intervals into
         ``result``: it first yields its :class:`MujocoPlan` (the kinematic targets and head frames
         of every step, from the drive and head trajectory), then the index of every sample it
-        records, after recording it. A controller (``controlled``) rewrites the plan's rows of
-        the next interval before asking for the next sample (:mod:`pipeline.engines.session`);
-        the moving head's inertial load is then applied at every step.
+        records, after recording it. A controller may rewrite the plan's rows of the next
+        interval before asking for the next sample (:mod:`pipeline.engines.session`).
 
         The per-step work in Python is kept to array operations on views taken once: the
         kinematic targets of every step are computed before the loop (rows rewritten when a
@@ -619,17 +642,21 @@ class MujocoWorld(World):
         kinematic, armature, spring_rate = self.kinematic, self.armature, self.spring_rate
         step_function = mujoco.mj_step
         loads, head = setup.loads, setup.head
-        if head is not None and (controlled or plan.head_inertia[0]):
-            loaded = list(range(n_w))
+        everyone, inertial = list(range(n_w)), False    # inertial: this step had the head frame's load
         yield plan
         for step in range(n_steps + 1):
             np.multiply(spring_rate, qvel, out=qfrc)
             qfrc[kinematic] = armature * (((targets[step] - qpos[kinematic]) / h - qvel[kinematic]) / h)
+            applied = loaded
             if head is not None:
                 d.mocap_pos[0], d.mocap_quat[0] = plan.head_position_mm[step], plan.head_quat[step]
-                loads = [own + plan.head_inertia[step] for own in setup.loads]
-            if loaded:
-                self._apply_loads(loads, loaded)
+                extra = plan.head_inertia[step]
+                if extra or inertial:                  # (once more without it: clears the last one)
+                    applied, loads, inertial = everyone, [own + extra for own in setup.loads], bool(extra)
+                else:
+                    loads = setup.loads
+            if applied:
+                self._apply_loads(loads, applied)
             sample, due = divmod(step, spp)
             records = due == 0 and sample > 0
             if due < 2:
