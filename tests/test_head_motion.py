@@ -91,3 +91,39 @@ def test_engines_agree_on_a_turning_heads_load():
             changes[name] = (turning.base_wrench - alone.base_wrench)[:, 0, 3:]
     scale = np.abs(changes["mujoco"]).max()
     assert np.abs(changes["mujoco"] - changes["bullet"]).max() < 0.05 * scale
+
+
+def box_scene_config(tmp_path, engine: str, kind: str):
+    """A tiny run on a 40 mm box mesh (the array reaches it from many poses)."""
+    import trimesh
+
+    from pipeline.config.simulate import SimulateConfig
+
+    folder = tmp_path / "meshes"
+    folder.mkdir(exist_ok=True)
+    trimesh.creation.box(extents=(0.04, 0.04, 0.04)).subdivide().subdivide().export(folder / "box.obj")
+    return SimulateConfig.model_validate({
+        "trials": 1, "seed": 5, "model": {"whiskers": "RC1,RD2", "engine": {"name": engine}},
+        "whisk": {"duration_s": 0.02}, "poses": {"min_whiskers_reaching": 1},
+        "scenes": {"folder": str(folder), "include": ["meshes"]}, "head_motion": {"kind": kind},
+        "dataset": {"root": str(tmp_path / "datasets"), "name": "head", "node_positions_every": 5}})
+
+
+@pytest.mark.parametrize("engine", ["mujoco", "bullet"])
+def test_a_dataset_trial_with_an_approaching_head_stores_its_path(tmp_path, engine):
+    from pipeline.runner.simulate import run_spec
+    from pipeline.runner.trial import Simulator
+
+    moving = Simulator(run_spec(box_scene_config(tmp_path, engine, "approach")))
+    still = Simulator(run_spec(box_scene_config(tmp_path, engine, "none")))
+    try:
+        trial, fixed = moving.run(0), still.run(0)
+    finally:
+        moving.close(), still.close()
+    assert trial.record.status == "ok" and fixed.record.status == "ok", (trial.record.error, fixed.record.error)
+    assert "head_position_m" not in fixed.arrays                   # a still head: the arrays as before
+    path, angles = trial.arrays["head_position_m"], trial.arrays["head_euler_zyx_rad"]
+    assert np.isfinite(path).all() and np.isfinite(angles).all()
+    start = np.asarray(trial.record.pose_position_m)
+    travelled = np.linalg.norm(np.diff(np.vstack([start, path]), axis=0), axis=1).sum()
+    assert 0.02 * 0.02 * 0.9 < travelled < 0.12 * 0.02 * 1.1       # drawn speed 20–120 mm/s for 20 ms

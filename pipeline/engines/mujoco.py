@@ -597,14 +597,12 @@ class MujocoWorld(World):
 
     def stepping(self, setup: TrialSetup, active: np.ndarray, result: WorldResult, travel_m: float | None = None):
         """:meth:`_stepping` for the ``active`` whiskers (all of them: ``result`` is in their
-        order), the head taking each base point up to ``travel_m`` (m) from its start. A jam
-        ends it with a :class:`~pipeline.errors.SimulationError` (no step refinement)."""
+        order), the head taking each base point up to ``travel_m`` (m) from its start. A whisker
+        whose contact jams is parked (:meth:`_park`; no step refinement) and listed in
+        ``result.jammed``."""
         members = np.flatnonzero(active)
         self._prepare(setup.scene, *self._reach(setup, travel_m), members)
-        try:
-            yield from self._stepping(setup.only(members), result)
-        except _Jam as jam:
-            raise SimulationError(str(jam)) from None
+        return self._stepping(setup.only(members), result, park=True)
 
     def _simulate(self, setup: TrialSetup) -> WorldResult:
         """Integrate the current model (its ``members``; ``setup`` for them) for the trial's
@@ -614,12 +612,13 @@ class MujocoWorld(World):
             pass
         return result
 
-    def _stepping(self, setup: TrialSetup, result: WorldResult):
+    def _stepping(self, setup: TrialSetup, result: WorldResult, park: bool = False):
         """A generator that integrates the current model for the trial's output intervals into
         ``result``: it first yields its :class:`MujocoPlan` (the kinematic targets and head frames
         of every step, from the drive and head trajectory), then the index of every sample it
         records, after recording it. A controller may rewrite the plan's rows of the next
-        interval before asking for the next sample (:mod:`pipeline.engines.session`).
+        interval before asking for the next sample (:mod:`pipeline.engines.session`). A jam
+        raises :class:`_Jam`, or with ``park`` takes the whisker out (:meth:`_park`) and goes on.
 
         The per-step work in Python is kept to array operations on views taken once: the
         kinematic targets of every step are computed before the loop (rows rewritten when a
@@ -663,9 +662,10 @@ class MujocoWorld(World):
                 option.disableflags = sensors_on if records else sensors_off
             step_function(m, d)
             if bad_acceleration.number:
-                self._blown_up(step * h)
+                self._unless_parked(lambda: self._blown_up(step * h), park, result)
             if records:
-                self._record(result, sample - 1, *flags.take(), time_s=step * h)
+                self._unless_parked(lambda: self._record(result, sample - 1, *flags.take(), time_s=step * h),
+                                    park, result)
             if d.ncon:
                 flags.add(*self._touched())
                 links = self.link_of_geom[d.contact.geom]
@@ -678,6 +678,34 @@ class MujocoWorld(World):
                     held |= newly
             if records:
                 yield sample - 1
+
+    def _unless_parked(self, call, park: bool, result: WorldResult) -> None:
+        """``call()``; with ``park``, the whiskers of a :class:`_Jam` it raises are parked."""
+        try:
+            call()
+        except _Jam as jam:
+            if not park:
+                raise
+            self._park(jam.messages, result)
+
+    def _park(self, messages: dict[int, str], result: WorldResult) -> None:
+        """Take the jammed whiskers (world indices → why) out of the rest of the trial: they
+        collide no more, their free joints restart at rest (their driven joints land on the
+        next target) and MuJoCo's bad-acceleration warning is cleared; ``result.jammed`` lists
+        them (their rows are not the whisker's)."""
+        import mujoco
+
+        m, d = self.model, self.data
+        result.jammed.update(messages)
+        local = np.flatnonzero(np.isin(self.members, list(messages)))
+        dofs = np.isin(self.tree_member[m.dof_treeid], local)
+        d.qpos[dofs] = np.nan_to_num(d.qpos[dofs], nan=0.0, posinf=0.0, neginf=0.0)  # hinges: qpos = dof address
+        for j in local:
+            d.qpos[self.free_qpos[j]] = 0.0
+        d.qvel[dofs] = d.qacc[dofs] = d.qacc_warmstart[dofs] = 0.0
+        m.geom_contype[self.whisker_geoms.reshape(len(self.members), -1)[local].ravel()] = 0
+        m.body_contype[self.link_bodies[local].ravel()] = 0
+        d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)].number = 0
 
     def _blown_up(self, time_s: float) -> None:
         """Raise :class:`_Jam` for the whiskers whose accelerations MuJoCo found non-finite or

@@ -13,9 +13,9 @@ function is asked for times up to one step beyond the sample's time (it continue
 interval's control there; the next interval's control takes over one step later, a latency of
 one engine step, ≤ 0.1 ms). The Bullet engine records after the interval's last step.
 
-Limits. Free motions are not reused and a jammed whisker is not re-simulated with a finer step
-(MuJoCo raises a :class:`~pipeline.errors.SimulationError`; Bullet parks the whisker and its
-rows stay zero).
+Limits. Free motions are not reused and a whisker whose contact jams (e.g. pressed into a wall
+by the head) is not re-simulated with a finer step: it is parked for the rest of the session
+(:attr:`Session.jammed`), its wrench and contacts zero from the sample it jammed in on.
 """
 
 from __future__ import annotations
@@ -60,6 +60,7 @@ class Session:
         setup = TrialSetup(scene, pose, drive.continued(duration, self.interval_s), samples, tuple(initial),
                            tuple(rates), loads, head=HeadMotion.still(pose, duration + self.interval_s))
         self.samples, self.sample, self.whiskers = samples, 0, len(array.whiskers)
+        self.jammed: dict[int, str] = {}          # array index → why: parked, rows zero from then on
         self.links = array.links
         self.streams = []
         for members, world in engine.worlds:
@@ -86,6 +87,9 @@ class Session:
             assert recorded == k, (recorded, k)
             wrench[members], contact[members] = result.wrench[k], result.contact[k]
             poc[members], nodes[members] = result.point_of_contact[k], result.nodes[k]
+            self.jammed.update((int(members[j]), message) for j, message in result.jammed.items())
+        out = list(self.jammed)
+        wrench[out], contact[out], poc[out] = 0.0, False, np.nan
         self.sample += 1
         return Sample((k + 1) * self.interval_s, wrench, contact, poc, nodes)
 

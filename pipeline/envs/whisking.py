@@ -18,7 +18,8 @@ Actions (``Dict``, every component in [−1, 1]):
 Observations (``Dict``, SI): ``wrench`` [W, 6] each whisker's base force (N) and moment (N·m) in
 its whisker frame, ``contact`` [W, N] links touching during the interval, ``protraction`` and
 ``protraction_rate`` [W] (rad, rad/s: proprioception). ``info``: ``whiskers_in_contact``,
-``time_s``, ``head_pose`` (position m, Euler angles as docs/frames.md).
+``time_s``, ``head_pose`` (position m, Euler angles as docs/frames.md), ``jammed`` (whiskers
+taken out after their contact jammed, with why: :mod:`pipeline.engines.session`).
 
 Scenes: ``"wall"`` a flat wall ahead of the snout, :data:`WALL_GAP_M` beyond the farthest any
 whisker's rest shape reaches over the protraction range, so that full forward speed reaches it
@@ -142,7 +143,8 @@ class WhiskingEnv(gym.Env):
     def _info(self, time_s: float, in_contact: int) -> dict:
         pose = self.head_poses[-1]
         return {"whiskers_in_contact": in_contact, "time_s": time_s,
-                "head_pose": (np.asarray(pose.position_m), np.asarray(pose.euler_zyx_rad))}
+                "head_pose": (np.asarray(pose.position_m), np.asarray(pose.euler_zyx_rad)),
+                "jammed": {self.names[k]: why for k, why in self.session.jammed.items()}}
 
     # -- the episode as a trial -------------------------------------------------------------
     def episode_output(self) -> TrialOutput:
