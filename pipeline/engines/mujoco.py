@@ -3,7 +3,8 @@
 Model. One MjModel per step size (the whiskers that share ``engine.dt_s / 2**j``, see
 :mod:`pipeline.engines.stepping`), built with ``mujoco.MjSpec`` in mm–mg–s
 (:mod:`pipeline.engines.units`: tip-link inertias are ~10⁻¹⁸ kg·m² in SI, and MuJoCo refuses
-anything below 10⁻¹⁵). A mocap body is the head (the pose of a trial). Under it, per whisker,
+anything below 10⁻¹⁵). A mocap body is the head (the pose of a trial; a moving head's is set
+every step, :mod:`pipeline.model.head_motion`). Under it, per whisker,
 a follicle body at the base point carries the three driven hinges Z, Y, X; link 1 hangs from
 it, rigidly or on the compliant follicle's hinges; every further link is a body with the
 hinges of its node (:mod:`pipeline.model.joints`: z, y and, with twist, x; MuJoCo composes a
