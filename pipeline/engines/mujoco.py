@@ -117,6 +117,7 @@ and 100 sweeps up to 5 % and 8 %), which the template's reuse of free motion rel
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -462,6 +463,9 @@ class MujocoWorld(World):
         self.link_bodies = np.array([[named(body, f"w{k}/l{i}") for i in range(self.links)]
                                      for k in members])
         self.link_lengths_mm = np.array([self.whiskers[k].chain.link_lengths_m for k in members]) * U.LENGTH
+        # every member's links as one chain's, for a load on all of them at once (_apply_frame_load)
+        self.link_masses = SimpleNamespace(link_mass_kg=np.concatenate(
+            [self.whiskers[k].chain.link_mass_kg for k in members]))
 
         def joints(b):
             return np.arange(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
@@ -642,21 +646,20 @@ class MujocoWorld(World):
         kinematic, armature, spring_rate = self.kinematic, self.armature, self.spring_rate
         step_function = mujoco.mj_step
         loads, head = setup.loads, setup.head
-        everyone, inertial = list(range(n_w)), False    # inertial: this step had the head frame's load
+        inertial = False                 # this step had the head frame's load
+        own = np.zeros(n_w, bool)
+        own[loaded] = True
         yield plan
         for step in range(n_steps + 1):
             np.multiply(spring_rate, qvel, out=qfrc)
             qfrc[kinematic] = armature * (((targets[step] - qpos[kinematic]) / h - qvel[kinematic]) / h)
-            applied = loaded
             if head is not None:
                 d.mocap_pos[0], d.mocap_quat[0] = plan.head_position_mm[step], plan.head_quat[step]
-                extra = plan.head_inertia[step]
-                if extra or inertial:                  # (once more without it: clears the last one)
-                    applied, loads, inertial = everyone, [own + extra for own in setup.loads], bool(extra)
-                else:
-                    loads = setup.loads
-            if applied:
-                self._apply_loads(loads, applied)
+            if loaded:
+                self._apply_loads(loads, loaded)
+            if head is not None and (plan.head_inertia[step] or inertial):   # once more without: clears it
+                self._apply_frame_load(plan.head_inertia[step], own)
+                inertial = bool(plan.head_inertia[step])
             sample, due = divmod(step, spp)
             records = due == 0 and sample > 0
             if due < 2:
@@ -733,6 +736,29 @@ class MujocoWorld(World):
         proximal = d.xpos[bodies]
         distal = proximal + d.xmat[bodies][:, 0::3] * self.link_lengths_mm.ravel()[links, None]
         return links, contact.pos[pressed][mine], proximal, distal
+
+    def _apply_frame_load(self, frame: tuple, own: np.ndarray) -> None:
+        """The head frame's inertial load (``frame``: () or one
+        :class:`~pipeline.model.head_motion.HeadFrameInertia`) on every member's links at once,
+        added to the wrenches of members with loads of their own (``own`` [w], applied this
+        step) and replacing the others'."""
+        import mujoco
+
+        m, d = self.model, self.data
+        bodies = self.link_bodies.ravel()
+        force = np.zeros((len(bodies), 3))
+        if frame:
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
+            mujoco.mj_comVel(m, d)
+            omega = d.cvel[bodies, :3]          # cvel: [ω, v] at the tree's subtree centre of mass
+            velocity = (d.cvel[bodies, 3:] + np.cross(omega, d.xipos[bodies] - d.subtree_com[m.body_rootid[bodies]]))
+            state = LinkState(d.xipos[bodies] / U.LENGTH, None, velocity / U.LENGTH, omega)
+            force = frame[0].link_forces(self.link_masses, state)[0] * U.FORCE
+        mine = np.repeat(own, self.links)
+        d.xfrc_applied[bodies[mine], :3] += force[mine]
+        d.xfrc_applied[bodies[~mine]] = 0.0
+        d.xfrc_applied[bodies[~mine], :3] = force[~mine]
 
     def _apply_loads(self, loads, loaded: list[int]) -> None:
         """The loads' per-link forces on members ``loaded`` at the current state, as wrenches
