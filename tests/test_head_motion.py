@@ -80,14 +80,16 @@ def test_a_still_or_steadily_moving_head_changes_no_force_and_a_turning_one_does
 
 
 def test_engines_agree_on_a_turning_heads_load():
+    duration = DURATION_S / 2
+    drive = sinusoidal_whisk(8.0, 35.0, 10.0, duration)
     changes = {}
     for name in ("mujoco", "bullet"):
         config = ModelConfig()
         config = config.model_copy(update={"engine": config.engine.model_copy(update={"name": name})})
         with Whisking(config, "RD2") as whisking:
-            alone = whisking.engine.run(Scene("none"), Pose(), DRIVE, DURATION_S)
-            turning = whisking.engine.run(Scene("none"), Pose(), DRIVE, DURATION_S,
-                                          head_motion=HeadMotion.steady(Pose(), (0.0, 0.0, 0.0), (3.0, 1.0, 0.0), DURATION_S))
+            alone = whisking.engine.run(Scene("none"), Pose(), drive, duration)
+            turning = whisking.engine.run(Scene("none"), Pose(), drive, duration,
+                                          head_motion=HeadMotion.steady(Pose(), (0.0, 0.0, 0.0), (3.0, 1.0, 0.0), duration))
             changes[name] = (turning.base_wrench - alone.base_wrench)[:, 0, 3:]
     scale = np.abs(changes["mujoco"]).max()
     assert np.abs(changes["mujoco"] - changes["bullet"]).max() < 0.05 * scale
