@@ -1,5 +1,6 @@
 """The closed-loop environment: gymnasium's checks, determinism, a forward-moving head reaching
-the wall ahead, an episode written and read back as a dataset trial, the example controller."""
+the wall ahead, an episode rendered through rerun and written and read back as a dataset trial,
+the example controller."""
 
 import subprocess
 import sys
@@ -71,8 +72,11 @@ def test_a_closed_loop_episode_is_a_dataset_trial(tmp_path):
     import pipeline.datasets as datasets
     from pipeline.reports.stats import stats_report
 
-    environment = gym.make(ENV_ID, scene="wall", whiskers=WHISKERS, engine="mujoco")
+    environment = gym.make(ENV_ID, scene="wall", whiskers=WHISKERS, engine="mujoco", render_mode="rerun",
+                           recording=tmp_path / "episode.rrd")
     whisk_then_go(environment.unwrapped, 180, 1.0)
+    environment.unwrapped.render()
+    assert (tmp_path / "episode.rrd").stat().st_size > 0
     path = environment.unwrapped.record(tmp_path / "episode.h5")
     head = environment.unwrapped.episode_head()
     environment.close()

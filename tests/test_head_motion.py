@@ -129,3 +129,24 @@ def test_a_dataset_trial_with_an_approaching_head_stores_its_path(tmp_path, engi
     start = np.asarray(trial.record.pose_position_m)
     travelled = np.linalg.norm(np.diff(np.vstack([start, path]), axis=0), axis=1).sum()
     assert 0.02 * 0.02 * 0.9 < travelled < 0.12 * 0.02 * 1.1       # drawn speed 20–120 mm/s for 20 ms
+
+
+def test_a_head_table_moves_relative_to_the_starting_pose(tmp_path):
+    from pipeline.config.simulate import HeadMotionConfig
+    from pipeline.scenes.head_paths import draw_head_motion, load_head_table
+
+    path = tmp_path / "head.csv"
+    path.write_text("# forward 10 mm while turning 20 degrees to the left\n"
+                    "time_s,forward_mm,lateral_mm,dorsal_mm,yaw_deg,pitch_deg,roll_deg\n"
+                    "0,0,0,0,0,0,0\n0.05,5,0,0,10,0,0\n0.1,10,0,0,20,0,0\n")
+    config = HeadMotionConfig(kind="table", table=path)
+    rng = np.random.default_rng(0)
+    path_of, _ = draw_head_motion(config, rng, load_head_table(path))
+    assert rng.uniform() == np.random.default_rng(0).uniform()        # a table draws nothing
+    start = Pose.anatomical((0.01, 0.02, 0.0), yaw_rad=np.pi / 2, pitch_rad=0.1)
+    head = path_of(start, None, 0.1)
+    end = head.pose(0.1)
+    assert np.allclose(end.position_m, np.asarray(start.position_m) + start.rotation @ [0.0, 0.01, 0.0], atol=1e-12)
+    assert np.allclose(end.rotation, start.rotation @ Pose.anatomical(yaw_rad=np.radians(20)).rotation, atol=1e-12)
+    with pytest.raises(UserError):
+        load_head_table(tmp_path / "missing.csv")
