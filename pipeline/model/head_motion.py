@@ -21,9 +21,9 @@ link's centre of mass (:class:`HeadFrameInertia`):
 with a_O the head origin's acceleration, ω and α the head's angular velocity and acceleration
 (world axes), r the centre of mass relative to the head origin and v_rel its velocity relative
 to the head (what the simulator reports with the head held still). The fictitious torques on a
-link about its own centre of mass (−I·α − ω × I·ω, I ≲ 10⁻¹⁷ kg·m²) are ~10⁻¹⁵ N·m at the
-head rates of :mod:`pipeline.scenes.head_paths`, ten orders below the base moments, and left
-out. What the scheme does not see: the contact solver takes a whisker's velocity relative to
+link about its own centre of mass (−I·α − ω × I·ω; the model rat's largest link inertia is
+5.7·10⁻¹⁴ kg·m²) stay below 10⁻¹¹ N·m for α, ω² ≲ 100 rad/s², five orders below base moments
+of ~10⁻⁶ N·m, and are left out. What the scheme does not see: the contact solver takes a whisker's velocity relative to
 the head, not to the obstacle, for its damping and friction (a sliding direction off by the
 head's own velocity at the contact, 0.05–0.2 m/s against tip speeds of 1–3 m/s while whisking).
 """
