@@ -25,7 +25,8 @@ link about its own centre of mass (−I·α − ω × I·ω; the model rat's lar
 5.7·10⁻¹⁴ kg·m²) stay below 10⁻¹¹ N·m for α, ω² ≲ 100 rad/s², five orders below base moments
 of ~10⁻⁶ N·m, and are left out. What the scheme does not see: the contact solver takes a whisker's velocity relative to
 the head, not to the obstacle, for its damping and friction (a sliding direction off by the
-head's own velocity at the contact, 0.05–0.2 m/s against tip speeds of 1–3 m/s while whisking).
+head's own velocity at the contact: 0.02–0.12 m/s for the default approach speeds, against a
+tip speed of ≈ 1 m/s for a 50 mm whisker whisking ±25° at 8 Hz).
 """
 
 from __future__ import annotations
