@@ -138,6 +138,30 @@ class WhiskSamplingConfig(StrictModel):
         return self
 
 
+class HeadMotionConfig(StrictModel):
+    """Each trial's head trajectory (:mod:`pipeline.scenes.head_paths`, docs/closed_loop.md).
+
+    ``none``: the head holds the trial's pose (datasets as before). ``approach``: from the
+    trial's pose the head moves at a drawn ``speed_mm_s`` toward the aimed surface point (a
+    mesh; fixed scenes: straight ahead, rostral) while turning at a drawn ``yaw_rate_deg_s``
+    (nose to the left > 0); the pose sampler checks the whole path. ``table``: a CSV with
+    columns time_s, forward_mm, lateral_mm, dorsal_mm, yaw_deg, pitch_deg, roll_deg: the head's
+    pose relative to the trial's starting pose, in that pose's head axes (docs/frames.md).
+    """
+
+    kind: Literal["none", "approach", "table"] = "none"
+    speed_mm_s: Annotated[Range, within(0.0, 1000.0)] = Range(low=20.0, high=120.0)
+    yaw_rate_deg_s: Annotated[Range, within(-1000.0, 1000.0)] = Range(low=-90.0, high=90.0)
+    table: Path | None = Field(None, description="kind 'table': CSV of the head's pose relative to its start")
+
+    @model_validator(mode="after")
+    def _table_given(self) -> "HeadMotionConfig":
+        if self.kind == "table" and self.table is None:
+            raise ValueError("kind 'table' needs 'table: PATH' (CSV with columns time_s, forward_mm, "
+                             "lateral_mm, dorsal_mm, yaw_deg, pitch_deg, roll_deg)")
+        return self
+
+
 class DatasetConfig(StrictModel):
     """Where and how trials are stored: ``<root>/<name>/v<k>/`` (docs/dataset.md)."""
 
@@ -250,6 +274,7 @@ class SimulateConfig(StrictModel):
     scenes: ScenesConfig = ScenesConfig()
     poses: PoseSamplingConfig = PoseSamplingConfig()
     whisk: WhiskSamplingConfig = WhiskSamplingConfig()
+    head_motion: HeadMotionConfig = HeadMotionConfig()
     dataset: DatasetConfig = DatasetConfig()
     cluster: ClusterConfig = ClusterConfig()
     # The config file a run was resolved from: {path, sha256} or, without one, {path: None, note}
@@ -289,7 +314,8 @@ def load_simulate_config(path: str | Path | None = None, overrides: dict | None 
     config = config.model_copy(update={
         "dataset": config.dataset.model_copy(update={"root": in_project(config.dataset.root, root)}),
         "scenes": config.scenes.model_copy(update={"folder": in_project(config.scenes.folder, root)}),
-        "whisk": config.whisk.model_copy(update={"table": in_project(config.whisk.table, root)})})
+        "whisk": config.whisk.model_copy(update={"table": in_project(config.whisk.table, root)}),
+        "head_motion": config.head_motion.model_copy(update={"table": in_project(config.head_motion.table, root)})})
     if path is None:
         config._config_file = {"path": None, "sha256": None,
                                "note": f"no {CONFIG_NAME} in {root / CONFIGS_DIR}; built-in defaults: "

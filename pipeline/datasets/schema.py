@@ -68,6 +68,14 @@ ARRAYS: dict[str, ArraySpec] = {
     "protraction_rad": ArraySpec(
         ("trial", "time"), "f4", "rad", float("nan"), "protraction angle theta(t) of the drive",
         "protraction angle"),
+    "head_position_m": ArraySpec(
+        ("trial", "time", "xyz"), "f4", "m", float("nan"),
+        "array origin (head frame origin) in the world frame at the sample's time; only in datasets "
+        "with head motion (config head_motion)", "head position"),
+    "head_euler_zyx_rad": ArraySpec(
+        ("trial", "time", "euler"), "f4", "rad", float("nan"),
+        "head rotation at the sample's time as pose_euler_zyx_rad (yaw, roll, pitch; docs/frames.md); "
+        "only in datasets with head motion", "head rotation"),
     "node_positions_m": ArraySpec(
         ("trial", "node_time", "whisker", "node", "xyz"), "f4", "m", float("nan"),
         "node positions (node 0 = base point ... N = tip), world frame, every k-th sample",

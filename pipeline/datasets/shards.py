@@ -40,8 +40,10 @@ class Shard:
 
 
 def plan_fields(config: SimulateConfig) -> dict:
-    """The config fields that define the trials (not where they run or are stored)."""
-    return config.model_dump(mode="json", exclude={"cluster": True, "dataset": {"root"}})
+    """The config fields that define the trials (not where they run or are stored); a still head
+    (``head_motion.kind`` none) is left out, so runs from before the field existed keep their id."""
+    still = config.head_motion.kind == "none"
+    return config.model_dump(mode="json", exclude={"cluster": True, "dataset": {"root"}, **({"head_motion": True} if still else {})})
 
 
 def run_id(config: SimulateConfig) -> str:

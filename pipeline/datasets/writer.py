@@ -33,6 +33,7 @@ from pipeline.storage import replacing, require_free_space
 
 if TYPE_CHECKING:
     from pipeline.config.physics import ModelConfig
+    from pipeline.model.head_motion import HeadMotion
     from pipeline.model.kinematics import Pose, ProtractionDrive
     from pipeline.model.morphology import Morphology
     from pipeline.scenes.obstacles import Scene
@@ -50,6 +51,7 @@ class Layout:
     links: int
     whiskers: dict[str, np.ndarray]      # whisker table columns (WHISKER_COLUMNS)
     node_every: int = 0                  # node positions every k-th sample; 0 = not stored
+    head_motion: bool = False            # the head's pose at every sample is stored
     compression_level: int = 4
 
     @property
@@ -68,11 +70,15 @@ class Layout:
                 "contact": (self.trials, self.samples, w, self.links),
                 "point_of_contact": (self.trials, self.samples, w),
                 "protraction_rad": (self.trials, self.samples),
+                "head_position_m": (self.trials, self.samples, 3),
+                "head_euler_zyx_rad": (self.trials, self.samples, 3),
                 "node_positions_m": (self.trials, len(self.node_time_s), w, self.links + 1, 3)}[name]
 
     @property
     def arrays(self) -> list[str]:
-        return [name for name in ARRAYS if name != "node_positions_m" or self.node_every]
+        optional = {"node_positions_m": self.node_every, "head_position_m": self.head_motion,
+                    "head_euler_zyx_rad": self.head_motion}
+        return [name for name in ARRAYS if optional.get(name, True)]
 
 
 def whisker_table(morphology: "Morphology") -> dict[str, np.ndarray]:
@@ -97,8 +103,11 @@ def whisker_table(morphology: "Morphology") -> dict[str, np.ndarray]:
             "euler_rates": np.array([kinematics.euler_joint_rates(s.row, s.side) for s in specs]).reshape(-1, 3)}
 
 
-def trial_arrays(output: TrialOutput, protraction_rad: np.ndarray, layout: Layout) -> dict[str, np.ndarray]:
-    """The trial-major arrays of one trial, padded to ``layout.samples`` (NaN / 0)."""
+def trial_arrays(output: TrialOutput, protraction_rad: np.ndarray, layout: Layout,
+                 head: "HeadMotion | None" = None) -> dict[str, np.ndarray]:
+    """The trial-major arrays of one trial, padded to ``layout.samples`` (NaN / 0); with
+    ``layout.head_motion``, ``head``'s pose at the sample times (without ``head`` those arrays
+    keep their fill)."""
     t = len(output.time_s)
     if t > layout.samples:
         raise ValueError(f"trial has {t} samples; the dataset holds {layout.samples}")
@@ -118,6 +127,8 @@ def trial_arrays(output: TrialOutput, protraction_rad: np.ndarray, layout: Layou
               "contact": padded("contact", output.contact),
               "point_of_contact": padded("point_of_contact", output.point_of_contact),
               "protraction_rad": padded("protraction_rad", protraction_rad)}
+    if layout.head_motion and head is not None:
+        arrays.update((name, padded(name, value)) for name, value in head.table(output.time_s).items())
     if layout.node_every:
         arrays["node_positions_m"] = padded("node_positions_m",
                                             output.node_positions_m[layout.node_every - 1::layout.node_every])
@@ -363,10 +374,12 @@ def refuse_existing(path: Path) -> None:
 
 
 def write_single_trial(path: str | Path, output: TrialOutput, model: "ModelConfig", scene: "Scene",
-                       pose: "Pose", drive: "ProtractionDrive | None" = None) -> Path:
+                       pose: "Pose", drive: "ProtractionDrive | None" = None,
+                       head: "HeadMotion | None" = None) -> Path:
     """Write one trial as a one-trial dataset file (all node positions kept), atomically.
 
     ``drive``: the protraction drive the trial used; without it, ``model.whisk``'s sinusoid.
+    ``head``: the head's trajectory, if it moved (stored per sample).
     """
     from pipeline.model.kinematics import sinusoidal_whisk
     from pipeline.model.morphology import load_morphology
@@ -380,7 +393,7 @@ def write_single_trial(path: str | Path, output: TrialOutput, model: "ModelConfi
                                       duration)
     theta = drive(output.time_s)
     layout = Layout(trials=1, samples=len(output.time_s), sampling_rate_hz=output.sample_rate_hz,
-                    links=output.links, node_every=1,
+                    links=output.links, node_every=1, head_motion=head is not None,
                     whiskers=whisker_table(load_morphology(model.morphology).select(output.whisker_names)))
     record = TrialRecord(
         status="ok", scene=scene.name, duration_s=duration, samples=len(output.time_s),
@@ -396,5 +409,5 @@ def write_single_trial(path: str | Path, output: TrialOutput, model: "ModelConfi
              "provenance": provenance(model.model_dump(mode="json"), engine=output.metadata.get("engine"),
                                       model_file=model_file_record(model))}
     with replacing(path) as partial, DatasetWriter.create(partial, layout, attrs) as writer:
-        writer.write(0, record, trial_arrays(output, theta, layout))
+        writer.write(0, record, trial_arrays(output, theta, layout, head))
     return path

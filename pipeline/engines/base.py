@@ -22,6 +22,11 @@ Free joints. Besides the three driven base joints, a whisker has the spring join
 :class:`~pipeline.model.joints.JointLayout` (follicle z, y if compliant; z, y and, with twist,
 x per bending node); ``initial_joint_angles_rad`` are given in that order.
 
+A moving head (``head_motion``, :mod:`pipeline.model.head_motion`): the worlds place the head
+frame at the trajectory's pose every step and add its inertial load to every whisker's; the
+pose is the trajectory's at t = 0, and no free motion is reused or remembered (relative to the
+head it is not the same as a still head's).
+
 A trial's edges. Every whisker starts moving with its drive: its spring joints at the drive's
 quasi-steady state at t = 0 (bent by the inertial load of the base's motion, with its rate;
 :meth:`~pipeline.model.base_motion.BaseInertia.quasi_steady`), unless the trial is a release
@@ -46,6 +51,7 @@ from pipeline.engines.stepping import refinement_levels, step_groups, steps_per_
 from pipeline.errors import SimulationError
 from pipeline.model.array import ArrayModel, WhiskerModel
 from pipeline.model.base_motion import BaseInertia
+from pipeline.model.head_motion import HeadMotion
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.loads import TipForce
 from pipeline.model.outputs import TrialOutput
@@ -82,7 +88,8 @@ class TrialSetup:
     """What a world needs to run one trial: the scene, head pose and drive (continued past the
     trial's end), the number of output samples, per whisker of the world its free-joint angles
     (rad) and rates (rad/s) at t = 0 and its loads (:mod:`pipeline.model.loads`), and whether a
-    whisker's base holds still from its first contact on."""
+    whisker's base holds still from its first contact on, and the head's trajectory (None: the
+    head stays at ``pose``)."""
 
     scene: Scene
     pose: Pose
@@ -92,6 +99,7 @@ class TrialSetup:
     initial_rates: tuple
     loads: tuple
     hold_on_contact: bool = False
+    head: HeadMotion | None = None
 
     def only(self, whiskers) -> "TrialSetup":
         """The same trial for the world's whiskers ``whiskers`` (indices)."""
@@ -114,6 +122,15 @@ class World(ABC):
         """Simulate the whiskers with ``active`` [w] true for ``setup.samples`` output
         intervals (the others' rows stay zero). A whisker whose contact jammed (non-physical
         base moment or acceleration) is taken out and reported in ``jammed``."""
+
+    @abstractmethod
+    def stepping(self, setup: TrialSetup, active: np.ndarray, result: WorldResult, travel_m: float | None = None):
+        """A generator over the trial's output samples for the ``active`` whiskers: it yields the
+        backend's step plan first (``interval(sample, steps_per_sample)`` → the rows it steps
+        through before recording a sample, with their times; ``set_protraction`` and ``set_head``
+        rewrite rows), then each sample's index once ``result`` holds it. A controller may rewrite
+        the plan between samples (:mod:`pipeline.engines.session`); ``travel_m``: how far its head
+        may take each base point from its start (m; None: as the setup's head trajectory does)."""
 
     def close(self) -> None:
         """Release the simulator."""
@@ -147,7 +164,7 @@ class Engine(ABC):
 
     def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float, *,
             stop_drive_on_contact: bool = False, external_tip_force_n=None,
-            initial_joint_angles_rad=None) -> TrialOutput:
+            initial_joint_angles_rad=None, head_motion: HeadMotion | None = None) -> TrialOutput:
         """Simulate ``duration_s`` seconds, the bases moving as the drive does at t = 0 and every
         whisker at the drive's quasi-steady state (module docstring).
 
@@ -157,8 +174,11 @@ class Engine(ABC):
         start bent instead (a release): the free joints' angles at t = 0 (rad, relative to the
         rest shape, in the order of the module docstring), [J] for every whisker or [W, J] per
         whisker; velocities start at zero. None: the drive's quasi-steady state. Another shape
-        or a non-finite angle is a UserError.
+        or a non-finite angle is a UserError. ``head_motion``: the head moves along this
+        trajectory (module docstring; ``pose`` is then its pose at t = 0).
         """
+        if head_motion is not None:
+            pose = head_motion.pose(0.0)
         start_wall, start_cpu = time.perf_counter(), time.process_time()
         samples, initial = start_trial(self.array, scene, pose, drive, duration_s,
                                        self.config.output_rate_hz, initial_joint_angles_rad)
@@ -170,13 +190,13 @@ class Engine(ABC):
         initial, rates = self._drive_start(scene, pose, drive) if driven else \
             (initial, [np.zeros_like(angles) for angles in initial])
         setup = TrialSetup(scene, pose, drive.continued(times[-1], interval), samples, tuple(initial),
-                           tuple(rates), tuple(loads), stop_drive_on_contact)
-        started_by_drive = np.full(len(self.array.whiskers), driven)
+                           tuple(rates), tuple(loads), stop_drive_on_contact, head_motion)
+        started_by_drive = np.full(len(self.array.whiskers), driven and head_motion is None)
         depends_on_pose = any(l.depends_on_pose for ls in loads for l in ls)
         self.free.select(drive, samples, depends_on_pose=depends_on_pose)
         reused = started_by_drive & self.free.reusable(pose, scene, times)
         coarse = np.zeros_like(reused)
-        if self.free_path is not None and driven and not depends_on_pose:
+        if self.free_path is not None and driven and not depends_on_pose and head_motion is None:
             coarse = ~reused & self.free_path.clear(scene, pose, drive, duration_s, times)
         result = WorldResult.zeros(samples, len(self.array.whiskers), self.array.links)
         steps, refined = 0, {}

@@ -123,6 +123,44 @@ def _mesh_shape(client: int, mesh: TriangleMesh) -> int:
 SHAPES = {Cylinder: _cylinder_shape, Box: _box_shape, TriangleMesh: _mesh_shape}
 
 
+class BulletPlan:
+    """What a world's whiskers and the head do at each step of a trial: ``theta`` [steps, w] the
+    protraction (rad) each whisker's base reaches at the step's end, and with a head trajectory
+    ``head_position_m`` [steps, 3], ``head_rotation`` [steps, 3, 3] and ``head_inertia`` (per
+    step, the loads to add) at the step's end. Built from the drive and trajectory (open loop);
+    :meth:`set_protraction` and :meth:`set_head` rewrite rows (closed loop)."""
+
+    def __init__(self, setup: TrialSetup, n_steps: int, h: float, whiskers: int):
+        self.ends = ends = np.arange(1, n_steps + 1) * h
+        self.theta = np.broadcast_to(np.asarray(setup.drive(ends), float)[:, None], (n_steps, whiskers))
+        if setup.head is not None:
+            self.head_position_m, self.head_rotation = setup.head.frames(ends)
+            self.head_inertia = setup.head.inertia(ends)
+
+    def moves(self, step: int) -> bool:
+        """Whether the head frame of ``step`` differs from the step before's."""
+        return not (np.array_equal(self.head_position_m[step], self.head_position_m[step - 1])
+                    and np.array_equal(self.head_rotation[step], self.head_rotation[step - 1]))
+
+    def interval(self, sample: int, spp: int) -> tuple[slice, np.ndarray, np.ndarray]:
+        """(rows, their protractions' times, their head frames' times) that the generator steps
+        through before it records ``sample``."""
+        rows = slice(sample * spp, (sample + 1) * spp)
+        return rows, self.ends[rows], self.ends[rows]
+
+    def set_protraction(self, steps: slice, theta_rad: np.ndarray) -> None:
+        """Steps ``steps`` end at protraction ``theta_rad`` [n, w] (rad) per whisker."""
+        if not self.theta.flags.writeable:
+            self.theta = self.theta.copy()
+        self.theta[steps] = theta_rad
+
+    def set_head(self, steps: slice, positions_m: np.ndarray, rotations: np.ndarray, inertia: list) -> None:
+        """Steps ``steps`` end with the head at ``positions_m`` [n, 3], ``rotations`` [n, 3, 3],
+        its inertial loads ``inertia`` (per step a tuple of loads)."""
+        self.head_position_m[steps], self.head_rotation[steps] = positions_m, rotations
+        self.head_inertia[steps] = inertia
+
+
 class BulletWorld(World):
     """One pybullet client stepping some whiskers at one step size ``dt_s`` (no native gravity:
     gravity is a load)."""
@@ -210,6 +248,16 @@ class BulletWorld(World):
         self._place_obstacles(0.0)
         p.performCollisionDetection(physicsClientId=self.client)    # bounding boxes, where contacts are looked up
 
+    def _place_head(self, whiskers, position_m: np.ndarray, rotation: np.ndarray) -> None:
+        """The bases of ``whiskers`` (indices) where a head at ``position_m`` (m), ``rotation`` has them."""
+        import pybullet as p
+
+        orientation = quat(rotation)
+        for k in whiskers:
+            base = (position_m + rotation @ self.bodies[k].model.base_point_m) * U.LENGTH
+            p.resetBasePositionAndOrientation(self.bodies[k].body, base.tolist(), orientation,
+                                              physicsClientId=self.client)
+
     def _park(self, k: int, drive: ProtractionDrive) -> None:
         """Move whisker k far away at rest, asleep: it no longer touches anything, and Bullet
         no longer steps it (a parked whisker awake cost ≈ 40 % of a simulated one)."""
@@ -228,29 +276,45 @@ class BulletWorld(World):
         p.changeDynamics(self.bodies[k].body, -1, activationState=state, physicsClientId=self.client)
 
     def run(self, setup: TrialSetup, active: np.ndarray) -> WorldResult:
+        result = WorldResult.zeros(setup.samples, len(self.bodies), self.whiskers[0].chain.links)
+        for _ in self.stepping(setup, active, result):
+            pass
+        return result
+
+    def stepping(self, setup: TrialSetup, active: np.ndarray, result: WorldResult, travel_m: float | None = None):
+        """A generator that simulates the ``active`` whiskers for the trial's output intervals into
+        ``result``: it first yields its :class:`BulletPlan` (every step's protraction per whisker
+        and head frame, from the drive and head trajectory), then the index of every sample it
+        records, after recording it. A controller may rewrite the plan's rows of the next
+        interval before asking for the next sample (:mod:`pipeline.engines.session`).
+        ``travel_m`` is not needed: every whisker looks for contacts with every obstacle."""
         import pybullet as p
 
         c, h, drive, config = self.client, self.dt_s, setup.drive, self.config
         self.set_scene(setup.scene)
         self._reset(setup, active)
-        n_w, n_links = len(self.bodies), self.whiskers[0].chain.links
-        result = WorldResult.zeros(setup.samples, n_w, n_links)
+        n_w = len(self.bodies)
         flags = ContactFlags(node_arc_fractions(self.whiskers))
         held: list[np.ndarray | None] = [None] * n_w      # drive stopped at contact
         moving = any(o.velocity_mm_s.any() for o in self.obstacles)
         running = list(np.flatnonzero(active))
         n_steps = setup.samples * self.steps_per_sample
-        thetas = np.asarray(drive(np.arange(1, n_steps + 1) * h), float)     # θ(t + h) of every step
+        plan = BulletPlan(setup, n_steps, h, n_w)
         obstacles = [(o.body, o.velocity_mm_s) for o in self.obstacles if not o.mesh]
+        loads, head = setup.loads, setup.head
+        yield plan
         for step in range(n_steps):
             if moving:                                   # contacts with where obstacles will be
                 self._place_obstacles((step + 1) * h)
+            if head is not None and (step == 0 or plan.moves(step)):     # ... and where the head will be
+                self._place_head(running, plan.head_position_m[step], plan.head_rotation[step])
+                loads = [own + plan.head_inertia[step] for own in setup.loads]
             contacts = find_contacts(c, obstacles, self._links) if obstacles else {}
             for k in running:
                 w = self.bodies[k]
-                target = held[k] if held[k] is not None else w.rest_driven + w.rates * thetas[step]
+                target = held[k] if held[k] is not None else w.rest_driven + w.rates * plan.theta[step, k]
                 points = contacts.get(w.body, ())
-                normal = w.apply_implicit_torques(target, h, setup.loads[k], points,
+                normal = w.apply_implicit_torques(target, h, loads[k], points,
                                                   config.contact_friction, config.solver_iterations)
                 self._flag_contacts(k, points, normal, flags, result.touched)
             p.stepSimulation(physicsClientId=c)
@@ -269,7 +333,7 @@ class BulletWorld(World):
                     result.jammed[k] = jam_message(self.whiskers[k].name, result.wrench[sample, k], (step + 1) * h)
                     self._park(k, drive)
                     running.remove(k)
-        return result
+                yield sample
 
     def _flag_contacts(self, k: int, points, normal_forces: np.ndarray, flags: ContactFlags,
                        touched: np.ndarray) -> None:

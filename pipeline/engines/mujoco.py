@@ -3,7 +3,8 @@
 Model. One MjModel per step size (the whiskers that share ``engine.dt_s / 2**j``, see
 :mod:`pipeline.engines.stepping`), built with ``mujoco.MjSpec`` in mm–mg–s
 (:mod:`pipeline.engines.units`: tip-link inertias are ~10⁻¹⁸ kg·m² in SI, and MuJoCo refuses
-anything below 10⁻¹⁵). A mocap body is the head (the pose of a trial). Under it, per whisker,
+anything below 10⁻¹⁵). A mocap body is the head (the pose of a trial; a moving head's is set
+every step, :mod:`pipeline.model.head_motion`). Under it, per whisker,
 a follicle body at the base point carries the three driven hinges Z, Y, X; link 1 hangs from
 it, rigidly or on the compliant follicle's hinges; every further link is a body with the
 hinges of its node (:mod:`pipeline.model.joints`: z, y and, with twist, x; MuJoCo composes a
@@ -118,6 +119,7 @@ and 100 sweeps up to 5 % and 8 %), which the template's reuse of free motion rel
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -251,6 +253,49 @@ class _Part:
     @property
     def key(self) -> tuple:
         return (self.index, None if self.faces is None else self.faces.tobytes())
+
+
+class MujocoPlan:
+    """What a world's kinematic joints and the head do at each step of a trial (internal units):
+    ``targets`` [steps + 1, kinematic] the driven hinges' and obstacle slides' positions at the
+    end of each step, ``head_position_mm`` [steps + 1, 3], ``head_quat`` (w, x, y, z) and
+    ``head_inertia`` (per step, the loads to add) at each step's start; the head rows only with
+    a head trajectory. Built from the drive and trajectory (open loop); :meth:`set_protraction`
+    and :meth:`set_head` rewrite rows (closed loop)."""
+
+    def __init__(self, world: "MujocoWorld", offset: np.ndarray, theta_rate: np.ndarray, setup: TrialSetup,
+                 n_steps: int):
+        h = world.dt_s
+        self.times = np.arange(n_steps + 2) * h
+        self.offset, self.theta_rate = offset, theta_rate
+        self.slide_rate = np.concatenate([np.zeros(world.n_driven), world.obstacle_velocity])
+        thetas = np.asarray(setup.drive(self.times), float)
+        self.targets = offset + theta_rate * thetas[1:, None] + self.slide_rate * self.times[1:, None]
+        self.whisker_of_joint = np.repeat(np.arange(len(world.members)), 3)     # driven hinges Z, Y, X
+        head = setup.head
+        if head is not None:
+            positions, rotations = head.frames(self.times[:n_steps + 1])
+            self.head_position_mm, self.head_quat = positions * U.LENGTH, [quat_wxyz(r) for r in rotations]
+            self.head_inertia = head.inertia(self.times[:n_steps + 1])
+
+    def interval(self, sample: int, spp: int) -> tuple[slice, np.ndarray, np.ndarray]:
+        """(rows, their targets' times, their head frames' times) that the generator steps through
+        before it records ``sample`` (at the start of the step after the interval: one step's
+        targets beyond the sample's time)."""
+        rows = slice(0 if sample == 0 else sample * spp + 1, (sample + 1) * spp + 1)
+        return rows, self.times[1:][rows], self.times[rows]
+
+    def set_protraction(self, steps: slice, theta_rad: np.ndarray) -> None:
+        """Steps ``steps`` end at protraction ``theta_rad`` [n, members] (rad) per whisker."""
+        n = self.whisker_of_joint.size
+        self.targets[steps, :n] = (self.offset[:n] + self.theta_rate[:n] * theta_rad[:, self.whisker_of_joint])
+
+    def set_head(self, steps: slice, positions_m: np.ndarray, rotations: np.ndarray, inertia: list) -> None:
+        """Steps ``steps`` start with the head at ``positions_m`` [n, 3], ``rotations`` [n, 3, 3],
+        its inertial loads ``inertia`` (per step a tuple of loads)."""
+        self.head_position_mm[steps] = positions_m * U.LENGTH
+        self.head_quat[steps] = [quat_wxyz(r) for r in rotations]
+        self.head_inertia[steps] = inertia
 
 
 class MujocoWorld(World):
@@ -420,6 +465,9 @@ class MujocoWorld(World):
         self.link_bodies = np.array([[named(body, f"w{k}/l{i}") for i in range(self.links)]
                                      for k in members])
         self.link_lengths_mm = np.array([self.whiskers[k].chain.link_lengths_m for k in members]) * U.LENGTH
+        # every member's links as one chain's, for a load on all of them at once (_apply_frame_load)
+        self.link_masses = SimpleNamespace(link_mass_kg=np.concatenate(
+            [self.whiskers[k].chain.link_mass_kg for k in members]))
 
         def joints(b):
             return np.arange(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
@@ -451,13 +499,15 @@ class MujocoWorld(World):
         return self._prisms[scene.key, index]
 
     def _reachable(self, scene: Scene, pose: Pose, duration_s: float,
-                   members: np.ndarray) -> tuple[list[_Part], np.ndarray]:
+                   members: np.ndarray, travel_m: np.ndarray | float = 0.0) -> tuple[list[_Part], np.ndarray]:
         """The obstacle parts this world's whiskers ``members`` can reach at ``pose`` within
         ``duration_s`` (a static mesh cropped to the faces within their reach), and [w] a lower
         bound of each whisker's distance from its base point to the nearest of them (inf if
-        none; always for the others)."""
+        none; always for the others); a moving head takes each base point up to ``travel_m``
+        [w, every whisker of the world] (m) from where it starts."""
         bases = pose.apply(np.array([self.whiskers[k].base_point_m for k in members]))
-        reach = self.link_reach_m[members, -1]
+        travel_m = np.broadcast_to(np.asarray(travel_m, float), (len(self.whiskers),))[members]
+        reach = self.link_reach_m[members, -1] + travel_m
         gaps = np.full(len(members), np.inf)
         parts: list[_Part] = []
         for index, obstacle in enumerate(scene.obstacles):
@@ -480,7 +530,7 @@ class MujocoWorld(World):
                     parts.append(_Part(index, obstacle, prisms=mesh_prisms))
             gaps = np.minimum(gaps, gap)
         all_gaps = np.full(len(self.whiskers), np.inf)
-        all_gaps[members] = gaps
+        all_gaps[members] = np.maximum(gaps - travel_m, 0.0)
         return parts, all_gaps
 
     def _prepare(self, scene: Scene, parts: list[_Part], gaps: np.ndarray, members: np.ndarray) -> None:
@@ -534,8 +584,7 @@ class MujocoWorld(World):
         result = WorldResult.zeros(setup.samples, len(self.whiskers), self.links)
         members = np.flatnonzero(active)
         if members.size:
-            parts, gaps = self._reachable(setup.scene, setup.pose, setup.samples / self.config.output_rate_hz,
-                                          members)
+            parts, gaps = self._reach(setup, members)
         while members.size:
             self._prepare(setup.scene, parts, gaps, members)
             try:
@@ -548,9 +597,40 @@ class MujocoWorld(World):
             break
         return result
 
+    def _reach(self, setup: TrialSetup, members: np.ndarray,
+               travel_m: float | None = None) -> tuple[list[_Part], np.ndarray]:
+        """:meth:`_reachable` for the trial's whiskers ``members``, its head's path taking each
+        base point up to ``travel_m`` (m; None: as far as the setup's head trajectory takes it)."""
+        duration = setup.samples / self.config.output_rate_hz
+        if travel_m is None:
+            travel_m = 0.0 if setup.head is None else setup.head.base_travel_m(
+                np.array([w.base_point_m for w in self.whiskers]), np.arange(0.0, duration + self.dt_s, self.dt_s))
+        return self._reachable(setup.scene, setup.pose, duration, members, travel_m)
+
+    def stepping(self, setup: TrialSetup, active: np.ndarray, result: WorldResult, travel_m: float | None = None):
+        """:meth:`_stepping` for the ``active`` whiskers (all of them: ``result`` is in their
+        order), the head taking each base point up to ``travel_m`` (m) from its start. A whisker
+        whose contact jams is parked (:meth:`_park`; no step refinement) and listed in
+        ``result.jammed``."""
+        members = np.flatnonzero(active)
+        self._prepare(setup.scene, *self._reach(setup, members, travel_m), members)
+        return self._stepping(setup.only(members), result, park=True)
+
     def _simulate(self, setup: TrialSetup) -> WorldResult:
         """Integrate the current model (its ``members``; ``setup`` for them) for the trial's
-        output intervals.
+        output intervals, open loop (:meth:`_stepping` with the plan it makes)."""
+        result = WorldResult.zeros(setup.samples, len(self.members), self.links)
+        for _ in self._stepping(setup, result):
+            pass
+        return result
+
+    def _stepping(self, setup: TrialSetup, result: WorldResult, park: bool = False):
+        """A generator that integrates the current model for the trial's output intervals into
+        ``result``: it first yields its :class:`MujocoPlan` (the kinematic targets and head frames
+        of every step, from the drive and head trajectory), then the index of every sample it
+        records, after recording it. A controller may rewrite the plan's rows of the next
+        interval before asking for the next sample (:mod:`pipeline.engines.session`). A jam
+        raises :class:`_Jam`, or with ``park`` takes the whisker out (:meth:`_park`) and goes on.
 
         The per-step work in Python is kept to array operations on views taken once: the
         kinematic targets of every step are computed before the loop (rows rewritten when a
@@ -560,11 +640,8 @@ class MujocoWorld(World):
         m, d, h, spp = self.model, self.data, self.dt_s, self.steps_per_sample
         offset, theta_rate = self._reset(setup.pose, setup.drive, setup.initial, setup.initial_rates)
         n_w, n_steps = len(self.members), setup.samples * spp
-        times = np.arange(n_steps + 2) * h
-        thetas = np.asarray(setup.drive(times), float)
-        slide_rate = np.concatenate([np.zeros(self.n_driven), self.obstacle_velocity])
-        targets = offset + theta_rate * thetas[1:, None] + slide_rate * times[1:, None]   # [step, kinematic]
-        result = WorldResult.zeros(setup.samples, n_w, self.links)
+        plan = MujocoPlan(self, offset, theta_rate, setup, n_steps)
+        targets = plan.targets
         flags = ContactFlags(self.node_fractions[self.members])
         held = np.zeros(n_w, bool)
         loaded = [k for k in range(n_w) if setup.loads[k]]
@@ -575,20 +652,31 @@ class MujocoWorld(World):
         qpos, qvel, qfrc = d.qpos, d.qvel, d.qfrc_applied
         kinematic, armature, spring_rate = self.kinematic, self.armature, self.spring_rate
         step_function = mujoco.mj_step
+        loads, head = setup.loads, setup.head
+        inertial = False                 # this step had the head frame's load
+        own = np.zeros(n_w, bool)
+        own[loaded] = True
+        yield plan
         for step in range(n_steps + 1):
             np.multiply(spring_rate, qvel, out=qfrc)
             qfrc[kinematic] = armature * (((targets[step] - qpos[kinematic]) / h - qvel[kinematic]) / h)
+            if head is not None:
+                d.mocap_pos[0], d.mocap_quat[0] = plan.head_position_mm[step], plan.head_quat[step]
             if loaded:
-                self._apply_loads(setup.loads, loaded)
+                self._apply_loads(loads, loaded)
+            if head is not None and (plan.head_inertia[step] or inertial):   # once more without: clears it
+                self._apply_frame_load(plan.head_inertia[step], own)
+                inertial = bool(plan.head_inertia[step])
             sample, due = divmod(step, spp)
             records = due == 0 and sample > 0
             if due < 2:
                 option.disableflags = sensors_on if records else sensors_off
             step_function(m, d)
             if bad_acceleration.number:
-                self._blown_up(step * h)
+                self._unless_parked(lambda: self._blown_up(step * h), park, result)
             if records:
-                self._record(result, sample - 1, *flags.take(), time_s=step * h)
+                self._unless_parked(lambda: self._record(result, sample - 1, *flags.take(), time_s=step * h),
+                                    park, result)
             if d.ncon:
                 flags.add(*self._touched())
                 links = self.link_of_geom[d.contact.geom]
@@ -599,7 +687,36 @@ class MujocoWorld(World):
                         rows = slice(3 * k, 3 * k + 3)
                         targets[step + 1:, rows] = qpos[kinematic[rows]]
                     held |= newly
-        return result
+            if records:
+                yield sample - 1
+
+    def _unless_parked(self, call, park: bool, result: WorldResult) -> None:
+        """``call()``; with ``park``, the whiskers of a :class:`_Jam` it raises are parked."""
+        try:
+            call()
+        except _Jam as jam:
+            if not park:
+                raise
+            self._park(jam.messages, result)
+
+    def _park(self, messages: dict[int, str], result: WorldResult) -> None:
+        """Take the jammed whiskers (world indices → why) out of the rest of the trial: they
+        collide no more, their free joints restart at rest (their driven joints land on the
+        next target) and MuJoCo's bad-acceleration warning is cleared; ``result.jammed`` lists
+        them (their rows are not the whisker's)."""
+        import mujoco
+
+        m, d = self.model, self.data
+        result.jammed.update(messages)
+        local = np.flatnonzero(np.isin(self.members, list(messages)))
+        dofs = np.isin(self.tree_member[m.dof_treeid], local)
+        d.qpos[dofs] = np.nan_to_num(d.qpos[dofs], nan=0.0, posinf=0.0, neginf=0.0)  # hinges: qpos = dof address
+        for j in local:
+            d.qpos[self.free_qpos[j]] = 0.0
+        d.qvel[dofs] = d.qacc[dofs] = d.qacc_warmstart[dofs] = 0.0
+        m.geom_contype[self.whisker_geoms.reshape(len(self.members), -1)[local].ravel()] = 0
+        m.body_contype[self.link_bodies[local].ravel()] = 0
+        d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)].number = 0
 
     def _blown_up(self, time_s: float) -> None:
         """Raise :class:`_Jam` for the whiskers whose accelerations MuJoCo found non-finite or
@@ -626,6 +743,29 @@ class MujocoWorld(World):
         proximal = d.xpos[bodies]
         distal = proximal + d.xmat[bodies][:, 0::3] * self.link_lengths_mm.ravel()[links, None]
         return links, contact.pos[pressed][mine], proximal, distal
+
+    def _apply_frame_load(self, frame: tuple, own: np.ndarray) -> None:
+        """The head frame's inertial load (``frame``: () or one
+        :class:`~pipeline.model.head_motion.HeadFrameInertia`) on every member's links at once,
+        added to the wrenches of members with loads of their own (``own`` [w], applied this
+        step) and replacing the others'."""
+        import mujoco
+
+        m, d = self.model, self.data
+        bodies = self.link_bodies.ravel()
+        force = np.zeros((len(bodies), 3))
+        if frame:
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
+            mujoco.mj_comVel(m, d)
+            omega = d.cvel[bodies, :3]          # cvel: [ω, v] at the tree's subtree centre of mass
+            velocity = (d.cvel[bodies, 3:] + np.cross(omega, d.xipos[bodies] - d.subtree_com[m.body_rootid[bodies]]))
+            state = LinkState(d.xipos[bodies] / U.LENGTH, None, velocity / U.LENGTH, omega)
+            force = frame[0].link_forces(self.link_masses, state)[0] * U.FORCE
+        mine = np.repeat(own, self.links)
+        d.xfrc_applied[bodies[mine], :3] += force[mine]
+        d.xfrc_applied[bodies[~mine]] = 0.0
+        d.xfrc_applied[bodies[~mine], :3] = force[~mine]
 
     def _apply_loads(self, loads, loaded: list[int]) -> None:
         """The loads' per-link forces on members ``loaded`` at the current state, as wrenches

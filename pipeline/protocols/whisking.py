@@ -8,6 +8,7 @@ from pipeline.config.physics import ModelConfig
 from pipeline.errors import UserError
 from pipeline.model.array import ArrayModel, build_array
 from pipeline.model.extensions import model_parts
+from pipeline.model.head_motion import HeadMotion
 from pipeline.model.kinematics import Pose, ProtractionDrive, sinusoidal_whisk, still
 from pipeline.model.morphology import load_morphology
 from pipeline.model.outputs import TrialOutput
@@ -58,9 +59,13 @@ class Whisking:
             self._engine = create_engine(self.config, self.array)
         return self._engine
 
-    def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float) -> TrialOutput:
-        """One trial: the array follows ``drive`` for ``duration_s`` (s) in ``scene`` at ``pose``."""
-        return self.engine.run(scene, pose, drive, duration_s)
+    def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float,
+            head_motion: HeadMotion | None = None) -> TrialOutput:
+        """One trial: the array follows ``drive`` for ``duration_s`` (s) in ``scene`` at ``pose``
+        (the head moving along ``head_motion`` from there, if given)."""
+        if head_motion is None:
+            return self.engine.run(scene, pose, drive, duration_s)
+        return self.engine.run(scene, pose, drive, duration_s, head_motion=head_motion)
 
     def close(self) -> None:
         if self._engine is not None:

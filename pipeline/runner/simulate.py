@@ -35,6 +35,7 @@ from pipeline.runner.scenes import SceneEntry, copy_meshes, scene_catalogue
 from pipeline.datasets.shards import Shard, plan_fields, run_id, shard_folder
 from pipeline.runner.progress import progress as run_progress, trials_per_hour
 from pipeline.runner.trial import RunSpec, TrialResult, load_whisk_table
+from pipeline.scenes.head_paths import load_head_table
 from pipeline.storage import is_disk_full, write_text_durably
 
 RECORDINGS_DIR = "recordings"
@@ -87,6 +88,7 @@ def _layout(config: SimulateConfig) -> Layout:
     return Layout(trials=config.trials, samples=int(round(config.whisk.duration_s.high * rate)),
                   sampling_rate_hz=rate, links=model.material.links,
                   whiskers=whisker_table(morphology), node_every=config.dataset.node_positions_every,
+                  head_motion=config.head_motion.kind != "none",
                   compression_level=config.dataset.compression_level)
 
 
@@ -289,7 +291,9 @@ def run_spec(config: SimulateConfig) -> RunSpec:
     layout = _layout(config)
     _check(config, scenes, layout)
     table = load_whisk_table(config.whisk.table) if config.whisk.kind == "table" else None
-    return RunSpec(config, scenes, layout, table)
+    head = config.head_motion
+    head_table = tuple(map(tuple, load_head_table(head.table))) if head.kind == "table" else None
+    return RunSpec(config, scenes, layout, table, head_table=head_table)
 
 
 def simulate(config: SimulateConfig, *, resume: bool = False, shard: str | None = None,

@@ -3,7 +3,10 @@
 Trial i uses scene i mod (number of scenes) and draws, from ``numpy.random.default_rng([seed,
 i])`` and in this order, its whisk (duration, frequency, protraction, retraction) and, for a
 mesh scene, its head pose (:mod:`pipeline.scenes.poses`); fixed scenes sit at the identity
-pose. The passive-peg scene has no whisking (docs/model.md §5). A :class:`Simulator` keeps one
+pose. With ``head_motion`` other than none, the head's path parameters are drawn between the
+whisk and the pose (:mod:`pipeline.scenes.head_paths`; a still head draws nothing, so its
+trials are those of a run without the section), the pose sampler checks the whole path, and
+the dataset stores the head's pose at every sample. The passive-peg scene has no whisking (docs/model.md §5). A :class:`Simulator` keeps one
 :class:`~pipeline.protocols.whisking.Whisking` (array and engine), the loaded scenes and pose
 samplers per process, built on first use; a trial that raises comes back as a failed record
 carrying the error, never as an exception; a full disk or a :class:`RunAborted` (a mesh
@@ -28,6 +31,7 @@ from pipeline.errors import RunAborted, UserError
 from pipeline.model.kinematics import Pose, ProtractionDrive, sinusoidal_whisk, still
 from pipeline.protocols.whisking import Whisking
 from pipeline.runner.scenes import SceneEntry
+from pipeline.scenes.head_paths import draw_head_motion
 from pipeline.scenes.poses import PoseSampler, PoseSamplingError
 from pipeline.storage import is_disk_full
 
@@ -42,6 +46,7 @@ class RunSpec:
     whisk_table: tuple[tuple[float, ...], tuple[float, ...]] | None = None   # (time s, θ rad)
     recordings: str = ""          # folder for rerun recordings; "" = none
     title: str = ""               # dataset label used in recording titles and ids
+    head_table: tuple | None = None   # head_motion kind table: rows of head_paths.TABLE_COLUMNS
 
 
 @dataclass
@@ -116,22 +121,27 @@ class Simulator:
             drive, whisk = draw_whisk(config.whisk, rng, spec.whisk_table, whisking=entry.name != "peg-passive")
             for key, value in whisk.items():
                 setattr(record, key, value)
-            pose = Pose()
+            path, _ = draw_head_motion(config.head_motion, rng,
+                                       None if spec.head_table is None else np.array(spec.head_table))
+            pose, head = Pose(), None
             if entry.is_mesh:
                 sample = self.sampler(entry).sample(
-                    rng, (-whisk["whisk_retraction_rad"], whisk["whisk_protraction_rad"]), float(drive(0.0)))
-                pose = sample.pose
+                    rng, (-whisk["whisk_retraction_rad"], whisk["whisk_protraction_rad"]), float(drive(0.0)),
+                    path, whisk["duration_s"])
+                pose, head = sample.pose, sample.head
                 record.pose_side, record.pose_distance_m = sample.side, sample.distance_m
                 record.pose_attempts, record.whiskers_reaching = sample.attempts, sample.whiskers_reaching
                 record.pose_rejections = tuple(sample.rejections.values())
             record.pose_position_m, record.pose_euler_zyx_rad = pose.position_m, pose.euler_zyx_rad
             record.pose_rotation = pose.rotation
+            if path is not None and head is None:
+                head = path(pose, None, whisk["duration_s"])
             record.sampling_seconds = time.perf_counter() - start_wall
-            output = self.whisking.run(scene, pose, drive, whisk["duration_s"])
+            output = self.whisking.run(scene, pose, drive, whisk["duration_s"], head_motion=head)
             record.physics_cpu_seconds = output.metadata["cpu_seconds"]
             record.samples = len(output.time_s)
             record.whiskers_in_contact = output.whiskers_in_contact()
-            arrays = trial_arrays(output, drive(output.time_s), spec.layout)
+            arrays = trial_arrays(output, drive(output.time_s), spec.layout, head)
             every = config.cluster.record_every
             if spec.recordings and every and index % every == 0:
                 record.recording_seconds = self._record(index, output, scene, pose)

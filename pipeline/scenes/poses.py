@@ -16,6 +16,11 @@ is accepted when, checked in this order (the first failure is the rejection reas
                        whisker reaches when one of its links, at one of ``sweep_steps`` angles,
                        or one of its nodes' paths between consecutive angles crosses a face.
 
+With a moving head (``path``, :mod:`pipeline.scenes.head_paths`), ``head_in_surface`` and
+``surface_near_base`` hold at :data:`PATH_CHECKS` instants spread over the trial, and a
+whisker reaches when its sweep crosses the surface at one of them (the whisk's whole envelope
+at every instant: an upper bound of what the whisk reaches there).
+
 Head angles are the anatomical yaw (config: heading), pitch and roll of docs/frames.md,
 turned into a :class:`~pipeline.model.kinematics.Pose` by ``Pose.anatomical``. Distances use Open3D's
 ``RaycastingScene`` (one thread). Units: metres and radians.
@@ -29,8 +34,11 @@ import numpy as np
 
 from pipeline.config.simulate import POSE_REJECTION_REASONS as REASONS, PoseSamplingConfig
 from pipeline.model.array import ArrayModel
+from pipeline.model.head_motion import HeadMotion
 from pipeline.model.kinematics import Pose
 from pipeline.scenes.obstacles import TriangleMesh
+
+PATH_CHECKS = 8          # instants of a moving head's trajectory the checks hold at
 
 
 @dataclass(frozen=True)
@@ -43,6 +51,7 @@ class PoseSample:
     whiskers_reaching: int
     attempts: int
     rejections: dict[str, int] = field(default_factory=dict)
+    head: HeadMotion | None = None     # the trial's head trajectory from ``pose`` (None: still)
 
 
 class PoseSamplingError(RuntimeError):
@@ -84,20 +93,22 @@ class PoseSampler:
         return (Pose(tuple(origin.tolist()), orientation.euler_zyx_rad), side, distance, aim)
 
     def check(self, pose: Pose, aim: np.ndarray, start: np.ndarray,
-              envelope: np.ndarray) -> tuple[str | None, int]:
+              envelope: np.ndarray, head: HeadMotion | None = None) -> tuple[str | None, int]:
         """(rejection reason or None, whiskers reaching) of a candidate pose; ``start`` and
-        ``envelope`` are :meth:`shapes` at the starting angle and over the protraction range."""
+        ``envelope`` are :meth:`shapes` at the starting angle and over the protraction range;
+        ``head`` the trajectory from ``pose`` (module docstring)."""
+        path = [pose] if head is None else [head.pose(t) for t in np.linspace(0.0, head.duration_s, PATH_CHECKS)]
         origin = np.asarray(pose.position_m)
         t_hit, normal = self.surface.cast(origin, aim)
         if not np.isfinite(t_hit[0]) or normal[0] @ aim > 0.0:
             return "behind_surface", 0
-        if self.surface.distance(origin)[0] < self.config.head_radius_mm * 1e-3:
+        if self.surface.distance(np.array([p.position_m for p in path])).min() < self.config.head_radius_mm * 1e-3:
             return "head_in_surface", 0
-        if np.any(self.surface.distance(pose.apply(self.base_points)) < self.min_base_distance):
+        if any(np.any(self.surface.distance(p.apply(self.base_points)) < self.min_base_distance) for p in path):
             return "surface_near_base", 0
         if self.crossings(pose, start).any():
             return "starts_in_surface", 0
-        reaching = int(self.sweeps(pose, envelope).sum())
+        reaching = int(np.any([self.sweeps(p, envelope) for p in path], axis=0).sum())
         if reaching < self.config.min_whiskers_reaching:
             return "too_few_whiskers", reaching
         return None, reaching
@@ -117,16 +128,19 @@ class PoseSampler:
         return self.surface.segments_cross(world).any(axis=0) | swept
 
     def sample(self, rng: np.random.Generator, theta_range_rad: tuple[float, float],
-               theta_start_rad: float) -> PoseSample:
+               theta_start_rad: float, path=None, duration_s: float = 0.0) -> PoseSample:
         """The first acceptable candidate for a drive spanning ``theta_range_rad`` and starting at
-        ``theta_start_rad``; raises :class:`PoseSamplingError` after ``max_attempts``."""
+        ``theta_start_rad``, the head moving along ``path(pose, aim, duration_s)`` (a
+        :class:`~pipeline.model.head_motion.HeadMotion`; None: still); raises
+        :class:`PoseSamplingError` after ``max_attempts``."""
         start = self.shapes([theta_start_rad])
         envelope = self.shapes(np.linspace(*theta_range_rad, self.config.sweep_steps))
         rejections = dict.fromkeys(REASONS, 0)
         for attempt in range(1, self.config.max_attempts + 1):
             pose, side, distance, aim = self.draw_candidate(rng)
-            reason, reaching = self.check(pose, aim, start, envelope)
+            head = None if path is None else path(pose, aim, duration_s)
+            reason, reaching = self.check(pose, aim, start, envelope, head)
             if reason is None:
-                return PoseSample(pose, side, distance, reaching, attempt, rejections)
+                return PoseSample(pose, side, distance, reaching, attempt, rejections, head)
             rejections[reason] += 1
         raise PoseSamplingError(self.config.max_attempts, rejections)
