@@ -80,7 +80,7 @@ def test_a_closed_loop_episode_is_a_dataset_trial(tmp_path):
     path = environment.unwrapped.record(tmp_path / "episode.h5")
     head = environment.unwrapped.episode_head()
     environment.close()
-    with datasets.open(path) as ds:
+    with datasets.open_file(path) as ds:
         trial = ds.trial(0)
         assert trial["status"] == "ok" and trial["whiskers_in_contact"] >= 1
         stored = trial["head_position_m"]

@@ -207,7 +207,7 @@ class DatasetFile:
         links = int(self.attrs["links"])
         coords = {"trial": np.arange(len(self.status)), "time": self.time_s, "whisker": self._whiskers["name"],
                   "signal": np.array(SIGNAL.labels), "link": np.arange(links), "node": np.arange(links + 1),
-                  "xyz": np.array(COORDINATES["xyz"].labels)}
+                  "xyz": np.array(COORDINATES["xyz"].labels), "euler": np.array(COORDINATES["euler"].labels)}
         for name in ("node_time", "node_time_s"):
             if name in self.file:
                 coords["node_time"] = self.file[name][()]
