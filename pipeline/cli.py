@@ -165,17 +165,16 @@ def _follicle_override(text: Optional[str]) -> Optional[dict]:
     return {"kind": "compliant", "stiffness_nm_per_rad": k, "damping_nms_per_rad": c}
 
 
-def _writable_out(path: Optional[Path], option: str = "--out", *, new_file: bool = False) -> None:
-    """UserError if writing ``path`` would change a complete dataset version, or (``new_file``)
-    replace an existing file."""
-    from pipeline.datasets.manifest import refuse_complete_version
-    from pipeline.datasets.writer import refuse_existing
+def _writable_out(path: Optional[Path], option: str = "--out", *, file: bool = False,
+                  replace: bool = False) -> Optional[Path]:
+    """``path`` resolved, through the one output guard (pipeline.datasets.outputs): never inside a
+    complete dataset version, through a symlink, or (a ``file``) over an existing file unless
+    ``replace``."""
+    from pipeline.datasets.outputs import output_file, output_folder
 
     if path is None:
-        return
-    refuse_complete_version(path, option)
-    if new_file:
-        refuse_existing(path)
+        return None
+    return output_file(path, option, replace=replace) if file else output_folder(path, option)
 
 
 @app.command()
@@ -241,7 +240,7 @@ def trial(
     model = _model_config(config, {"file": _model_path(model_file), "engine": {"name": engine}})
     if not (math.isfinite(duration_s) and 0 < duration_s <= MAX_TRIAL_DURATION_S):
         raise UserError(f"--duration-s {duration_s}: must be a number of seconds in (0, {MAX_TRIAL_DURATION_S:g}]")
-    _writable_out(out, new_file=True)
+    out = _writable_out(out, file=True)
     head = Pose.parse(pose) if pose else Pose()
     world = parse_scene(scene)
     drive = default_drive(world, model, duration_s)
@@ -281,7 +280,7 @@ def build_meshes(
     project = project_root()
     scans = scans if scans is not None else project / SCANS_DIR
     out = out if out is not None else project / MESHES_DIR
-    _writable_out(out)
+    out = _writable_out(out)
     report = build(scans, out, load_mesh_config(config), force=force, progress=not json_output)
     if json_output:
         _print_json(report.to_dict())
@@ -428,7 +427,7 @@ def export_nwb(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a 
     """One NWB file: base signals, contacts and drive as time series, whisker and trial tables, provenance."""
     from pipeline.exports.nwb import export_nwb as run_export
 
-    _writable_out(out)
+    out = _writable_out(out, file=True)
     summary = run_export(target, root, trials, out)
     _print_summary(summary, json_output, f"export nwb → {summary['nwb']}",
                    ["pynwb: NWBHDF5IO(path, 'r').read()  (docs/export.md)"])
@@ -444,7 +443,7 @@ def export_whiskit(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK
     """One trial as the original WHISKiT C++ writes its output: CSV files in mm, mN, µN·m."""
     from pipeline.exports.whiskit import export_whiskit as run_export
 
-    _writable_out(out)
+    out = _writable_out(out)
     _print_summary(run_export(target, trial, out, root), json_output, f"export whiskit → {out}",
                    [f"pipeline compare-whiskit WHISKIT_OUTPUT_DIR {target} --trial {trial}"])
 
@@ -491,7 +490,7 @@ def stats(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a versi
     """Natural tactile statistics of a dataset's ok trials (read one at a time): report.md, PNGs, stats.json."""
     from pipeline.reports.stats import stats_report
 
-    _writable_out(out)
+    out = _writable_out(out)
     summary = stats_report(target, root, out)
     if json_output:
         _print_json(summary)
@@ -520,7 +519,7 @@ def validate(
     from pipeline.reports.document import number
     from pipeline.reports.validation import validate as run_validation
 
-    _writable_out(out)
+    out = _writable_out(out)
     model = _model_config(config, {"file": _model_path(model_file),
                                    "material": {"follicle": _follicle_override(follicle)},
                                    "engine": {"name": engine}})
@@ -554,6 +553,7 @@ def calibrate(
                                                 help="Check and refine the fit on this engine. \\[default: none]"),
     config: Optional[Path] = _CONFIG,
     save_model: Optional[Path] = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md)."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing --save-model file."),
     preset: Optional[PresetName] = _PRESET,
     json_output: bool = _JSON,
 ) -> None:
@@ -561,7 +561,7 @@ def calibrate(
     several resonance tables (or --library) are fitted jointly, with each set's misfit."""
     from pipeline.diagnosis.commands import run_calibrate, run_calibrate_sets
 
-    _writable_out(save_model, "--save-model")
+    save_model = _writable_out(save_model, "--save-model", file=True, replace=force)
     material = _model_config(config, {"material": {"preset": preset}}).material
     files = list(files or [])
     if library or where or len(files) > 1:
@@ -591,16 +591,15 @@ def diagnose(
     candidates: Optional[str] = typer.Option(None, "--candidates", help="Only these extensions (comma-separated)."),
     config: Optional[Path] = _CONFIG,
     save_model: Optional[Path] = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md)."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing --save-model file."),
     preset: Optional[PresetName] = _PRESET,
     json_output: bool = _JSON,
 ) -> None:
     """What the model gets wrong on measured data, and which model extension explains it."""
     from pipeline.diagnosis.commands import run_diagnose
 
-    _writable_out(report, "--report")
-    _writable_out(save_model, "--save-model")
-    if report is not None and report.exists() and not report.is_dir():
-        raise UserError(f"--report {report} is a file; give a folder for report.md and the figures")
+    report = _writable_out(report, "--report")
+    save_model = _writable_out(save_model, "--save-model", file=True, replace=force)
     if library == (file is not None):
         raise UserError("diagnose needs exactly one of FILE or --library")
     data, lines = run_diagnose(file, _model_config(config, {"material": {"preset": preset}}).material, report, engine,
@@ -625,7 +624,7 @@ def synth(
     """Write a synthetic measurement from the model with chosen extensions, noise and drives."""
     from pipeline.diagnosis.commands import run_synth
 
-    _writable_out(out, new_file=True)
+    out = _writable_out(out, file=True)
     data = run_synth(config, out, seed, _model_path(model_file))
     _print_summary(data, json_output, "synthetic measurement",
                    [f"pipeline diagnose {out}  (does the diagnosis find the hidden extensions?)",

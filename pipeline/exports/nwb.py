@@ -25,6 +25,7 @@ from pipeline.config.project import project_root
 from pipeline.errors import UserError
 from pipeline.exports.source import DatasetTrials, read_trials
 from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS
+from pipeline.storage import replacing
 
 WRENCH_FRAME = ("whisker frame, fixed to the follicle and moving with it: origin at the base point, x along "
                 "the whisker's base tangent toward the tip, y toward the concave side of its intrinsic "
@@ -154,7 +155,7 @@ def write_nwb(data: DatasetTrials, path: str | Path) -> dict[str, Any]:
     if path.exists():
         raise UserError(f"--out {path} exists (an export never replaces a file: remove it or choose another)")
     path.parent.mkdir(parents=True, exist_ok=True)
-    with NWBHDF5IO(str(path), "w") as io:
+    with replacing(path) as partial, NWBHDF5IO(str(partial), "w") as io:     # a full disk leaves no file
         io.write(build_nwbfile(data))
     return {"dataset": data.label, "nwb": str(path), "trials": len(data.indices),
             "whiskers": len(data.whisker_names), "sampling_rate_hz": data.sampling_rate_hz,
