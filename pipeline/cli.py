@@ -392,6 +392,10 @@ def datasets_show(target: str = typer.Argument(..., help="NAME, NAME/vK, a versi
 
     info = describe(target, root, check=verify)
     _print_summary(info, json_output, f"dataset {info['label']}", _next_for_dataset(_dataset_label(info["path"])))
+    problems = [*(info["verify"] if isinstance(info.get("verify"), list) else []),
+                *(f"non-finite ok trial {i}" for i in info.get("non_finite_ok_trials", []))]
+    if problems:
+        raise UserError(f"--verify: {info['path']} fails {len(problems)} check(s): {'; '.join(problems)}")
 
 
 @datasets_app.command("join")

@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from pipeline.datasets.reader import read_array
+
 EDGE_JUMP_LIMIT = 2.0          # edge jump / largest jump elsewhere above this is reported
 EDGE_DIFFERENCES = 2           # consecutive-sample changes counted at each end
 CHECKED_ARRAYS = ("base_wrench", "protraction_rad", "node_positions_m")
@@ -76,10 +78,10 @@ def scan(ds) -> dict:
     bad, jumps = [], {}
     for index in ds.ok:
         n = int(samples[index])
-        arrays = {name: ds.file[name][index] for name in CHECKED_ARRAYS if name in ds.file}
+        arrays = {name: read_array(ds.file[name], index) for name in CHECKED_ARRAYS if name in ds.file}
         if non_finite(arrays, n, node_every):
             bad.append(int(index))
-        count = edge_jumps(arrays["base_wrench"][:n], ds.file["contact"][index][:n])
+        count = edge_jumps(arrays["base_wrench"][:n], read_array(ds.file["contact"], index)[:n])
         if count:
             jumps[int(index)] = count
     return {"non_finite_ok_trials": bad, "edge_jump_trials": len(jumps), "edge_jump_pairs": sum(jumps.values()),

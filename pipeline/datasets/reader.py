@@ -12,9 +12,10 @@ Arrays are read only when their values are needed, and only the selected part (x
 lazy indexing over h5py; ``.chunk(trial=1)`` hands them to dask). Table columns with
 components (``pose_position_m``, ``rest_rotation``, ...) are column groups: two-level column
 labels, e.g. ``ds.trials["pose_position_m"]["x"]``; matrices are flattened row-major with
-labels "xx", "xy", ... (row axis first). Files are opened in SWMR read mode, so a dataset being
-written (or whose writer was killed) reads fine: rows whose ``status`` is pending hold fill
-values (NaN / 0). Files of schema version 1 read the same way.
+labels "xx", "xy", ... (row axis first). A file a writer has open (a run in progress, or killed)
+is read in SWMR mode, so it reads fine: rows whose ``status`` is pending hold fill values (NaN /
+0); a finished file is opened plainly, and a damaged one is named as such
+(:mod:`pipeline.hdf5_files`). Files of schema version 1 read the same way.
 """
 
 from __future__ import annotations
@@ -31,11 +32,8 @@ from pipeline.datasets.schema import (ARRAYS, COORDINATES, FAILED, OK, PENDING, 
                                       TRIAL_COLUMNS, WHISKER_COLUMNS)
 from pipeline.datasets.versions import resolve
 from pipeline.errors import UserError
+from pipeline.hdf5_files import first_line, open_hdf5
 from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS
-
-
-def _first_line(exc: BaseException) -> str:
-    return (str(exc).strip().splitlines() or [type(exc).__name__])[0]
 
 
 def _decoded(values: np.ndarray) -> np.ndarray:
@@ -52,6 +50,16 @@ def decode_attr(value: Any) -> Any:
         except ValueError:
             return value
     return value.tolist() if isinstance(value, np.ndarray) else value
+
+
+def read_array(dataset, key) -> np.ndarray:
+    """``dataset[key]``; UserError naming the file if its data are damaged (a flipped bit in a chunk
+    or its index, found only when read)."""
+    try:
+        return np.asarray(dataset[key])
+    except (OSError, RuntimeError) as exc:
+        raise UserError(f"{dataset.file.filename}: damaged dataset file: {dataset.name} "
+                        f"({first_line(exc)})") from None
 
 
 @functools.cache
@@ -71,7 +79,7 @@ def lazy_dataset_class():
             return indexing.explicit_indexing_adapter(key, self.shape, indexing.IndexingSupport.BASIC, self.read)
 
         def read(self, key: tuple) -> np.ndarray:
-            return np.asarray(self.dataset[key])
+            return read_array(self.dataset, key)
 
     return LazyDataset
 
@@ -104,13 +112,8 @@ class DatasetFile:
     """An open dataset file. Arrays are read lazily; tables are read at open (and ``refresh``)."""
 
     def __init__(self, path: Path):
-        import h5py
-
         self.path = Path(path)
-        try:
-            self.file = h5py.File(self.path, "r", swmr=True)
-        except (OSError, RuntimeError) as exc:             # h5py: RuntimeError for some bad superblocks
-            raise UserError(f"{self.path}: not a readable dataset file ({_first_line(exc)})") from None
+        self.file = open_hdf5(self.path, "dataset file")
         try:
             self.attrs = {key: decode_attr(value) for key, value in self.file.attrs.items()}
             self._whiskers = _columns(self.file["whiskers"], WHISKER_COLUMNS)
@@ -118,7 +121,7 @@ class DatasetFile:
             self._check_shards()
         except (OSError, RuntimeError, KeyError, ValueError) as exc:
             self.file.close()
-            raise UserError(f"{self.path}: not a readable dataset file ({_first_line(exc)})") from None
+            raise UserError(f"{self.path}: not a readable dataset file ({first_line(exc)})") from None
         except UserError:
             self.file.close()
             raise

@@ -19,6 +19,8 @@ import numpy as np
 
 from pipeline.datasets.schema import ARRAYS, OK
 from pipeline.datasets.versions import resolve
+from pipeline.datasets.reader import read_array
+from pipeline.hdf5_files import open_hdf5
 
 
 class TrialDataset:
@@ -26,14 +28,12 @@ class TrialDataset:
 
     def __init__(self, target: str | Path, arrays: tuple[str, ...] = ("base_wrench", "contact"),
                  root: str | Path | None = None, status: str = OK):
-        import h5py
-
         unknown = [a for a in arrays if a not in ARRAYS]
         if unknown:
             raise KeyError(f"unknown arrays {unknown} (known: {', '.join(ARRAYS)})")
         self.path = resolve(target, root)
         self.arrays = tuple(arrays)
-        with h5py.File(self.path, "r", swmr=True) as f:
+        with open_hdf5(self.path, "dataset file") as f:
             table = f["trials"]
             self.indices = np.flatnonzero(table["status"][()] == status.encode())
             self.scenes = np.char.decode(table["scene"][()][self.indices], "utf-8")
@@ -46,9 +46,7 @@ class TrialDataset:
 
     def _opened(self):
         if self._file is None or self._pid != os.getpid():
-            import h5py
-
-            self._file, self._pid = h5py.File(self.path, "r", swmr=True), os.getpid()
+            self._file, self._pid = open_hdf5(self.path, "dataset file"), os.getpid()
         return self._file
 
     def __getitem__(self, item: int) -> dict[str, Any]:
@@ -57,7 +55,7 @@ class TrialDataset:
         f = self._opened()
         index = int(self.indices[item])
         return {"trial": index, "scene": str(self.scenes[item]), "samples": int(self.samples[item]),
-                **{name: f[name][index] for name in self.arrays}}
+                **{name: read_array(f[name], index) for name in self.arrays}}
 
     def __getstate__(self) -> dict[str, Any]:
         return {**self.__dict__, "_file": None, "_pid": None}

@@ -96,7 +96,8 @@ def resolve(target: str | Path, root: str | Path | None = None) -> Path:
         return path / DATA_FILE
     folder = version_folder(str(target), root)
     if not (folder / DATA_FILE).is_file():
-        raise UserError(f"{folder} has no {DATA_FILE} yet")
+        raise UserError(f"{folder} is complete but its {DATA_FILE} is missing (a damaged version)"
+                        if is_complete(folder) else f"{folder} has no {DATA_FILE} yet")
     return folder / DATA_FILE
 
 
