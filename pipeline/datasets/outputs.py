@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from pipeline.datasets.manifest import refuse_complete_version
+from pipeline.datasets.manifest import complete_version_of
 from pipeline.errors import UserError
 
 
@@ -25,12 +25,19 @@ def _resolved(path: Path, option: str) -> Path:
         raise UserError(f"{option} {path}: cannot be resolved ({exc})") from None
 
 
+def _refuse_complete_version(path: Path, resolved: Path, option: str) -> None:
+    folder = complete_version_of(path) or complete_version_of(resolved)
+    if folder is not None:
+        through = f" (a symlink to {resolved})" if resolved != Path(path).absolute() else ""
+        raise UserError(f"{option} {path}{through} is inside the complete version {folder}, which is "
+                        "read-only (choose a path outside it)")
+
+
 def output_file(path: Path, option: str = "--out", *, replace: bool = False) -> Path:
     """The resolved path to write for a file output; UserError if it (or what a symlink there
     points to) is inside a complete version, or exists and ``replace`` is off."""
-    refuse_complete_version(path, option)
     resolved = _resolved(path, option)
-    refuse_complete_version(resolved, option)
+    _refuse_complete_version(path, resolved, option)
     if not replace and (os.path.lexists(path) or resolved.exists()):
         raise UserError(f"{option} {path} exists and is not replaced (remove it, choose another path "
                         "or add --force)")
@@ -42,9 +49,8 @@ def output_file(path: Path, option: str = "--out", *, replace: bool = False) -> 
 def output_folder(path: Path, option: str = "--out") -> Path:
     """The resolved folder to write a report or export into; UserError if it is inside a complete
     version or holds a symlink (to a file or folder) that a writer would follow out of it."""
-    refuse_complete_version(path, option)
     resolved = _resolved(path, option)
-    refuse_complete_version(resolved, option)
+    _refuse_complete_version(path, resolved, option)
     if resolved.exists() and not resolved.is_dir():
         raise UserError(f"{option} {path} is a file; give a folder")
     for folder, names, files in os.walk(resolved) if resolved.is_dir() else ():
