@@ -17,6 +17,7 @@ import yaml
 from pydantic import BaseModel, Field, ValidationError
 
 from pipeline.config.loader import describe_error
+from pipeline.config.yaml_text import load_yaml
 from pipeline.config.physics import MaterialConfig, StrictModel
 from pipeline.errors import UserError
 from pipeline.provenance import text_sha256
@@ -103,10 +104,7 @@ def read_model_file(path: str | Path) -> LoadedModelFile:
     if not path.is_file():
         raise UserError(f"model file not found: {path}")
     text = path.read_text()
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise UserError(f"model file {path}: not valid YAML: {getattr(exc, 'problem', exc)}") from None
+    data = load_yaml(text, f"model file {path}")
     if not isinstance(data, dict):
         raise UserError(f"model file {path}: expected a mapping (format, material, extensions, provenance)")
     try:
