@@ -59,4 +59,5 @@ def load_yaml(text: str, where: str) -> Any:
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = f" (line {mark.line + 1})" if mark is not None else ""
-        raise UserError(f"{where}: not valid YAML{line}: {getattr(exc, 'problem', None) or exc}") from None
+        problem = (str(getattr(exc, "problem", None) or exc).strip().splitlines() or ["?"])[0]
+        raise UserError(f"{where}: not valid YAML{line}: {problem}") from None

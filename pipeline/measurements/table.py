@@ -134,7 +134,10 @@ def load_table(path: str | Path) -> ResonanceTable:
     path = Path(path)
     if not path.is_file():
         raise UserError(f"{path}: measurement file not found")
-    lines = path.read_text(encoding="utf-8").splitlines()
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError as exc:
+        raise UserError(f"{path}: not UTF-8 text (byte {exc.start})") from None
     match = _HEADER.match(lines[0]) if lines else None
     if not match:
         raise UserError(f"{path}: line 1: must be '# {FORMAT} version {VERSION}'")
