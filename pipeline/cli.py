@@ -76,6 +76,8 @@ def info(json_output: bool = _JSON,
     from pipeline.config.registry import resolved_configs
     from pipeline.provenance import describe_environment
 
+    if configs is not None and not configs.is_dir():
+        raise UserError(f"--configs {configs}: no such folder")
     data = {"versions": describe_environment(),
             "configs": resolved_configs(configs if configs is not None else project_root() / CONFIGS_DIR)}
     if json_output:

@@ -112,3 +112,15 @@ def open_hdf5(path: Path, what: str = "HDF5 file"):
         return h5py.File(h5py.h5f.open(os.fsencode(path), flags, fapl=fapl))
     except (OSError, RuntimeError, ValueError) as exc:
         raise UserError(f"{path}: damaged {what} ({first_line(exc)})") from None
+
+
+def refuse_external_links(handle, what: str = "HDF5 file") -> None:
+    """UserError if the open file ``handle`` holds an external link: its data would come from
+    another file, which neither the reader's checks nor a provenance hash of this file cover."""
+    import h5py
+
+    found = []
+    handle.visititems_links(lambda name, link: found.append(name) if isinstance(link, h5py.ExternalLink) else None)
+    if found:
+        raise UserError(f"{handle.filename}: {what} holds an external link ({found[0]}) to another file; "
+                        "copy the data into it (h5copy, or h5py's copy)")

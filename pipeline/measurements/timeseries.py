@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.errors import UserError
-from pipeline.hdf5_files import open_hdf5
+from pipeline.hdf5_files import open_hdf5, refuse_external_links
 from pipeline.measurements.drive_checks import drive_warnings
 from pipeline.model.whisker import WhiskerGeometry
 
@@ -244,6 +244,7 @@ def load_timeseries(path: str | Path) -> TimeSeriesMeasurement:
         raise UserError(f"{path}: measurement file not found")
     handle = open_hdf5(path, "measurement file")
     with handle:
+        refuse_external_links(handle, "measurement file")
         fmt = _attr(handle, "format", where, "format")
         if fmt != FORMAT:
             raise where.error("format", f"must be '{FORMAT}', got {fmt!r}")
