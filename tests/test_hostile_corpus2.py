@@ -240,3 +240,65 @@ def test_a_file_left_open_by_a_killed_writer_is_read_with_bounded_retries(tmp_pa
             for name in f:
                 f[name][()]
     assert time.monotonic() - start < 1.0
+
+
+# --------------------------------------------------------------------------- meaning, not only type
+
+TABLE_HEAD = "# whisker-pipeline/resonance-table version 1\nwhisker,arc_length_m,base_diameter_m,tip_diameter_m,f1_hz\n"
+RESONANCE = ["resonance", "--length-mm", "30", "--base-diameter-um", "120", "--tip-diameter-um", "30"]
+TRIAL = ["trial", "--engine", "mujoco", "--whiskers", "RC1", "--duration-s", "0.01"]
+
+
+def _text_file(name: str, text: str, args):
+    def build(tmp: Path):
+        path = tmp / name
+        path.write_text(text)
+        return [a(path) if callable(a) else a for a in args], {}, [str(path)]
+    return build
+
+
+def _env(name: str, value: str, args, names):
+    return lambda tmp: (args, {name: value}, names)
+
+
+def _external_link(tmp: Path):
+    import h5py
+
+    outer, inner = tmp / "outer.h5", tmp / "inner.h5"
+    with h5py.File(inner, "w") as f:
+        f["x"] = [1.0]
+    with h5py.File(outer, "w") as f:
+        f["trials"] = h5py.ExternalLink(str(inner), "/x")
+    return ["calibrate", outer], {}, [str(outer), "external link"]
+
+
+DEEP = "[" * 10000 + "]" * 10000
+MEANING_CASES = {
+    "resonance-zeta-0": lambda tmp: ([*RESONANCE, "--zeta", "0"], {}, ["ζ = 0"]),
+    "resonance-curvature-1e6": lambda tmp: ([*RESONANCE, "--curvature-per-mm", "1e6"], {}, ["curvature"]),
+    "trial-pose-1e308": lambda tmp: ([*TRIAL, "--pose", "1e308,0,0,0,0,0"], {}, ["pose"]),
+    "trial-whiskers-empty": lambda tmp: (["trial", "--whiskers", "", "--duration-s", "0.01"], {}, ["whisker selection"]),
+    "config-nested-10000": _text_file("deep.yaml", "trials: 2\nmodel: " + DEEP + "\n",
+                                      ["simulate", "--config", lambda p: p]),
+    "config-duplicate-key": _text_file("dup.yaml", "trials: 2\ntrials: 3\n", ["simulate", "--config", lambda p: p]),
+    "env-nested-10000": _env("PIPELINE_MODEL_MATERIAL", DEEP, TRIAL, ["PIPELINE_MODEL_MATERIAL"]),
+    "model-file-nested-10000": _text_file("model.yaml", "format: x\nmaterial: " + DEEP + "\n",
+                                          [*TRIAL, "--model", lambda p: p]),
+    "calibrate-f1-1e300": _text_file("big.csv", TABLE_HEAD + "C2,0.03,0.00012,0.00003,1e300\n",
+                                     ["calibrate", lambda p: p]),
+    "diagnose-f1-1e300": _text_file("big.csv", TABLE_HEAD + "C2,0.03,0.00012,0.00003,1e300\n",
+                                    ["diagnose", lambda p: p]),
+    "calibrate-bootstrap-on-table": _text_file("ok.csv", TABLE_HEAD + "C2,0.03,0.00012,0.00003,82\n",
+                                               ["calibrate", lambda p: p, "--bootstrap", "3"]),
+    "diagnose-candidates-on-table": _text_file("ok.csv", TABLE_HEAD + "C2,0.03,0.00012,0.00003,82\n",
+                                               ["diagnose", lambda p: p, "--candidates", "bogus"]),
+    "info-configs-missing": lambda tmp: (["info", "--configs", tmp / "nope"], {}, [str(tmp / "nope")]),
+    "pipeline-home-missing": _env("PIPELINE_HOME", "/nonexistent/home", ["datasets", "list"], ["PIPELINE_HOME"]),
+    "measurement-external-link": _external_link,
+}
+
+
+@pytest.mark.parametrize("case", sorted(MEANING_CASES))
+def test_an_input_without_physical_meaning_is_one_error_line(case, tmp_path):
+    args, env, names = MEANING_CASES[case](tmp_path)
+    assert_one_error(cli(*args, env=env, timeout=60), *names)
