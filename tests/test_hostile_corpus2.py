@@ -302,3 +302,28 @@ MEANING_CASES = {
 def test_an_input_without_physical_meaning_is_one_error_line(case, tmp_path):
     args, env, names = MEANING_CASES[case](tmp_path)
     assert_one_error(cli(*args, env=env, timeout=60), *names)
+
+
+# --------------------------------------------------------------------------- bounded clusters
+
+def _scheduler_listens_on(**options) -> list[str]:
+    import psutil
+
+    from pipeline.config.simulate import ClusterConfig
+    from pipeline.runner.cluster import _batch_cluster
+
+    cluster = _batch_cluster(ClusterConfig(kind="slurm", cores=1, memory="1GB", **options))
+    try:
+        port = int(cluster.scheduler_address.rsplit(":", 1)[1])
+        return [c.laddr.ip for c in psutil.Process().net_connections(kind="inet")
+                if c.status == psutil.CONN_LISTEN and c.laddr.port == port]
+    finally:
+        cluster.close()
+
+
+def test_a_batch_scheduler_never_listens_on_every_interface():
+    """dask-jobqueue without an ``interface`` binds its scheduler to 0.0.0.0 and [::]; ours binds
+    the hostname's address, or ``scheduler_host`` (or ``interface``) from the config."""
+    assert _scheduler_listens_on(scheduler_host="127.0.0.1") == ["127.0.0.1"]
+    default = _scheduler_listens_on()
+    assert default and not {"0.0.0.0", "::"} & set(default), default

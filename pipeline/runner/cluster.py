@@ -31,6 +31,21 @@ def dashboard_address(config: ClusterConfig) -> str:
     return f"{LOOPBACK}:{config.dashboard_port if config.dashboard else 0}"
 
 
+def scheduler_bind(config: ClusterConfig) -> dict:
+    """Where a batch cluster's scheduler listens: ``scheduler_host``, else the ``interface``'s
+    address, else the address the hostname resolves to; never every interface (dask-jobqueue's
+    default without an interface is 0.0.0.0 and [::])."""
+    if config.scheduler_host is not None:
+        return {"host": config.scheduler_host}
+    if config.interface is not None:
+        return {"interface": config.interface}
+    try:
+        return {"host": socket.gethostbyname(socket.gethostname())}
+    except OSError as exc:
+        raise UserError(f"cluster: the hostname {socket.gethostname()} has no address ({exc}); set "
+                        "cluster.interface or cluster.scheduler_host") from None
+
+
 def _batch_cluster(config: ClusterConfig):
     """A dask-jobqueue cluster of ``config.kind``, no job submitted yet."""
     import dask_jobqueue
@@ -39,9 +54,16 @@ def _batch_cluster(config: ClusterConfig):
            "sge": dask_jobqueue.SGECluster, "lsf": dask_jobqueue.LSFCluster}[config.kind]
     options = config.batch_options()
     options.setdefault("python", sys.executable)
+    if config.tls:
+        try:
+            import cryptography  # noqa: F401  (dask's temporary TLS credentials need it)
+        except ImportError:
+            raise UserError("cluster.tls: needs the cryptography package (pip install cryptography)") from None
+        options["security"] = True
     try:           # the workers' HTTP (status) servers on loopback too; their comms must face the network
         return cls(**options, worker_extra_args=["--dashboard-address", f"{LOOPBACK}:0"],
-                   scheduler_options={"dashboard_address": dashboard_address(config), "dashboard": config.dashboard})
+                   scheduler_options={"dashboard_address": dashboard_address(config), "dashboard": config.dashboard,
+                                      **scheduler_bind(config)})
     except ValueError as exc:
         raise UserError(f"cluster: {config.kind} options rejected by dask-jobqueue: {exc}") from None
 
