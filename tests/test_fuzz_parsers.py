@@ -54,9 +54,10 @@ keys = st.sampled_from(["trials", "seed", "model", "whisk", "scenes", "dataset",
 structures = st.recursive(scalars, lambda inner: st.one_of(st.lists(inner, max_size=4),
                                                            st.dictionaries(keys, inner, max_size=4)),
                           max_leaves=20)
-yaml_noise = st.sampled_from(["!!python/object/apply:os.system ['true']", "&a [*a]", "*undefined",
-                              "{" * 200, "[" * 3000 + "]" * 3000, "a: 1\na: 2", "? [1, 2]\n: 3", "\x00",
-                              "%YAML 9.9\n---", "--- !!binary AAAA", "1e400", ".nan", "- - - -"])
+HOSTILE_YAML = ["!!python/object/apply:os.system ['true']", "&a [*a]", "*undefined", "{" * 200,
+                "[" * 3000 + "]" * 3000, "a: 1\na: 2", "? [1, 2]\n: 3", "\x00", "\x8e", "%YAML 9.9\n---",
+                "--- !!binary AAAA", "1e400", ".nan", "- - - -"]
+yaml_noise = st.sampled_from(HOSTILE_YAML)
 
 
 def yaml_texts():
@@ -180,3 +181,10 @@ def test_fuzz_parser_gives_a_result_or_one_error_line(parser, tmp_path_factory):
 @pytest.mark.parametrize("parser", sorted(PARSERS))
 def test_fuzz_parser_long_run(parser, tmp_path_factory):
     _fuzz(parser, SLOW, tmp_path_factory)
+
+
+@pytest.mark.parametrize("parser", ["config", "environment", "model-file"])
+@pytest.mark.parametrize("text", HOSTILE_YAML, ids=range(len(HOSTILE_YAML)))
+def test_yaml_parsers_on_known_hostile_texts(parser, text, tmp_path):
+    """The texts the fuzzer found or that attack YAML readers, every CI run (not left to chance)."""
+    PARSERS[parser][1](text, tmp_path)
