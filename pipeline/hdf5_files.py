@@ -55,7 +55,7 @@ def read_superblock(path: Path) -> Superblock:
             if head.startswith(SIGNATURE):
                 return _parse_superblock(path, offset, head)
             offset = 512 if offset == 0 else offset * 2
-    raise UserError(f"{path}: not an HDF5 file (no superblock signature)")
+    raise UserError(f"{path}: not a readable HDF5 file (no superblock signature)")
 
 
 def _parse_superblock(path: Path, offset: int, head: bytes) -> Superblock:
