@@ -52,7 +52,7 @@ def output_folder(path: Path, option: str = "--out") -> Path:
     resolved = _resolved(path, option)
     _refuse_complete_version(path, resolved, option)
     if resolved.exists() and not resolved.is_dir():
-        raise UserError(f"{option} {path} is a file; give a folder")
+        raise UserError(f"{option} {path} is a file, not an empty folder (give a folder)")
     for folder, names, files in os.walk(resolved) if resolved.is_dir() else ():
         for name in sorted(names + files):
             if os.path.islink(os.path.join(folder, name)):
