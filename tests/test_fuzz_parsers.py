@@ -9,8 +9,10 @@ a deadline; ``make test-all`` adds the slow variant with ``FUZZ_EXAMPLES_SLOW`` 
 
 from __future__ import annotations
 
+import functools
 import os
 import shutil
+import tempfile
 import time
 from pathlib import Path
 
@@ -134,6 +136,35 @@ def _dataset(data: bytes, tmp: Path):
     return holds(read, str(path))
 
 
+SYNTH = ("seed: 7\nsampling_rate_hz: 1000\nduration_s: 0.02\nengine: fast\nwhisker: {name: C2, arc_length_mm: 30, "
+         "base_diameter_um: 120, tip_diameter_um: 30}\ntrials:\n  - name: release_y\n    release: "
+         "{contact_fraction: 0.7, deflection_mm: [0, 1.5, 0]}\n")
+
+
+@functools.cache
+def measurement_bytes() -> bytes:
+    """A small synthetic time-series measurement (``pipeline synth``), as bytes."""
+    from pipeline.diagnosis.commands import run_synth
+
+    with tempfile.TemporaryDirectory() as folder:
+        config = Path(folder) / "synth.yaml"
+        config.write_text(SYNTH)
+        run_synth(config, Path(folder) / "m.h5", None)
+        return (Path(folder) / "m.h5").read_bytes()
+
+
+def _measurement(data: bytes, tmp: Path):
+    import warnings
+
+    from pipeline.measurements import load_measurement
+
+    path = tmp / "m.h5"
+    path.write_bytes(data)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")          # drive warnings of a damaged but readable file
+        return holds(lambda: load_measurement(path), str(path))
+
+
 POINTS = b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n" \
          b"end_header\n0 0 0\n1 0 0\n0 1 0\n"
 
@@ -157,6 +188,7 @@ PARSERS = {
     "resonance-table": (lambda: damaged(TABLE), _table),
     "dataset-hdf5": (lambda: damaged((DATA / "dataset_v1.h5").read_bytes()), _dataset),
     "scan": (lambda: damaged(POINTS), _scan),
+    "measurement-hdf5": (lambda: damaged(measurement_bytes()), _measurement),
 }
 
 
