@@ -327,3 +327,19 @@ def test_a_batch_scheduler_never_listens_on_every_interface():
     assert _scheduler_listens_on(scheduler_host="127.0.0.1") == ["127.0.0.1"]
     default = _scheduler_listens_on()
     assert default and not {"0.0.0.0", "::"} & set(default), default
+
+
+def test_a_second_join_of_the_same_run_at_once_is_refused(tmp_path):
+    """Two `datasets join` at once made two complete versions hard-linking the same shard files;
+    the run's folder is now locked while it is joined."""
+    from pipeline.datasets.versions import VersionLock
+
+    config = write_yaml(tmp_path / "run.yaml", run_config(tmp_path))
+    for shard in ("1/2", "2/2"):
+        assert cli("simulate", "--config", config, "--shard", shard, timeout=120).returncode == 0
+    root = tmp_path / "datasets"
+    (run,) = (root / "tiny" / "shards").iterdir()
+    with VersionLock(run):                                  # the first join, still running
+        assert_one_error(cli("datasets", "join", "tiny", "--root", root, timeout=60), str(run))
+    assert cli("datasets", "join", "tiny", "--root", root, timeout=60).returncode == 0
+    assert sorted(p.name for p in (root / "tiny").iterdir()) == ["v1"]
