@@ -220,3 +220,12 @@ def test_fuzz_parser_long_run(parser, tmp_path_factory):
 def test_yaml_parsers_on_known_hostile_texts(parser, text, tmp_path):
     """The texts the fuzzer found or that attack YAML readers, every CI run (not left to chance)."""
     PARSERS[parser][1](text, tmp_path)
+
+
+@pytest.mark.parametrize("offset", [1301])
+def test_dataset_reader_on_damage_the_fuzzer_found(offset, tmp_path):
+    """A flipped bit in an object header (byte 1301 of tests/data/dataset_v1.h5) raised KeyError
+    when an array was first used; it is now named at open."""
+    data = bytearray((DATA / "dataset_v1.h5").read_bytes())
+    data[offset] ^= 1
+    _dataset(bytes(data), tmp_path)

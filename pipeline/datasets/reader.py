@@ -115,6 +115,7 @@ class DatasetFile:
         self.path = Path(path)
         self.file = open_hdf5(self.path, "dataset file")
         try:
+            self.file.visititems(lambda name, item: None)   # every object header read: damage shows here
             self.attrs = {key: decode_attr(value) for key, value in self.file.attrs.items()}
             self._whiskers = _columns(self.file["whiskers"], WHISKER_COLUMNS)
             self.refresh()
@@ -254,7 +255,7 @@ class DatasetFile:
     def trial(self, index: int) -> dict[str, Any]:
         """Trial ``index``: its table row and every stored array (numpy, padded to full length)."""
         row = {name: column[index] for name, column in self._trials.items()}
-        arrays = {name: self.file[name][index] for name in ARRAYS if name in self.file}
+        arrays = {name: read_array(self.file[name], index) for name in ARRAYS if name in self.file}
         return {"trial": int(index), **row, **arrays}
 
     def close(self) -> None:
