@@ -222,10 +222,15 @@ def test_yaml_parsers_on_known_hostile_texts(parser, text, tmp_path):
     PARSERS[parser][1](text, tmp_path)
 
 
-@pytest.mark.parametrize("offset", [1301])
-def test_dataset_reader_on_damage_the_fuzzer_found(offset, tmp_path):
-    """A flipped bit in an object header (byte 1301 of tests/data/dataset_v1.h5) raised KeyError
-    when an array was first used; it is now named at open."""
-    data = bytearray((DATA / "dataset_v1.h5").read_bytes())
-    data[offset] ^= 1
-    _dataset(bytes(data), tmp_path)
+FOUND = {   # parser: (byte offset, xor mask) the long fuzz run found
+    "dataset-hdf5": (1301, 1),     # an object header: KeyError when an array was first used
+    "measurement-hdf5": (720, 128),  # a link name not UTF-8: SystemError from h5py's lock
+}
+
+
+@pytest.mark.parametrize("parser", sorted(FOUND))
+def test_readers_on_damage_the_fuzzer_found(parser, tmp_path):
+    offset, mask = FOUND[parser]
+    data = bytearray((DATA / "dataset_v1.h5").read_bytes() if parser == "dataset-hdf5" else measurement_bytes())
+    data[offset] ^= mask
+    PARSERS[parser][1](bytes(data), tmp_path)
