@@ -58,7 +58,7 @@ structures = st.recursive(scalars, lambda inner: st.one_of(st.lists(inner, max_s
                           max_leaves=20)
 HOSTILE_YAML = ["!!python/object/apply:os.system ['true']", "&a [*a]", "*undefined", "{" * 200,
                 "[" * 3000 + "]" * 3000, "a: 1\na: 2", "? [1, 2]\n: 3", "\x00", "\x8e", "%YAML 9.9\n---",
-                "--- !!binary AAAA", "1e400", ".nan", "- - - -"]
+                "--- !!binary AAAA", "1e400", ".nan", "- - - -", "trials: {}\n"]
 yaml_noise = st.sampled_from(HOSTILE_YAML)
 
 

@@ -84,6 +84,8 @@ def _merge(base: dict[str, Any], top: Mapping[str, Any], origin: str | Callable[
                 raise UserError(f"{origins.get(loc, 'a config value')}: field '{'.'.join(loc)}' = "
                                 f"{base[key]!r}: must be a section (a mapping of field: value)")
             base.setdefault(key, {})
+            if not value:                 # an empty section given here: errors about it name this source
+                origins.setdefault(loc, origin(loc) if callable(origin) else origin)
             _merge(base[key], value, origin, origins, loc)
         else:
             base[key] = value
