@@ -321,6 +321,7 @@ def _scheduler_listens_on(**options) -> list[str]:
         cluster.close()
 
 
+@pytest.mark.slow
 def test_a_batch_scheduler_never_listens_on_every_interface():
     """dask-jobqueue without an ``interface`` binds its scheduler to 0.0.0.0 and [::]; ours binds
     the hostname's address, or ``scheduler_host`` (or ``interface``) from the config."""
@@ -329,6 +330,7 @@ def test_a_batch_scheduler_never_listens_on_every_interface():
     assert default and not {"0.0.0.0", "::"} & set(default), default
 
 
+@pytest.mark.slow
 def test_a_second_join_of_the_same_run_at_once_is_refused(tmp_path):
     """Two `datasets join` at once made two complete versions hard-linking the same shard files;
     the run's folder is now locked while it is joined."""
