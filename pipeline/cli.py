@@ -101,6 +101,8 @@ def info(json_output: bool = _JSON,
     from pipeline.config.registry import resolved_configs
     from pipeline.provenance import describe_environment
 
+    if configs is not None and not configs.is_dir():
+        raise UserError(f"--configs {configs}: no such folder")
     project = describe_project(configs)
     folder = Path(project["configs_folder"])
     data = {"versions": describe_environment(), "project": project, "configs": resolved_configs(folder)}
@@ -202,17 +204,16 @@ def _follicle_override(text: Optional[str]) -> Optional[dict]:
     return {"kind": "compliant", "stiffness_nm_per_rad": k, "damping_nms_per_rad": c}
 
 
-def _writable_out(path: Optional[Path], option: str = "--out", *, new_file: bool = False) -> None:
-    """UserError if writing ``path`` would change a complete dataset version, or (``new_file``)
-    replace an existing file."""
-    from pipeline.datasets.manifest import refuse_complete_version
-    from pipeline.datasets.writer import refuse_existing
+def _writable_out(path: Optional[Path], option: str = "--out", *, file: bool = False,
+                  replace: bool = False) -> Optional[Path]:
+    """``path`` resolved, through the one output guard (pipeline.datasets.outputs): never inside a
+    complete dataset version, through a symlink, or (a ``file``) over an existing file unless
+    ``replace``."""
+    from pipeline.datasets.outputs import output_file, output_folder
 
     if path is None:
-        return
-    refuse_complete_version(path, option)
-    if new_file:
-        refuse_existing(path)
+        return None
+    return output_file(path, option, replace=replace) if file else output_folder(path, option)
 
 
 @app.command()
@@ -293,7 +294,7 @@ def trial(
                                    "engine": {"name": engine}})
     if not (math.isfinite(duration_s) and 0 < duration_s <= MAX_TRIAL_DURATION_S):
         raise UserError(f"--duration-s {duration_s}: must be a number of seconds in (0, {MAX_TRIAL_DURATION_S:g}]")
-    _writable_out(out, new_file=True)
+    out = _writable_out(out, file=True)
     head = Pose.parse(pose) if pose else Pose()
     world = parse_scene(scene)
     drive = default_drive(world, model, duration_s)
@@ -336,7 +337,7 @@ def build_meshes(
     project = project_root()
     scans = scans if scans is not None else project / SCANS_DIR
     out = out if out is not None else project / MESHES_DIR
-    _writable_out(out)
+    out = _writable_out(out)
     report = build(scans, out, load_mesh_config(config), force=force, progress=not json_output)
     if json_output:
         _print_json(console.in_si(report.to_dict()))
@@ -475,6 +476,10 @@ def datasets_show(target: str = typer.Argument(..., help="NAME, NAME/vK, a versi
                json_output):
         info = describe(target, root, check=verify)
     _print_summary(info, json_output, f"dataset {info['label']}", _next_for_dataset(_dataset_label(info["path"])))
+    problems = [*(info["verify"] if isinstance(info.get("verify"), list) else []),
+                *(f"non-finite ok trial {i}" for i in info.get("non_finite_ok_trials", []))]
+    if problems:
+        raise UserError(f"--verify: {info['path']} fails {len(problems)} check(s): {'; '.join(problems)}")
 
 
 @datasets_app.command("join")
@@ -525,7 +530,7 @@ def export_nwb(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a 
     from pipeline.exports.nwb import export_nwb as run_export
     from pipeline.exports.nwb_metadata import load_nwb_metadata
 
-    _writable_out(out)
+    out = _writable_out(out, file=True)
     described = load_nwb_metadata(metadata, {
         "experimenter": experimenter or None, "institution": institution, "lab": lab,
         "session_description": session_description, "keywords": keyword or None,
@@ -546,7 +551,7 @@ def export_whiskit(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK
     """One trial as the original WHISKiT C++ writes its output: CSV files in mm, mN, µN·m."""
     from pipeline.exports.whiskit import export_whiskit as run_export
 
-    _writable_out(out)
+    out = _writable_out(out)
     with _busy("export whiskit", f"writing trial {trial} of {target} into {out}", json_output):
         summary = run_export(target, trial, out, root)
     _print_summary(summary, json_output, f"export whiskit → {out}",
@@ -596,7 +601,7 @@ def stats(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a versi
     """Natural tactile statistics of a dataset's ok trials (read one at a time): report.md, PNGs, stats.json."""
     from pipeline.reports.stats import stats_report
 
-    _writable_out(out)
+    out = _writable_out(out)
     with Activity("stats", enabled=not json_output) as activity:
         summary = stats_report(target, root, out, activity)
     if json_output:
@@ -626,7 +631,7 @@ def validate(
     from pipeline.reports.document import number
     from pipeline.reports.validation import validate as run_validation
 
-    _writable_out(out)
+    out = _writable_out(out)
     model = _model_config(config, {"file": _model_path(model_file),
                                    "material": {"follicle": _follicle_override(follicle)},
                                    "engine": {"name": engine}})
@@ -660,6 +665,7 @@ def calibrate(
                                                 help="Check and refine the fit on this engine. \\[default: none]"),
     config: Optional[Path] = _CONFIG,
     save_model: Optional[Path] = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md)."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing --save-model file."),
     preset: Optional[PresetName] = _PRESET,
     json_output: bool = _JSON,
 ) -> None:
@@ -667,7 +673,7 @@ def calibrate(
     several resonance tables (or --library) are fitted jointly, with each set's misfit."""
     from pipeline.diagnosis.commands import run_calibrate, run_calibrate_sets
 
-    _writable_out(save_model, "--save-model")
+    save_model = _writable_out(save_model, "--save-model", file=True, replace=force)
     material = _model_config(config, {"material": {"preset": preset}}).material
     files = list(files or [])
     if library or where or len(files) > 1:
@@ -699,16 +705,15 @@ def diagnose(
     candidates: Optional[str] = typer.Option(None, "--candidates", help="Only these extensions (comma-separated)."),
     config: Optional[Path] = _CONFIG,
     save_model: Optional[Path] = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md)."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing --save-model file."),
     preset: Optional[PresetName] = _PRESET,
     json_output: bool = _JSON,
 ) -> None:
     """What the model gets wrong on measured data, and which model extension explains it."""
     from pipeline.diagnosis.commands import run_diagnose
 
-    _writable_out(report, "--report")
-    _writable_out(save_model, "--save-model")
-    if report is not None and report.exists() and not report.is_dir():
-        raise UserError(f"--report {report} is a file; give a folder for report.md and the figures")
+    report = _writable_out(report, "--report")
+    save_model = _writable_out(save_model, "--save-model", file=True, replace=force)
     if library == (file is not None):
         raise UserError("diagnose needs exactly one of FILE or --library")
     material = _model_config(config, {"material": {"preset": preset}}).material
@@ -734,7 +739,7 @@ def synth(
     """Write a synthetic measurement from the model with chosen extensions, noise and drives."""
     from pipeline.diagnosis.commands import run_synth
 
-    _writable_out(out, new_file=True)
+    out = _writable_out(out, file=True)
     with _busy("synth", f"simulating the measurement of {config}", json_output):
         data = run_synth(config, out, seed, _model_path(model_file))
     _print_summary(data, json_output, "synthetic measurement",

@@ -43,9 +43,11 @@ def sync_directory(folder: Path) -> None:
 def replacing(path: Path, suffix: str = ".partial") -> Iterator[Path]:
     """Yield a sibling of ``path`` to write (and fsync) completely; then rename it over ``path``
     and fsync the folder. On any failure (a full disk) the sibling is removed and ``path`` is
-    left as it was."""
+    left as it was. A stale sibling (or a symlink planted under its name) is removed first, so the
+    write never goes through a link."""
     path = Path(path)
     partial = path.with_name(path.name + suffix)
+    partial.unlink(missing_ok=True)
     try:
         yield partial
         os.replace(partial, path)

@@ -421,7 +421,7 @@ def test_datasets_list_survives_one_corrupt_version(world, tmp_path):
     assert result.returncode == 0, result.stderr
     rows = {row["dataset"]: row for row in json.loads(result.stdout)}
     assert rows["tiny/v1"]["ok"] + rows["tiny/v1"]["failed"] == 2
-    assert rows["tiny/v2"]["state"] == "unreadable" and "data.h5" in rows["tiny/v2"]["error"]
+    assert rows["tiny/v2"]["state"] == "damaged" and "data.h5" in rows["tiny/v2"]["error"]
 
 
 def test_complete_version_is_read_only_and_verifies(world):

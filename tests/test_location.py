@@ -126,6 +126,7 @@ def test_config_paths_are_taken_against_the_project_root(tmp_path, monkeypatch):
     assert config.scenes.folder == home / "outputs" / "meshes"
     monkeypatch.chdir(home / "outputs")          # found from inside the project
     assert load_simulate_config().config_file["path"] == str(home / "configs" / "simulate.yaml")
+    (tmp_path / "other").mkdir()            # PIPELINE_HOME must name a folder (issue 28: a typo is an error)
     monkeypatch.setenv("PIPELINE_HOME", str(tmp_path / "other"))      # PIPELINE_HOME wins
     found = load_simulate_config()
     assert found.config_file["path"] is None and found.dataset.root == tmp_path / "other" / "outputs" / "datasets"

@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping, TypeVar
 
-import yaml
 from pydantic import BaseModel, ValidationError
 
+from pipeline.config.yaml_text import load_yaml
 from pipeline.errors import UserError
 
 ModelT = TypeVar("ModelT", bound=BaseModel)
@@ -40,15 +40,11 @@ def _read_yaml(path: Path) -> dict[str, Any]:
     if not path.is_file():
         raise UserError(f"config file not found: {path}")
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+        data = load_yaml(path.read_text(encoding="utf-8"), str(path)) or {}
     except OSError as exc:
         raise UserError(f"{path}: cannot be read ({exc.strerror})") from None
     except UnicodeDecodeError as exc:
         raise UserError(f"{path}: not UTF-8 text (byte {exc.start})") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" (line {mark.line + 1})" if mark is not None else ""
-        raise UserError(f"{path}: not valid YAML{where}: {getattr(exc, 'problem', exc)}") from None
     if not isinstance(data, dict):
         raise UserError(f"{path}: expected a mapping of field: value at the top level")
     return data
@@ -65,11 +61,8 @@ def env_overrides(prefix: str, environ: Mapping[str, str] | None = None) -> dict
         node = result
         for key in keys[:-1]:
             node = node.setdefault(key, {})
-        try:
-            node[keys[-1]] = yaml.safe_load(raw) if raw.strip() else raw
-        except yaml.YAMLError as exc:
-            raise UserError(f"environment variable {name}={raw!r}: not a valid YAML value "
-                            f"({getattr(exc, 'problem', exc)})") from None
+        shown = raw if len(raw) <= 40 else raw[:40] + "..."
+        node[keys[-1]] = load_yaml(raw, f"environment variable {name}={shown!r}") if raw.strip() else raw
     return result
 
 
@@ -91,6 +84,8 @@ def _merge(base: dict[str, Any], top: Mapping[str, Any], origin: str | Callable[
                 raise UserError(f"{origins.get(loc, 'a config value')}: field '{'.'.join(loc)}' = "
                                 f"{base[key]!r}: must be a section (a mapping of field: value)")
             base.setdefault(key, {})
+            if not value:                 # an empty section given here: errors about it name this source
+                origins.setdefault(loc, origin(loc) if callable(origin) else origin)
             _merge(base[key], value, origin, origins, loc)
         else:
             base[key] = value

@@ -17,9 +17,11 @@ import yaml
 from pydantic import BaseModel, Field, ValidationError
 
 from pipeline.config.loader import describe_error
+from pipeline.config.yaml_text import load_yaml
 from pipeline.config.physics import MaterialConfig, StrictModel
 from pipeline.errors import UserError
 from pipeline.provenance import text_sha256
+from pipeline.storage import write_text_durably
 
 FORMAT = "whisker-model/1"
 
@@ -102,10 +104,7 @@ def read_model_file(path: str | Path) -> LoadedModelFile:
     if not path.is_file():
         raise UserError(f"model file not found: {path}")
     text = path.read_text()
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise UserError(f"model file {path}: not valid YAML: {getattr(exc, 'problem', exc)}") from None
+    data = load_yaml(text, f"model file {path}")
     if not isinstance(data, dict):
         raise UserError(f"model file {path}: expected a mapping (format, material, extensions, provenance)")
     try:
@@ -118,12 +117,12 @@ def read_model_file(path: str | Path) -> LoadedModelFile:
 
 
 def write_model_file(path: str | Path, model: ModelFile) -> Path:
-    """Write ``model`` as YAML (field order as in :class:`ModelFile`); returns the path."""
+    """Write ``model`` as YAML (field order as in :class:`ModelFile`), to a temporary name then renamed
+    into place (a symlink at ``path`` is replaced, not followed); returns the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(f"# Fitted whisker model ({FORMAT}); format: docs/model_file.md\n"
-                    + yaml.safe_dump(model.model_dump(mode="json", exclude_none=True), sort_keys=False))
-    return path
+    return write_text_durably(path, f"# Fitted whisker model ({FORMAT}); format: docs/model_file.md\n"
+                              + yaml.safe_dump(model.model_dump(mode="json", exclude_none=True), sort_keys=False))
 
 
 def _as_dict(value: Any) -> dict:

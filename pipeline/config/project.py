@@ -13,6 +13,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from pipeline.errors import UserError
+
 HOME_ENV = "PIPELINE_HOME"
 CONFIGS_DIR = "configs"
 DATASETS_DIR = Path("outputs/datasets")
@@ -22,7 +24,12 @@ SCANS_DIR = Path("scans")
 
 def _home_from_env() -> Path | None:
     value = os.environ.get(HOME_ENV, "").strip()
-    return Path(value).expanduser().absolute() if value else None
+    if not value:
+        return None
+    home = Path(value).expanduser().absolute()
+    if not home.is_dir():
+        raise UserError(f"environment variable {HOME_ENV}={value}: no such folder (unset it or name the project)")
+    return home
 
 
 def _enclosing_project(start: Path) -> Path | None:

@@ -225,6 +225,10 @@ class ClusterConfig(StrictModel):
     job_extra_directives: list[str] = Field([], description="more batch directives, e.g. ['--qos=long']")
     job_script_prologue: list[str] = Field([], description="shell lines run before the worker, e.g. module load")
     interface: str | None = Field(None, description="network interface of workers and scheduler, e.g. ib0")
+    scheduler_host: str | None = Field(None, description="address the batch scheduler listens on (default: the "
+                                                         "interface's, else the hostname's; never all)")
+    tls: bool = Field(False, description="batch scheduler and workers talk TLS with temporary credentials "
+                                         "(needs the cryptography package)")
     local_directory: str | None = Field(None, description="workers' scratch folder on the compute node")
     log_directory: str | None = Field(None, description="folder for the jobs' output files")
     python: str | None = Field(None, description="Python of the jobs (default: this one)")

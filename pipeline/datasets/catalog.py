@@ -69,19 +69,30 @@ def list_datasets(root: Path | None = None) -> list[dict[str, Any]]:
     """One row per version of every dataset under ``root`` (default: the project's datasets
     folder), then one per run of shards waiting to be joined."""
     root = datasets_root(root)
-    rows = []
-    for name in dataset_names(root):
-        for k, folder in versions(root, name).items():
-            row = {"dataset": f"{name}/v{k}", "state": state(folder), "size_mb": _size_mb(folder)}
-            if (folder / DATA_FILE).is_file():
-                try:
-                    with DatasetFile(folder / DATA_FILE) as ds:
-                        row.update(trials=len(ds.status), ok=len(ds.ok), failed=len(ds.failed),
-                                   created_utc=ds.provenance.get("created_utc"))
-                except UserError as exc:           # one unreadable version does not hide the others
-                    row.update(state="unreadable", error=str(exc))
-            rows.append(row)
+    rows = [_version_row(f"{name}/v{k}", folder)
+            for name in dataset_names(root) for k, folder in versions(root, name).items()]
     return rows + [row for name in _names_with_shards(root) for row in shard_runs(root, name)]
+
+
+def _version_row(label: str, folder: Path) -> dict[str, Any]:
+    """One row of ``list``: a damaged or unreadable version says so (with why) and never hides
+    the others."""
+    row: dict[str, Any] = {"dataset": label}
+    try:
+        row.update(state=state(folder), size_mb=_size_mb(folder))
+        if row["state"] == "complete":
+            read_manifest(folder)
+            if not (folder / DATA_FILE).is_file():
+                return {**row, "state": "damaged", "error": f"{folder / DATA_FILE}: missing"}
+        if (folder / DATA_FILE).is_file():
+            with DatasetFile(folder / DATA_FILE) as ds:
+                row.update(trials=len(ds.status), ok=len(ds.ok), failed=len(ds.failed),
+                           created_utc=ds.provenance.get("created_utc"))
+    except UserError as exc:
+        row.update(state="damaged", error=str(exc))
+    except OSError as exc:
+        row.update(state="unreadable", error=f"{exc.filename or folder}: {exc.strerror or exc}")
+    return row
 
 
 def _names_with_shards(root: Path) -> list[str]:

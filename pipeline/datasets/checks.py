@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.datasets.schema import WRENCH_PARTS
-from pipeline.datasets.wrench import read_trial
+from pipeline.datasets.wrench import read_array, read_trial
 
 EDGE_JUMP_LIMIT = 2.0          # edge jump / largest jump elsewhere above this is reported
 EDGE_DIFFERENCES = 2           # consecutive-sample changes counted at each end
@@ -83,7 +83,7 @@ def scan(ds) -> dict:
         if non_finite(arrays, n, node_every):
             bad.append(int(index))
         wrench = np.concatenate([arrays[part] for part in WRENCH_PARTS], axis=-1)
-        count = edge_jumps(wrench[:n], ds.file["contact"][index][:n])
+        count = edge_jumps(wrench[:n], read_array(ds.file["contact"], index)[:n])
         if count:
             jumps[int(index)] = count
     return {"non_finite_ok_trials": bad, "edge_jump_trials": len(jumps), "edge_jump_pairs": sum(jumps.values()),

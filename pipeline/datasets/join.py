@@ -119,11 +119,17 @@ def _write_joined(path: Path, label: str, shards: list[tuple[Path, range]]) -> N
 
 def join_shards(root: Path | None, name: str, run: str | None = None) -> Path:
     """Make a new version of ``name`` (under ``root``, default the project's datasets folder) from
-    the complete shards of one run; returns its folder."""
-    import h5py
-
+    the complete shards of one run; returns its folder. The run's folder is locked while it is
+    joined, so two joins at once make one version, not two sharing the same shard files."""
     root = datasets_root(root)
     run_folder = _run_folder(root, name, run)
+    with VersionLock(run_folder):           # a second `join` of the same run at once stops here
+        return _join_locked(root, name, run_folder)
+
+
+def _join_locked(root: Path, name: str, run_folder: Path) -> Path:
+    import h5py
+
     shards = _shards(run_folder)
     version = new_version(root, name)
     with VersionLock(version):

@@ -43,8 +43,22 @@ def write_manifest(folder: Path, summary: dict[str, Any]) -> Path:
 
 
 def read_manifest(folder: Path) -> dict[str, Any] | None:
+    """The manifest of ``folder`` (None if it has none); UserError naming it if it cannot be read
+    or is damaged (not JSON, or not a mapping of files)."""
     path = Path(folder) / MANIFEST_FILE
-    return json.loads(path.read_text()) if path.is_file() else None
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(path.read_bytes())
+    except OSError as exc:
+        raise UserError(f"{path}: cannot read the manifest ({exc.strerror or exc})") from None
+    except ValueError as exc:
+        raise UserError(f"{path}: damaged manifest (not JSON: {exc})") from None
+    if not (isinstance(data, dict) and isinstance(data.get("files"), dict)
+            and all(isinstance(entry, dict) and isinstance(entry.get("sha256"), str)
+                    for entry in data["files"].values())):
+        raise UserError(f"{path}: damaged manifest (no mapping of files to sha256)")
+    return data
 
 
 def verify(folder: Path) -> list[str]:
@@ -57,8 +71,12 @@ def verify(folder: Path) -> list[str]:
     present = {str(p.relative_to(folder)) for p in _files(folder)}
     problems = [f"missing: {name}" for name in sorted(set(listed) - present)]
     problems += [f"not in the manifest: {name}" for name in sorted(present - set(listed))]
-    problems += [f"changed: {name}" for name in sorted(set(listed) & present)
-                 if file_sha256(folder / name) != listed[name]["sha256"]]
+    for name in sorted(set(listed) & present):
+        try:
+            if file_sha256(folder / name) != listed[name]["sha256"]:
+                problems.append(f"changed: {name}")
+        except OSError as exc:
+            problems.append(f"unreadable: {name} ({exc.strerror or exc})")
     return problems
 
 

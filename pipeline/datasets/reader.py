@@ -16,10 +16,11 @@ Arrays are read only when their values are needed, and only the selected part (x
 lazy indexing over h5py; ``.chunk(trial=1)`` hands them to dask). Table columns with
 components (``pose_position_m``, ``rest_rotation``, ...) are column groups: two-level column
 labels, e.g. ``ds.trials["pose_position_m"]["x"]``; matrices are flattened row-major with
-labels "xx", "xy", ... (row axis first). Files are opened in SWMR read mode, so a dataset being
-written (or whose writer was killed) reads fine: rows whose ``status`` is pending hold fill
-values (NaN / 0). Files of older schema versions read the same way: ``base_force`` and
-``base_moment`` (version 4) and ``base_wrench`` (versions 1 to 3) are each made from the other.
+labels "xx", "xy", ... (row axis first). A file a writer has open (a run in progress, or killed)
+is read in SWMR mode, so it reads fine: rows whose ``status`` is pending hold fill values (NaN /
+0); a finished file is opened plainly, and a damaged one is named as such
+(:mod:`pipeline.hdf5_files`). Files of older schema versions read the same way: ``base_force``
+and ``base_moment`` (version 4) and ``base_wrench`` (versions 1 to 3) are each made from the other.
 """
 
 from __future__ import annotations
@@ -35,13 +36,10 @@ import numpy as np
 from pipeline.datasets.schema import (ARRAYS, COORDINATES, FAILED, LEGACY_ARRAYS, OK, PENDING, SIGNAL,
                                       SIGNAL_UNITS_VARIABLE, TRIAL_COLUMNS, WHISKER_COLUMNS, WRENCH_PARTS)
 from pipeline.datasets.versions import resolve
-from pipeline.datasets.wrench import WRENCH, read_trial
+from pipeline.datasets.wrench import WRENCH, read_array, read_trial
 from pipeline.errors import UserError
+from pipeline.hdf5_files import first_line, open_hdf5
 from pipeline.model.outputs import SIGNAL_UNITS
-
-
-def _first_line(exc: BaseException) -> str:
-    return (str(exc).strip().splitlines() or [type(exc).__name__])[0]
 
 
 def _decoded(values: np.ndarray) -> np.ndarray:
@@ -80,9 +78,9 @@ def lazy_dataset_class():
 
         def read(self, key: tuple) -> np.ndarray:
             if len(self.datasets) == 1:
-                return np.asarray(self.datasets[0][key])
+                return read_array(self.datasets[0], key)
             key = key + (slice(None),) * (len(self.shape) - len(key))
-            whole = np.concatenate([np.asarray(d[key[:-1]]) for d in self.datasets], axis=-1)
+            whole = np.concatenate([read_array(d, key[:-1]) for d in self.datasets], axis=-1)
             return whole[..., key[-1]]
 
     return LazyDataset
@@ -116,21 +114,17 @@ class DatasetFile:
     """An open dataset file. Arrays are read lazily; tables are read at open (and ``refresh``)."""
 
     def __init__(self, path: Path):
-        import h5py
-
         self.path = Path(path)
+        self.file = open_hdf5(self.path, "dataset file")
         try:
-            self.file = h5py.File(self.path, "r", swmr=True)
-        except (OSError, RuntimeError) as exc:             # h5py: RuntimeError for some bad superblocks
-            raise UserError(f"{self.path}: not a readable dataset file ({_first_line(exc)})") from None
-        try:
+            self.file.visititems(lambda name, item: None)   # every object header read: damage shows here
             self.attrs = {key: decode_attr(value) for key, value in self.file.attrs.items()}
             self._whiskers = _columns(self.file["whiskers"], WHISKER_COLUMNS)
             self.refresh()
             self._check_shards()
         except (OSError, RuntimeError, KeyError, ValueError) as exc:
             self.file.close()
-            raise UserError(f"{self.path}: not a readable dataset file ({_first_line(exc)})") from None
+            raise UserError(f"{self.path}: not a readable dataset file ({first_line(exc)})") from None
         except UserError:
             self.file.close()
             raise

@@ -53,19 +53,18 @@ def run_id(config: SimulateConfig) -> str:
 def shard_counts(folder: Path) -> dict:
     """Trials of the shard in ``folder`` by status: {number, count, trials, ok, failed, pending}
     (all of its block pending if its data file is not there yet or cannot be read while written)."""
-    import h5py
-
     from pipeline.datasets.reader import decode_attr
     from pipeline.datasets.schema import DATA_FILE, FAILED, OK
+    from pipeline.hdf5_files import open_hdf5
 
     match = re.fullmatch(r"shard_(\d+)_of_(\d+)", folder.name)
     number, count = int(match.group(1)), int(match.group(2))
     counts = {"number": number, "count": count, "trials": 0, "ok": 0, "failed": 0, "pending": 0}
     try:
-        with h5py.File(folder / DATA_FILE, "r", swmr=True) as f:
+        with open_hdf5(folder / DATA_FILE, "dataset file") as f:
             start, stop = decode_attr(f.attrs["trial_range"])
             status = f["trials/status"][start:stop]
-    except (OSError, KeyError):
+    except (OSError, RuntimeError, KeyError, UserError):
         return counts
     ok, failed = int((status == OK.encode()).sum()), int((status == FAILED.encode()).sum())
     return {**counts, "trials": len(status), "ok": ok, "failed": failed, "pending": len(status) - ok - failed}

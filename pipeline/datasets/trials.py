@@ -20,6 +20,7 @@ import numpy as np
 from pipeline.datasets.schema import ARRAYS, OK
 from pipeline.datasets.versions import resolve
 from pipeline.datasets.wrench import READABLE, WRENCH, read_trial
+from pipeline.hdf5_files import open_hdf5
 
 
 class TrialDataset:
@@ -27,14 +28,12 @@ class TrialDataset:
 
     def __init__(self, target: str | Path, arrays: tuple[str, ...] = ("base_wrench", "contact"),
                  root: str | Path | None = None, status: str = OK):
-        import h5py
-
         unknown = [a for a in arrays if a not in ARRAYS and a not in READABLE]
         if unknown:
             raise KeyError(f"unknown arrays {unknown} (known: {', '.join([*ARRAYS, WRENCH])})")
         self.path = resolve(target, root)
         self.arrays = tuple(arrays)
-        with h5py.File(self.path, "r", swmr=True) as f:
+        with open_hdf5(self.path, "dataset file") as f:
             table = f["trials"]
             self.indices = np.flatnonzero(table["status"][()] == status.encode())
             self.scenes = np.char.decode(table["scene"][()][self.indices], "utf-8")
@@ -47,9 +46,7 @@ class TrialDataset:
 
     def _opened(self):
         if self._file is None or self._pid != os.getpid():
-            import h5py
-
-            self._file, self._pid = h5py.File(self.path, "r", swmr=True), os.getpid()
+            self._file, self._pid = open_hdf5(self.path, "dataset file"), os.getpid()
         return self._file
 
     def __getitem__(self, item: int) -> dict[str, Any]:

@@ -14,6 +14,7 @@ from pathlib import Path
 from filelock import FileLock, Timeout
 
 from pipeline.config.project import datasets_root
+from pipeline.datasets.manifest import read_manifest
 from pipeline.datasets.schema import DATA_FILE, MANIFEST_FILE
 from pipeline.errors import UserError
 
@@ -92,11 +93,11 @@ def resolve(target: str | Path, root: str | Path | None = None) -> Path:
     path = Path(target)
     if path.is_file():
         return path
-    if path.is_dir() and (path / DATA_FILE).is_file():
-        return path / DATA_FILE
-    folder = version_folder(str(target), root)
+    folder = path if path.is_dir() and (path / DATA_FILE).is_file() else version_folder(str(target), root)
+    read_manifest(folder)                      # a damaged manifest is named before any data are read
     if not (folder / DATA_FILE).is_file():
-        raise UserError(f"{folder} has no {DATA_FILE} yet")
+        raise UserError(f"{folder} is complete but its {DATA_FILE} is missing (a damaged version)"
+                        if is_complete(folder) else f"{folder} has no {DATA_FILE} yet")
     return folder / DATA_FILE
 
 

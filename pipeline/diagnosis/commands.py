@@ -10,6 +10,7 @@ from functools import partial
 from pathlib import Path
 
 from pipeline.diagnosis.fitting import engine_check
+from pipeline.errors import UserError
 
 
 def _jsonable(value):
@@ -27,9 +28,13 @@ def run_calibrate(path: Path, names: str, method: str, objective: str, material,
                   grid_points, save_model: Path | None = None) -> tuple[dict, list[str]]:
     from pipeline.diagnosis.calibrate import calibrate
     from pipeline.diagnosis.parameters import ModelSpec, parse_names
-    from pipeline.measurements import load_measurement
+    from pipeline.measurements import ResonanceTable, load_measurement
 
-    result = calibrate(load_measurement(path), parse_names(names), method, objective, material, engine,
+    measurement = load_measurement(path)
+    if bootstrap and isinstance(measurement, ResonanceTable):
+        raise UserError(f"--bootstrap {bootstrap}: refits over the trials of a time series (.h5); "
+                        f"{path} is a resonance table, which has none")
+    result = calibrate(measurement, parse_names(names), method, objective, material, engine,
                        bootstrap, grid_points)
     lines = [f"{path}: {result['metric']} = {result['error']:.4g} ({method}, {result['evaluations']} simulations)"]
     lines += [f"  mode 1 of {w}: {m['f1_hz']:.2f} Hz, ζ1 = {m['zeta1']:.4f}" for w, m in result["modes"].items()]
@@ -53,7 +58,6 @@ def run_calibrate(path: Path, names: str, method: str, objective: str, material,
 def _tables(paths, library: bool, where: str | None) -> list:
     """Resonance tables of ``paths`` plus the shipped library's, kept when they match ``where``
     ('key=value;...', conditions of docs/measurements.md)."""
-    from pipeline.errors import UserError
     from pipeline.measurements import ResonanceTable, load_measurement
     from pipeline.measurements.library import load_library
     from pipeline.measurements.table import CONDITIONS
@@ -100,6 +104,11 @@ def run_calibrate_sets(paths, library: bool, where: str | None, hold_out: bool, 
     return _jsonable(result), lines
 
 
+def _candidates_need_a_series(candidates: str, what) -> UserError:
+    return UserError(f"--candidates {candidates}: chooses the extensions fitted to a time series (.h5); "
+                     f"{what} holds resonance tables, which are diagnosed without them")
+
+
 def run_diagnose(path: Path | None, material, report: Path | None, engine: str | None,
                  candidates: str | None = None, library: bool = False,
                  save_model: Path | None = None) -> tuple[dict, list[str]]:
@@ -107,10 +116,10 @@ def run_diagnose(path: Path | None, material, report: Path | None, engine: str |
     from pipeline.measurements import ResonanceTable, load_measurement
     from pipeline.measurements.table import combine
 
+    if candidates and library:
+        raise _candidates_need_a_series(candidates, "the library")
     if library:
         if save_model is not None:
-            from pipeline.errors import UserError
-
             raise UserError("--save-model saves the diagnosis of one measurement FILE, not of the library")
         tables = _tables([], True, None)
         with single_threaded_blas():
@@ -119,6 +128,8 @@ def run_diagnose(path: Path | None, material, report: Path | None, engine: str |
     measurement = load_measurement(path)
     with single_threaded_blas():
         if isinstance(measurement, ResonanceTable):
+            if candidates:
+                raise _candidates_need_a_series(candidates, path)
             data, lines, result = _diagnose_table(measurement, material, report, engine)
             geometry, whisker = measurement.records[0].geometry, measurement.records[0].whisker
         else:

@@ -44,10 +44,17 @@ def start_rate(drive, dt_s: float) -> float:
     return rate - dt_s * acceleration / 2 + dt_s ** 2 * jerk / 6
 
 
+MAX_HEAD_DISTANCE_M = 10.0      # a head farther than this from the scene's origin is in no arena
+
+
 def check_pose(pose: Pose) -> None:
-    """Raise :class:`UserError` for a head pose with non-finite values."""
+    """Raise :class:`UserError` for a head pose with non-finite values or a head farther than
+    ``MAX_HEAD_DISTANCE_M`` from the origin along an axis (1e308 mm would run to infinite node positions)."""
     if not (np.all(np.isfinite(pose.position_m)) and np.all(np.isfinite(pose.euler_zyx_rad))):
         raise UserError(f"head pose has non-finite values: {pose}")
+    if np.abs(pose.position_m).max() > MAX_HEAD_DISTANCE_M:
+        raise UserError(f"head pose position {np.asarray(pose.position_m) * 1e3} mm is farther than "
+                        f"{MAX_HEAD_DISTANCE_M * 1e3:g} mm from the scene's origin along an axis")
 
 
 def initial_angles(array, angles) -> list[np.ndarray]:

@@ -26,6 +26,7 @@ from pipeline.errors import UserError
 from pipeline.exports.nwb_metadata import NwbMetadata
 from pipeline.exports.source import DatasetTrials, read_trials
 from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS
+from pipeline.storage import replacing
 
 WRENCH_FRAME = ("whisker frame, fixed to the follicle and moving with it: origin at the base point, x along "
                 "the whisker's base tangent toward the tip, y toward the concave side of its intrinsic "
@@ -193,7 +194,7 @@ def write_nwb(data: DatasetTrials, path: str | Path, metadata: NwbMetadata | Non
 
     path = refuse_existing_export(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with NWBHDF5IO(str(path), "w") as io:
+    with replacing(path) as partial, NWBHDF5IO(str(partial), "w") as io:     # a full disk leaves no file
         io.write(build_nwbfile(data, metadata))
     return {"dataset": data.label, "nwb": str(path), "trials": len(data.indices),
             "whiskers": len(data.whisker_names), "sampling_rate_hz": data.sampling_rate_hz,

@@ -26,7 +26,8 @@ def load_measurement(path: str | Path) -> TimeSeriesMeasurement | ResonanceTable
             return load_timeseries(path)
         if suffix == ".csv":
             return load_table(path)
-    except (OSError, RuntimeError, UnicodeDecodeError, csv.Error, KeyError, ValueError, TypeError) as exc:
+    except (OSError, RuntimeError, UnicodeDecodeError, csv.Error, KeyError, ValueError, TypeError,
+            SystemError) as exc:      # SystemError: h5py's lock around a link name that is not UTF-8
         reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
         raise UserError(f"{path}: corrupt or unreadable measurement file ({reason})") from None
     raise UserError(f"{path}: unknown measurement type '{suffix}' (.h5/.hdf5 time series or "

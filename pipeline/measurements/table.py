@@ -27,6 +27,7 @@ REQUIRED = ("whisker", "arc_length_m", "base_diameter_m", "tip_diameter_m", "f1_
 OPTIONAL = ("curvature_per_m", "f1_sd_hz", "f2_hz", "f2_sd_hz", "f3_hz", "f3_sd_hz",
             "log_decrement", "log_decrement_sd", "damping_ratio", "damping_ratio_sd", "trials")
 MODES = 3
+MAX_FREQUENCY_HZ = 1e5         # whisker modes lie between ~10 Hz and ~10 kHz; this bound keeps fits finite
 _CONDITIONS = re.compile(r"#\s*conditions:\s*(.*)$")
 # what a table may state about its measurements: key → allowed values (first: assumed when absent)
 CONDITIONS = {
@@ -133,7 +134,10 @@ def load_table(path: str | Path) -> ResonanceTable:
     path = Path(path)
     if not path.is_file():
         raise UserError(f"{path}: measurement file not found")
-    lines = path.read_text(encoding="utf-8").splitlines()
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError as exc:
+        raise UserError(f"{path}: not UTF-8 text (byte {exc.start})") from None
     match = _HEADER.match(lines[0]) if lines else None
     if not match:
         raise UserError(f"{path}: line 1: must be '# {FORMAT} version {VERSION}'")
@@ -173,6 +177,10 @@ def load_table(path: str | Path) -> ResonanceTable:
         except UserError as exc:
             raise UserError(f"{where}: {exc}") from None
         freqs = tuple(_value(row, f"f{m}_hz", where, required=m == 1) for m in range(1, MODES + 1))
+        too_high = [m for m, f in enumerate(freqs, 1) if f > MAX_FREQUENCY_HZ]
+        if too_high:
+            raise UserError(f"{where}: column 'f{too_high[0]}_hz': {freqs[too_high[0] - 1]:g} Hz is no whisker "
+                            f"mode (at most {MAX_FREQUENCY_HZ:g} Hz)")
         sds = tuple(_value(row, f"f{m}_sd_hz", where, sign="non-negative") for m in range(1, MODES + 1))
         record = ResonanceRecord(
             name, geometry, freqs, sds,

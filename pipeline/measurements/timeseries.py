@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.errors import UserError
+from pipeline.hdf5_files import open_hdf5, refuse_external_links
 from pipeline.measurements.drive_checks import drive_warnings
 from pipeline.model.whisker import WhiskerGeometry
 
@@ -237,17 +238,13 @@ def _load_trial(name: str, group, where: _Where) -> Trial:
 def load_timeseries(path: str | Path) -> TimeSeriesMeasurement:
     """Read and validate a time-series measurement; any problem is a UserError naming
     file, trial and field."""
-    import h5py
-
     path = Path(path)
     where = _Where(path)
     if not path.is_file():
         raise UserError(f"{path}: measurement file not found")
-    try:
-        handle = h5py.File(path, "r")
-    except OSError as exc:
-        raise UserError(f"{path}: not a readable HDF5 file ({exc})") from None
+    handle = open_hdf5(path, "measurement file")
     with handle:
+        refuse_external_links(handle, "measurement file")
         fmt = _attr(handle, "format", where, "format")
         if fmt != FORMAT:
             raise where.error("format", f"must be '{FORMAT}', got {fmt!r}")

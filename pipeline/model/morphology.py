@@ -157,6 +157,8 @@ class Morphology:
                 return Morphology([w for w in self.whiskers if w.side == side], self.name,
                                   self.origin_m)
             selection = [part for part in token.split(",") if part.strip()]
+        if not selection:
+            raise UserError("whisker selection '' names no whisker (give all, R, L or names such as RC1,RC2)")
         wanted = {self[name].name for name in selection}
         return Morphology([w for w in self.whiskers if w.name in wanted], self.name, self.origin_m)
 

@@ -12,6 +12,7 @@ damping from :mod:`pipeline.model.damping`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,6 +21,9 @@ from pipeline.errors import UserError
 
 # 4-point Gauss–Legendre integrates the degree-6 polynomials of a linear-radius frustum exactly.
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(4)
+
+
+MAX_CURVATURE_PER_M = 1000.0    # A of y = A·x²; rat whiskers: 0.01-0.1 /mm (Towal et al. 2011)
 
 
 @dataclass(frozen=True)
@@ -36,6 +40,10 @@ class WhiskerGeometry:
             raise UserError("whisker arc length and radii must be positive")
         if self.tip_radius_m > self.base_radius_m:
             raise UserError("whisker tip radius must not exceed the base radius")
+        if not (math.isfinite(self.curvature_per_m) and abs(self.curvature_per_m) <= MAX_CURVATURE_PER_M):
+            raise UserError(f"whisker curvature A = {self.curvature_per_m * 1e-3:g}/mm is not a rodent "
+                            f"whisker's (|A| ≤ {MAX_CURVATURE_PER_M * 1e-3:g}/mm: a radius of curvature "
+                            "at the base of at least 0.5 mm)")
         if self.arc_length_m > 0.2 or self.base_radius_m > 1e-3:
             raise UserError(f"whisker of {self.arc_length_m * 1e3:.0f} mm / "
                             f"{self.base_radius_m * 2e6:.0f} µm is not a rodent whisker "

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pipeline.signals.resonance import DURATION_S, MODES, ResonanceResult, analyse_tip, pulse_drive
 from pipeline.config.physics import ModelConfig
+from pipeline.errors import UserError
 from pipeline.model.array import single_whisker
 from pipeline.model.extensions import model_parts
 from pipeline.model.kinematics import Pose
@@ -16,6 +17,10 @@ def run_resonance(geometry: WhiskerGeometry, config: ModelConfig, modes: int = M
     """Simulate the resonance protocol for one whisker and analyse its tip (SI in and out)."""
     from pipeline.engines import create_engine
 
+    if config.material.damping_ratio <= 0:
+        raise UserError("damping ratio ζ = 0: the resonance protocol measures modes from a decaying "
+                        "ring-down, and an undamped whisker's fit mistakes its second mode for f1; use ζ > 0 "
+                        "(e.g. --zeta 1e-4)")
     material, extensions = model_parts(config)
     array = single_whisker(geometry, material, extensions=extensions)
     with create_engine(config, array) as engine:

@@ -41,7 +41,7 @@ class Whisking:
     engine."""
 
     def __init__(self, config: ModelConfig, whiskers: str | None = None):
-        self.config, self.whiskers = config, whiskers or config.whiskers
+        self.config, self.whiskers = config, config.whiskers if whiskers is None else whiskers
         self._engine = None
 
     @cached_property

@@ -35,6 +35,21 @@ WORKER_EXTRA_ARGS = ["--dashboard-address", f"{LOOPBACK}:0"]   # workers' HTTP s
 SCHEDULER_PLACEHOLDER = "tcp://SCHEDULER:8786"    # in a previewed job script: the run's scheduler
 
 
+def scheduler_bind(config: ClusterConfig) -> dict:
+    """Where a batch cluster's scheduler listens: ``scheduler_host``, else the ``interface``'s
+    address, else the address the hostname resolves to; never every interface (dask-jobqueue's
+    default without an interface is 0.0.0.0 and [::])."""
+    if config.scheduler_host is not None:
+        return {"host": config.scheduler_host}
+    if config.interface is not None:
+        return {"interface": config.interface}
+    try:
+        return {"host": socket.gethostbyname(socket.gethostname())}
+    except OSError as exc:
+        raise UserError(f"cluster: the hostname {socket.gethostname()} has no address ({exc}); set "
+                        "cluster.interface or cluster.scheduler_host") from None
+
+
 def _cluster_class(config: ClusterConfig):
     import dask_jobqueue
 
@@ -45,6 +60,12 @@ def _cluster_class(config: ClusterConfig):
 def _batch_options(config: ClusterConfig) -> dict:
     options = config.batch_options()
     options.setdefault("python", sys.executable)
+    if config.tls:
+        try:
+            import cryptography  # noqa: F401  (dask's temporary TLS credentials need it)
+        except ImportError:
+            raise UserError("cluster.tls: needs the cryptography package (pip install cryptography)") from None
+        options["security"] = True
     return options
 
 
@@ -53,7 +74,8 @@ def _batch_cluster(config: ClusterConfig):
     try:           # the workers' HTTP (status) servers on loopback too; their comms must face the network
         return _cluster_class(config)(
             **_batch_options(config), worker_extra_args=WORKER_EXTRA_ARGS,
-            scheduler_options={"dashboard_address": dashboard_address(config), "dashboard": config.dashboard})
+            scheduler_options={"dashboard_address": dashboard_address(config), "dashboard": config.dashboard,
+                               **scheduler_bind(config)})
     except ValueError as exc:
         raise UserError(f"cluster: {config.kind} options rejected by dask-jobqueue: {exc}") from None
 

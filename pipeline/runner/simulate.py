@@ -25,6 +25,7 @@ import yaml
 
 from pipeline.config.simulate import SimulateConfig, load_simulate_config
 from pipeline.datasets.manifest import write_manifest
+from pipeline.datasets.outputs import folder_inside_root
 from pipeline.datasets.reader import DatasetFile, decode_attr
 from pipeline.datasets.schema import (CONFIG_FILE, DATA_FILE, FAILED, OK, PENDING, POSE_REJECTION_REASONS,
                                       TrialRecord)
@@ -62,6 +63,7 @@ def _stored_config(folder: Path) -> SimulateConfig:
 def _target(config: SimulateConfig, resume: bool, shard: Shard | None) -> tuple[Path, str, range]:
     """(folder, label, trial indices) this run writes."""
     root, name = Path(config.dataset.root), config.dataset.name
+    folder_inside_root(root / name, root, "dataset folder")
     if shard is not None:
         folder = shard_folder(config, shard)
         folder.mkdir(parents=True, exist_ok=True)
