@@ -82,6 +82,8 @@ ARRAYS: dict[str, ArraySpec] = {
         "node position"),
 }
 
+HEAD_MOTION_ARRAYS = ("head_position_m", "head_euler_zyx_rad")     # only in datasets with head motion
+
 LEGACY_ARRAYS: dict[str, ArraySpec] = {      # schema versions 1 to 3
     "base_wrench": ArraySpec(
         ("trial", "time", "whisker", "signal"), "f4", ", ".join(SIGNAL_UNITS), float("nan"),
