@@ -14,8 +14,8 @@ Seeds 7000– are the benchmark; none of the rule's constants was set on them.
 
 Printed: the confusion table (class × named cause); right causes (all of them, for two-cause
 draws) on draws whose effect exceeds the noise (the effect: RMS of the clean tracked positions
-with minus without it; the noise: RMS of the per-axis tracking σ), "none" on effect-free
-draws, the named parameter within 15 %, the two-cause table, tracebacks, CPU per diagnosis.
+with minus without it; the noise: RMS of the per-axis tracking σ), "none" (or twist alone on
+a curved whisker: see :func:`_right`) on effect-free draws, the named parameter within 15 %, the two-cause table, tracebacks, CPU per diagnosis.
 """
 
 from __future__ import annotations
@@ -100,7 +100,11 @@ def run_one(k: int, seed0: int, workdir: Path, elements: int) -> dict:
 
 
 def _right(row) -> bool:
-    return set(row["causes"]) == set(row["expected"]) and row["named"] != "traceback"
+    """All the expected causes and no other; "twist" is allowed on curved whiskers (the truth
+    twists, G = E/2.6, and out-of-plane motion of a curved whisker shows it; the model's default
+    chain has no twist, its ``twist`` extension adds it)."""
+    named = set(row["causes"]) - ({"twist"} if row["curved"] else set())
+    return named == set(row["expected"]) and row["named"] != "traceback"
 
 
 def _share(hits: int, total: int) -> str:
@@ -119,10 +123,13 @@ def report(rows: list[dict]) -> str:
     effect = [r for r in rows if r["expected"]]
     big = [r for r in effect if r["effect_rms_m"] > r["noise_m"]]
     clean = [r for r in rows if not r["expected"]]
+    twist = [r for r in rows if "twist" in r["causes"]]
     lines += ["", f"right causes (all of them) where the effect > noise σ: {_share(sum(map(_right, big)), len(big))}; "
                   f"{len(effect) - len(big)} effect draws below it (right anyway: "
                   f"{sum(_right(r) for r in effect if r not in big)})",
-              f"'none' on effect-free draws: {_share(sum(r['named'] == 'none' for r in clean), len(clean))}"]
+              f"nothing but twist on effect-free draws: {_share(sum(map(_right, clean)), len(clean))} ('none' "
+              f"{sum(r['named'] == 'none' for r in clean)}); twist named on {len(twist)} draws "
+              f"({sum(r['curved'] for r in twist)} curved)"]
     keyed = [(r, c, e) for r in rows for c, e in r["key_errors"].items() if c in r["expected"] and np.isfinite(e)]
     lines.append(f"named parameter within {TOLERANCE:.0%}: "
                  f"{_share(sum(abs(e) <= TOLERANCE for _, _, e in keyed), len(keyed))}")

@@ -15,7 +15,8 @@ Equations (base frame turning at θ(t) about a fixed unit axis n, displacements 
 
 F_α, F_c: ∫ρA Nᵀ(n × X), ∫ρA Nᵀ n × (n × X) over the rest shape X; F_drag the linear drag on
 the rigid motion's normal velocity; g_b = R(t)ᵀ·g. Coriolis and ω²·u terms are dropped (first
-order in u). Damping law (:data:`LAWS`): ``kelvin_voigt`` C = β(s)·K_e per element with
+order in u); tracked positions follow the small-strain solution's rotations exactly
+(:meth:`Beam.points_at`). Damping law (:data:`LAWS`): ``kelvin_voigt`` C = β(s)·K_e per element with
 β = 2ζ₁/ω₁; ``rayleigh`` C = a·M + b·K with ζ₁ at ω₁ and ``zeta_ratio``·ζ₁ at the third
 in-plane mode; ``modal`` ζ₁ on every mode; ``eq3`` the paper's c = 2ζ·L_com·√(M_distal·k) read
 as a continuum law with the paper's link length S/20 (β(s) = c/k per element); plus the
@@ -31,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, eig, eigh
+from scipy.spatial.transform import Rotation
 
 DENSITY_BASE_KG_M3 = 1260.0     # Yang et al. 2019 regional means, linear along the (untrimmed) arc
 DENSITY_TIP_KG_M3 = 1690.0
@@ -183,17 +185,24 @@ class Beam:
                 full_f[e.dofs] += wt * e.length * c * n.T @ normal @ (e.frame @ np.cross(axis, x))
         return self.restrict(full_c), self.restrict(full_f)
 
-    def displacement_at(self, u_free: np.ndarray, s: float) -> np.ndarray:
-        """[..., 3] rest position plus displacement of the material point at arc s (generator frame)
-        for free-DOF vectors u_free [..., n]."""
+    def points_at(self, u_free: np.ndarray, fractions) -> np.ndarray:
+        """[..., K, 3] positions (generator frame, base frame) of the material points at arc
+        ``fractions`` for free-DOF vectors u_free [..., n]: each element's rest chord turned by
+        the mean rotation vector of its two nodes, chained from the base (exact kinematics of
+        the small-strain solution: a point far out moves on an arc, not along a tangent),
+        linear along the chord inside an element."""
         full = np.zeros(u_free.shape[:-1] + (6 * len(self.nodes),))
         full[..., self.free] = u_free
-        j = min(int(np.searchsorted(self.arc_nodes, s, side="right")) - 1, len(self.elements) - 1)
-        e = self.elements[j]
-        xi = (s - e.s0) / e.arc
-        rest = self.nodes[j] * (1 - xi) + self.nodes[j + 1] * xi
-        local = full[..., e.dofs] @ (_shape(xi, e.length) @ e.to_local()).T
-        return rest + local @ e.frame
+        rotations = full.reshape(full.shape[:-1] + (len(self.nodes), 6))[..., 3:]
+        mean = 0.5 * (rotations[..., 1:, :] + rotations[..., :-1, :])
+        chords = np.diff(self.nodes, axis=0)
+        turned = Rotation.from_rotvec(mean.reshape(-1, 3)).apply(np.array(np.broadcast_to(chords, mean.shape)).reshape(-1, 3))
+        turned = turned.reshape(mean.shape)
+        nodes = np.concatenate([np.zeros(mean.shape[:-2] + (1, 3)), np.cumsum(turned, axis=-2)], axis=-2)
+        s = np.asarray(fractions, float) * self.whisker.length_m
+        j = np.clip(np.searchsorted(self.arc_nodes, s, side="right") - 1, 0, len(self.elements) - 1)
+        xi = (s - self.arc_nodes[j]) / np.diff(self.arc_nodes)[j]
+        return nodes[..., j, :] * (1 - xi)[:, None] + nodes[..., j + 1, :] * xi[:, None]
 
     def in_plane(self) -> np.ndarray:
         """Mask of the free DOFs that move in the rest plane (x, y translations, rotation about z):

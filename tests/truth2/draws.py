@@ -177,7 +177,7 @@ def _gravity_load(beam: Beam, rotation: np.ndarray | None = None) -> np.ndarray:
 
 def _points(beam: Beam, u: np.ndarray, fractions) -> np.ndarray:
     """[T, K, 3] tracked points (generator frame, base frame) of displacements u [T, n]."""
-    return np.stack([beam.displacement_at(u, f * beam.whisker.length_m) for f in fractions], axis=1)
+    return beam.points_at(u, fractions)
 
 
 def _whisk(beam: Beam, trial: Whisk, times: np.ndarray, rest: np.ndarray, fractions):
@@ -217,12 +217,13 @@ def _release(beam: Beam, trial: Release, times: np.ndarray, rest: np.ndarray, fr
     full = np.zeros(6 * len(beam.nodes))
     full[6 * j:6 * j + 3] = direction
     unit = static(beam, beam.restrict(full))
-    moved = beam.displacement_at(unit, s) - beam.displacement_at(np.zeros_like(unit), s)
+    tiny = 1e-9 / np.abs(unit).max()                   # the linear response of the contact point
+    moved = (beam.points_at(tiny * unit, [s / w.length_m])[0] - beam.points_at(0 * unit, [s / w.length_m])[0]) / tiny
     start = rest + unit * trial.deflection_fraction * w.length_m / np.linalg.norm(moved)
     gravity = _gravity_load(beam) if w.gravity_m_s2 > 0 else np.zeros(beam.size)
     drag_c, _ = beam.drag_matrices(np.array([0.0, 0.0, 1.0]))
     u = integrate(beam, lambda t: gravity, start, times, STEP_S, drag_c)
-    contact = beam.displacement_at(start, s)
+    contact = beam.points_at(start, [s / w.length_m])[0]
     return _points(beam, u, fractions), ReleaseDrive(s / w.length_m, to_rest_frame(contact))
 
 
