@@ -21,18 +21,27 @@ def test_decision_takes_the_later_rounds_threshold():
 
 
 @pytest.mark.slow
-def test_follicle_and_stiffness_gradient_are_both_named_and_recovered():
+def test_follicle_and_stiffness_gradient_are_both_named_and_recovered(tmp_path):
     """Synth scenario 17 (k_f ≈ k_w, 54 µm noise) plus γ = −1.2: both causes, each parameter
-    within 20 % (measured: k_f −0.2 %, c_f −0.4 %, γ +3.2 %, E −0.1 %)."""
+    within 20 % (measured: k_f −0.2 %, c_f −0.4 %, γ +3.2 %, E −0.1 %), both in the model file
+    that ``--model`` reads."""
+    from pipeline.config.model_file import read_model_file
+    from pipeline.diagnosis.commands import _save_diagnosis
     from pipeline.diagnosis.diagnose import diagnose
+    from pipeline.measurements.timeseries import write_timeseries
     from pipeline.diagnosis.scenarios import draw
     from pipeline.diagnosis.synth import SynthConfig, synthesise
 
     scenario = draw("follicle", 17)
     config = scenario.config.model_dump()
     config["extensions"]["stiffness_gradient"] = {"gamma": -1.2}
-    result = diagnose(synthesise(SynthConfig.model_validate(config)))
+    measurement = synthesise(SynthConfig.model_validate(config))
+    result = diagnose(measurement)
     assert set(result.causes) == {"follicle", "stiffness_gradient"}
     truth = {**scenario.truth, "stiffness_gradient.gamma": -1.2}
     for name in ("E", "follicle.k_f", "follicle.c_f", "stiffness_gradient.gamma"):
         assert result.final.values[name] == pytest.approx(truth[name], rel=0.2), name
+    data = write_timeseries(tmp_path / "two.h5", measurement)
+    saved = read_model_file(_save_diagnosis(tmp_path / "M.yaml", result, data, measurement.geometry, "W"))
+    assert {"follicle", "stiffness_gradient"} <= set(saved.content.extension_values())
+    assert saved.content.provenance.fit.cause == "follicle+stiffness_gradient"
