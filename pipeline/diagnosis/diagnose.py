@@ -149,9 +149,12 @@ class Diagnosis:
 
 def _signature(trial) -> tuple[str, int]:
     """Drive kind and main axis (rotation: largest angle column; release: the larger of the
-    tip's y and z travel from the first frame to its final rest)."""
+    tip's y and z travel from the first tracked frames to its final rest)."""
     if isinstance(trial.drive, ReleaseDrive):
         tip = trial.positions_m[:, int(np.argmax(trial.arc_fraction))]
+        tip = tip[~np.isnan(tip).any(axis=1)]
+        if len(tip) < 2:
+            return "release", 0
         travel = np.nanmean(tip[:5], axis=0) - np.nanmean(tip[-max(5, len(tip) // 10):], axis=0)
         return "release", int(np.argmax(np.nan_to_num(np.abs(travel[1:]))))
     return "rotation", int(np.argmax(np.abs(trial.drive.angles_rad).max(axis=0)))
