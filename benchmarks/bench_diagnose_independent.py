@@ -164,7 +164,8 @@ def run_one(k: int, seed0: int, workdir: Path, elements: int, sizes: bool = True
     data, _ = run_diagnose(path, MaterialConfig(), None, None)
     cpu = time.process_time() - start
     relative, in_sd = case.key_error(data["params"]) if data["cause"] == case.expected else (float("nan"),) * 2
-    return {**meta, "named": data["cause"], "key_relative_error": relative, "key_error_in_sd": in_sd,
+    return {**meta, "named": data["cause"], "causes": data.get("causes", []), "key_relative_error": relative,
+            "key_error_in_sd": in_sd,
             "E_fit": data["params"]["E"]["value"], "params": data["params"], "decision": data.get("decision", {}),
             "cpu_s": cpu}
 
@@ -263,6 +264,9 @@ def report(rows: list[dict]) -> str:
     lines += _by_size(effect)
     lines.append(f"'none' on effect-free draws (none, density_scale): {_share(sum(r['named'] == 'none' for r in clean), len(clean))}")
     lines.append(f"overall right: {_share(sum(r['named'] == r['expected'] for r in rows), len(rows))}")
+    extra = [r for r in rows if len(r.get("causes", [])) > 1]
+    lines.append(f"more than one cause named (each draw has at most one): {len(extra)} draws"
+                 + "".join(f"\n  {r['seed']} {r['cause']}: {', '.join(r['causes'])}" for r in extra))
     keyed = [r for r in rows if r["cause"] in KEY_PARAMETER and r["named"] == r["expected"]
              and r.get("named_before", r["named"]) == r["named"]]
     renamed = sum(r.get("named_before", r["named"]) != r["named"] for r in rows)

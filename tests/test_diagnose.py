@@ -242,10 +242,11 @@ def test_cli_names_hidden_gravity(tmp_path):
 
     cli("synth", "--config", str(config), "--out", str(data_file))
     data = json.loads(cli("diagnose", str(data_file), "--json", "--report", str(tmp_path / "report")))
-    assert set(data) == {"baseline", "candidates", "cause", "params", "gain", "decision"}
+    assert set(data) == {"baseline", "candidates", "cause", "causes", "params", "gain", "decision"}
     assert set(data["baseline"]) == {"params", "error"} and set(data["gain"]) == {"metric", "before", "after"}
     assert all(set(c) == {"name", "params", "heldout_error", "score"} for c in data["candidates"])
-    assert data["cause"] == "gravity" and data["gain"]["after"] < data["gain"]["before"]
+    assert data["cause"] == "gravity" and data["causes"] == ["gravity"]
+    assert data["gain"]["after"] < data["gain"]["before"]
     assert data["params"]["gravity.g"]["value"] == pytest.approx(9.81, rel=0.1)
     assert (tmp_path / "report" / "report.md").is_file() and (tmp_path / "report" / "tip_trajectories.png").is_file()
 

@@ -43,12 +43,13 @@ def _table_sigma(objective) -> np.ndarray | None:
 
 
 def modal_summary(spec: ModelSpec, geometry) -> dict:
-    """First in-plane mode of the fitted whisker: damped frequency (Hz) and damping ratio."""
-    from pipeline.diagnosis.fastsim import damped_modes
+    """First in-plane mode of the fitted whisker: damped frequency (Hz) and damping ratio (both
+    NaN, null in the JSON, when the fitted whisker is overdamped in-plane)."""
+    from pipeline.diagnosis.in_plane import first_damped_in_plane
     from pipeline.diagnosis.linear import linearise
 
-    freqs, zetas, in_plane = damped_modes(linearise(spec.physics(geometry)))
-    return {"f1_hz": float(freqs[in_plane][0]), "zeta1": float(zetas[in_plane][0])}
+    f1, zeta1 = first_damped_in_plane(linearise(spec.physics(geometry)))
+    return {"f1_hz": f1, "zeta1": zeta1}
 
 
 BOUND_TOLERANCE = 1e-6      # relative distance from a bound at which a fitted value is pinned to it
@@ -101,6 +102,8 @@ def _calibrate(measurement, names, method, objective, material, engine, bootstra
                                   bootstrap, method=method)
             for name, sd in spread.items():
                 out["params"][name]["sd_bootstrap"] = sd
+    out["notes"] += [f"the fitted {w} is overdamped in-plane (no oscillating first mode): f1 and ζ1 are null"
+                     for w, m in out["modes"].items() if not np.isfinite(m["f1_hz"])]
     if engine:
         from pipeline.diagnosis.engine import EngineSimulator
 

@@ -148,7 +148,8 @@ def _save_diagnosis(out: Path, result, path: Path, geometry, whisker: str) -> Pa
     from pipeline.diagnosis.saved_model import save_model
 
     final = result.final
-    summary = {"method": "diagnose", "cause": result.cause, "metric": final.metric, "error": final.error,
+    summary = {"method": "diagnose", "cause": "+".join(getattr(result, "causes", None) or [result.cause]),
+               "metric": final.metric, "error": final.error,
                "whisker": whisker, **modal_summary(final.spec, geometry)}
     return save_model(out, final.spec, final.params(), [path], summary)
 
@@ -175,7 +176,7 @@ def _diagnose_series(measurement, material, report, engine, candidates) -> tuple
 
     result = diagnose(measurement, material, candidates)
     data = result.as_dict()
-    lines = [f"{measurement.path}: cause = {result.cause}",
+    lines = [f"{measurement.path}: cause = {' + '.join(result.causes) or result.cause}",
              f"  held-out RMS {result.baseline_heldout * 1e3:.4f} mm (baseline) → {result.gain_after * 1e3:.4f} mm; "
              f"noise {result.noise_m * 1e3:.4f} mm, model-error floor {result.floor_m * 1e3:.4f} mm"]
     lines.append("  candidate             held-out (mm)  explained  ΔBIC      z")

@@ -42,6 +42,14 @@ Time series (positions of tracked points):
    φ ≥ ``EXPLAINED_MIN``; none such → "unexplained". A named cause that still leaves a
    significant excess gets a note (a second effect?). Positions cannot tell a uniform density
    change from a change of E (eq. 3: only E/ρ sets the time scale): every diagnosis says so.
+5b. Several causes (forward selection, :func:`_next_cause`): once a cause is named, the named
+   model is the baseline of another round over the remaining candidates (each fitted on top
+   of it, steps 3–5 on the same split and noise), until a round names nothing or
+   ``MAX_CAUSES`` are named. A later round's z threshold accounts for every candidate tried
+   so far (:func:`family_z`: Bonferroni on the one-sided tail of ``Z_MIN``, which the first
+   round's candidates set), so trying more candidates does not lower the bar. Data scored
+   with the nonlinear correction stop after the first round (a note says so). ``causes``
+   lists the causes in the order named; the model refitted in step 6 holds all of them.
 6. The named model (or the baseline) is refitted on all trials for its parameters; their
    SDs are block-sandwich SDs over 50 ms stretches plus a model-error term of RMS
    ``SD_MODEL_FRACTION``·A (:func:`~.fitting.block_sandwich_sd`), calibrated so that ±1 SD
@@ -93,6 +101,7 @@ METRIC = "heldout_rms_m"
 CANDIDATE_ITERATIONS = 10   # first fits on the training half: enough to rank candidates
 LEADERS = 3                 # candidates whose fits then continue
 FINAL_ITERATIONS = 40       # continued fits, and the refit of the named model on all trials
+MAX_CAUSES = 3              # rounds of the forward selection (step 5b)
 
 
 @dataclass
@@ -127,21 +136,25 @@ class Diagnosis:
     simulated: dict = field(default_factory=dict)     # "baseline"/"cause" → positions per trial
     evidence: dict = field(default_factory=dict)      # what the cause was decided on (see decide)
     floor_m: float = 0.0                              # model-error floor on the held-out trials (m)
+    causes: list[str] = field(default_factory=list)   # every cause named, in order (step 5b)
 
     def as_dict(self) -> dict:
         """The JSON of ``pipeline diagnose --json`` (docs/measurements.md)."""
         return {"baseline": {"params": self.baseline.params(), "error": self.baseline_heldout},
                 "candidates": [c.as_dict() for c in self.candidates],
-                "cause": self.cause, "params": self.final.params(),
+                "cause": self.cause, "causes": self.causes, "params": self.final.params(),
                 "gain": {"metric": self.metric, "before": self.baseline_heldout, "after": self.gain_after},
                 "decision": self.evidence}
 
 
 def _signature(trial) -> tuple[str, int]:
     """Drive kind and main axis (rotation: largest angle column; release: the larger of the
-    tip's y and z travel from the first frame to its final rest)."""
+    tip's y and z travel from the first tracked frames to its final rest)."""
     if isinstance(trial.drive, ReleaseDrive):
         tip = trial.positions_m[:, int(np.argmax(trial.arc_fraction))]
+        tip = tip[~np.isnan(tip).any(axis=1)]
+        if len(tip) < 2:
+            return "release", 0
         travel = np.nanmean(tip[:5], axis=0) - np.nanmean(tip[-max(5, len(tip) // 10):], axis=0)
         return "release", int(np.argmax(np.nan_to_num(np.abs(travel[1:]))))
     return "rotation", int(np.argmax(np.abs(trial.drive.angles_rad).max(axis=0)))
@@ -195,7 +208,7 @@ def _candidates(session: _Session, baseline: Fit, chosen: list[Candidate]) -> li
     scores = []
     for c in chosen:
         start = best_start(session.train, session.train_features, baseline.spec, c.starts(scales))
-        scores.append(_fit_candidate(session, baseline, c.name, start, BASELINE_NAMES + c.params,
+        scores.append(_fit_candidate(session, baseline, c.name, start, baseline.names + c.params,
                                      CANDIDATE_ITERATIONS))
     for lead in _leaders(scores):
         refine = next(c.refine for c in chosen if c.name == lead.name)
@@ -258,10 +271,18 @@ def beyond_floor(evidence: dict, floor_fraction: float = None) -> dict[str, floa
     return result
 
 
+def family_z(tried: int, first_round: int) -> float:
+    """The z threshold after ``tried`` candidates in all, ``first_round`` of them in the round that
+    set ``Z_MIN``: the one-sided tail of ``Z_MIN`` shared out over all of them (Bonferroni)."""
+    from scipy.stats import norm
+
+    return float(norm.isf(norm.sf(Z_MIN) * first_round / max(tried, first_round)))
+
+
 def decide(evidence: dict, floor_fraction: float = None, explained_min: float = None,
-           notes: list[str] | None = None) -> tuple[str, dict[str, float]]:
+           notes: list[str] | None = None, z_min: float = Z_MIN) -> tuple[str, dict[str, float]]:
     """(cause, each candidate's share φ of the excess) from the held-out evidence
-    (``Diagnosis.evidence``) and the rule's two thresholds (default: this module's)."""
+    (``Diagnosis.evidence``) and the rule's thresholds (default: this module's)."""
     floor_fraction = FLOOR_FRACTION if floor_fraction is None else floor_fraction
     explained_min = EXPLAINED_MIN if explained_min is None else explained_min
     e0, noise, n = evidence["baseline_m"], evidence["noise_m"], evidence["values"]
@@ -270,7 +291,7 @@ def decide(evidence: dict, floor_fraction: float = None, explained_min: float = 
     z_beyond = beyond_floor(evidence, floor_fraction)
     shares = {c["name"]: (e0 ** 2 - c["heldout_m"] ** 2) / excess if excess > 0 else float(z_beyond[c["name"]] > 0)
               for c in evidence["candidates"]}
-    beats = [c for c in evidence["candidates"] if c["bic_delta"] < -BIC_MIN and z_beyond[c["name"]] > Z_MIN]
+    beats = [c for c in evidence["candidates"] if c["bic_delta"] < -BIC_MIN and z_beyond[c["name"]] > z_min]
     if significance(e0, noise, floor, n) <= SIGNIFICANT and not beats:
         return "none", shares
     supported = [c for c in beats if shares[c["name"]] >= explained_min]
@@ -330,10 +351,8 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
     best = min([(e0, baseline.spec)] + [(s.heldout_error, s.fit.spec) for s in scores], key=lambda p: p[0])[1]
     noise = noise_estimate(session.test.measurement, session.test.simulate(best))
     _paired_z(r0, noise, scores)
-    evidence = {"baseline_m": e0, "noise_m": noise, "amplitude_m": amplitude(session.test.measurement),
-                "values": int(r0.size), "bend": bent, "simulator": simulator_note,
-                "candidates": [{"name": c.name, "heldout_m": c.heldout_error, "bic_delta": c.bic_delta, "z": c.z,
-                                "absorbs": ABSORBS[c.name]} for c in scores]}
+    evidence = {**_evidence(e0, noise, amplitude(session.test.measurement), r0, scores),
+                "bend": bent, "simulator": simulator_note}
     cause, shares = decide(evidence, notes=notes)
     notes.append(E_DENSITY_NOTE)
     evidence["ambiguous"] = ["E", "density.scale"]
@@ -346,6 +365,23 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
                      f"{100 * LINEAR_BEND_MAX:.0f} % the linear fast simulator follows: baseline and leading "
                      f"candidates scored with the {simulator_note}")
     named = next((s for s in scores if s.name == cause), None)
+    causes = [cause] if named else []
+    if named and simulators:
+        notes.append("the data need the nonlinear correction: only one cause is looked for")
+    tried, rounds = len(scores), []
+    while named and not simulators and len(causes) < MAX_CAUSES:
+        rest = [c for c in chosen if c.name not in causes]
+        found, round_evidence = _next_cause(session, named, rest, noise, evidence["amplitude_m"],
+                                            family_z(tried + len(rest), len(scores)))
+        tried += len(rest)
+        rounds.append(round_evidence)
+        if found is None:
+            break
+        named = found
+        causes.append(found.name)
+    evidence["rounds"] = rounds
+    if len(causes) > 1:
+        notes.append(f"{len(causes)} causes named, in order: {', '.join(causes)} (each on top of the ones before)")
     final_names = BASELINE_NAMES + (named.fit.names[2:] if named else ())
     whole = TrajectoryObjective(measurement, simulators.get(cause, simulators.get("baseline")))
     final = fit(whole, (named.fit if named else baseline).spec, final_names, max_iterations=FINAL_ITERATIONS)
@@ -362,4 +398,23 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
         analysis=analyse(measurement, simulated["baseline"]),
         cause_analysis=analyse(measurement, simulated["cause"]),
         split={"train": train, "heldout": test}, notes=notes + final.notes, simulated=simulated,
-        evidence=evidence, floor_m=FLOOR_FRACTION * evidence["amplitude_m"])
+        evidence=evidence, floor_m=FLOOR_FRACTION * evidence["amplitude_m"], causes=causes)
+
+
+def _evidence(e0: float, noise: float, amplitude_m: float, r0: np.ndarray, scores: list[CandidateScore]) -> dict:
+    """The held-out evidence :func:`decide` takes (baseline error e0 and residuals r0)."""
+    return {"baseline_m": e0, "noise_m": noise, "amplitude_m": amplitude_m, "values": int(r0.size),
+            "candidates": [{"name": c.name, "heldout_m": c.heldout_error, "bic_delta": c.bic_delta, "z": c.z,
+                            "absorbs": ABSORBS[c.name]} for c in scores]}
+
+
+def _next_cause(session: _Session, named: CandidateScore, rest: list[Candidate], noise: float,
+                amplitude_m: float, z_min: float) -> tuple[CandidateScore | None, dict]:
+    """One round of step 5b: the ``rest`` candidates fitted on top of the ``named`` model (its
+    training fit the baseline), decided at ``z_min``; (the new cause's score or None, evidence)."""
+    scores = _candidates(session, named.fit, rest)
+    _paired_z(named.heldout_residuals, noise, scores)
+    evidence = _evidence(named.heldout_error, noise, amplitude_m, named.heldout_residuals, scores)
+    cause, _ = decide(evidence, z_min=z_min)
+    evidence.update(z_min=z_min, on_top_of=named.fit.names, cause=cause)
+    return next((s for s in scores if s.name == cause), None), evidence

@@ -2,7 +2,8 @@
 
 The chain with the continuum corrections converges at second order in 1/N (docs/model.md §2),
 so its relative error in the first frequency is, by Richardson extrapolation from N and 2N
-links, ε₁ ≈ (f₁(N) − f₁(2N))·4/3 / f₁(N). Frequencies scale with √E, so a modulus fitted with
+links, ε₁ ≈ (f₁(N) − f₁(2N))·4/3 / f₁(N), f₁ the first *undamped* in-plane frequency (the
+error is one of stiffness and mass; a damped frequency may not exist: an overdamped fit). Frequencies scale with √E, so a modulus fitted with
 the N-link chain is off by ≈ −2·ε₁ (a chain too stiff by ε₁ takes an E low by 2·ε₁): an error
 the residuals cannot show (the fit absorbs it) and the SD of E carries as a term of its own.
 """
@@ -11,17 +12,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnosis.fastsim import damped_modes
+from pipeline.diagnosis.in_plane import undamped_in_plane_hz
 from pipeline.diagnosis.linear import linearise
 from pipeline.diagnosis.parameters import ModelSpec
 from pipeline.model.whisker import WhiskerGeometry
 
 
 def first_frequency_hz(spec: ModelSpec, geometry: WhiskerGeometry, links: int) -> float:
-    """The first in-plane damped frequency (Hz) of ``spec`` built with ``links`` links."""
+    """The first undamped in-plane frequency (Hz) of ``spec`` built with ``links`` links."""
     with_links = ModelSpec(spec.material.model_copy(update={"links": links}), spec.extensions)
-    freqs, _, in_plane = damped_modes(linearise(with_links.physics(geometry)))
-    return float(freqs[in_plane][0])
+    return float(undamped_in_plane_hz(linearise(with_links.physics(geometry)))[0])
 
 
 def modulus_discretisation(spec: ModelSpec, geometry: WhiskerGeometry) -> float:

@@ -41,4 +41,5 @@ def model_file(spec: ModelSpec, params: dict, data: list[Path], fit: dict) -> Mo
 
 def save_model(path: Path, spec: ModelSpec, params: dict, data: list[Path], fit: dict) -> Path:
     """Write :func:`model_file` to ``path``; returns the path."""
-    return write_model_file(path, model_file(spec, params, data, fit))
+    finite = {k: None if isinstance(v, float) and not math.isfinite(v) else v for k, v in fit.items()}
+    return write_model_file(path, model_file(spec, params, data, finite))
