@@ -224,6 +224,12 @@ def clearance_m(points_m: np.ndarray, times_s: np.ndarray, scene) -> np.ndarray:
     return result
 
 
+def node_padding_m(whiskers, margin_m: float) -> np.ndarray:
+    """[W] how far (m) every point of a whisker's links lies at most from its nearest node, plus
+    ``margin_m``: the base radius plus half the longest link."""
+    return np.array([w.chain.node_radii_m[0] + 0.5 * w.chain.link_lengths_m.max() for w in whiskers]) + margin_m
+
+
 class FreeMotion:
     """What whiskers that touched nothing did, relative to the head, in trials of one drive.
 
@@ -237,8 +243,7 @@ class FreeMotion:
     """
 
     def __init__(self, whiskers, margin_m: float = CLEARANCE_MARGIN_M):
-        self.padding_m = np.array([w.chain.node_radii_m[0] + 0.5 * w.chain.link_lengths_m.max()
-                                   for w in whiskers]) + margin_m
+        self.padding_m = node_padding_m(whiskers, margin_m)
         self.key: object = None
         self.motions: dict[int, tuple[np.ndarray, np.ndarray, float]] = {}   # wrench, head nodes, pad
 

@@ -124,9 +124,10 @@ import numpy as np
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, TrialSetup, World, WorldResult
-from pipeline.engines.common import (ContactFlags, implausible, jam_message, link_reach_m, node_arc_fractions,
-                                     path_distance_m, start_rate)
+from pipeline.engines.common import (CLEARANCE_MARGIN_M, ContactFlags, implausible, jam_message, link_reach_m,
+                                     node_arc_fractions, node_padding_m, path_distance_m, start_rate)
 from pipeline.engines.stepping import damping_folds, folded_refinement_levels
+from pipeline.engines.swept_crop import SWEPT_RUNS, PrismSpheres, SweptCrop
 from pipeline.errors import SimulationError
 from pipeline.model.array import ArrayModel, WhiskerModel
 from pipeline.model.kinematics import Pose, ProtractionDrive
@@ -140,6 +141,7 @@ __all__ = ["MujocoEngine"]
 KINEMATIC_ARMATURE = 1e9       # × the whisker's inertia about its base (× an obstacle's mass)
 OBSTACLE_MASS_MG = 1e3         # moving obstacles: 1 g, made kinematic by the armature
 PRISM_DEPTH_MM = (0.05, 1.0)   # a face's prism reaches this far into the object (min, max)
+PRISM_SCENES = 4               # the engine keeps the prisms of this many scenes (≈ 6 MB per 40 k faces)
 ARENA_BYTES = 512 << 20         # MuJoCo's per-step scratch: a capsule lying across many prisms
                                # needs tens of MB; untouched pages cost no memory
 MAX_ACCELERATION = 1e10        # mjMAXVAL: MuJoCo's bound for a sane acceleration (rad/s², mm/s²)
@@ -166,7 +168,7 @@ class MeshPrisms:
     ``corners`` [F, 6, 3]: the face, then the face moved along its inward normal by half the
     distance to the next surface behind it (clamped to :data:`PRISM_DEPTH_MM`) and widened
     (:func:`_taper`); ``valid`` [F] excludes degenerate faces. ``index`` finds the faces near
-    points (m).
+    points (m), ``spheres`` bound the prisms.
     """
 
     def __init__(self, mesh: TriangleMesh):
@@ -186,6 +188,7 @@ class MeshPrisms:
         widen = (_taper(vertices, faces) * depth)[:, None, None] * outward
         back = front - (depth[:, None] * normal)[:, None] + widen
         self.corners = np.concatenate([front, back], axis=1)
+        self.spheres = PrismSpheres(self.corners)
 
 
 def _taper(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -263,6 +266,7 @@ class MujocoWorld(World):
         self.links = whiskers[0].chain.links
         self.link_reach_m = link_reach_m(whiskers)                 # [w, N]
         self.node_fractions = node_arc_fractions(whiskers)         # [w, N+1]
+        self.padding_m = node_padding_m(whiskers, CLEARANCE_MARGIN_M)   # [w]
         self._prisms = prisms
         self._built_key: object = None
         self._build([], np.arange(len(whiskers)))
@@ -450,24 +454,31 @@ class MujocoWorld(World):
             self._prisms[scene.key, index] = MeshPrisms(scene.obstacles[index])
         return self._prisms[scene.key, index]
 
-    def _reachable(self, scene: Scene, pose: Pose, duration_s: float,
-                   members: np.ndarray) -> tuple[list[_Part], np.ndarray]:
+    def _reachable(self, scene: Scene, pose: Pose, duration_s: float, members: np.ndarray,
+                   guides: dict | None) -> tuple[list[_Part], np.ndarray, list[SweptCrop]]:
         """The obstacle parts this world's whiskers ``members`` can reach at ``pose`` within
-        ``duration_s`` (a static mesh cropped to the faces within their reach), and [w] a lower
+        ``duration_s`` (a static mesh cropped to the faces within their reach or, for a whisker
+        with node paths to follow in ``guides``, near those: :mod:`pipeline.engines.swept_crop`), [w] a lower
         bound of each whisker's distance from its base point to the nearest of them (inf if
-        none; always for the others)."""
+        none; always for the others), and the crops to check after the run."""
         bases = pose.apply(np.array([self.whiskers[k].base_point_m for k in members]))
         reach = self.link_reach_m[members, -1]
         gaps = np.full(len(members), np.inf)
         parts: list[_Part] = []
+        crops: list[SweptCrop] = []
         for index, obstacle in enumerate(scene.obstacles):
             velocity = np.asarray(obstacle.velocity_m_s, float)
             if isinstance(obstacle, TriangleMesh):
                 prisms = self._mesh_prisms(scene, index)
             if isinstance(obstacle, TriangleMesh) and not velocity.any():
                 near, gap = prisms.index.near(bases, reach)
-                faces = np.unique(np.concatenate(near))
-                faces = faces[prisms.valid[faces]]
+                near = [faces[prisms.valid[faces]] for faces in near]
+                if guides is None:
+                    faces = np.unique(np.concatenate(near))
+                else:
+                    crops.append(SweptCrop(prisms.spheres, near, [guides.get(k) for k in members],
+                                           self.padding_m[members]))
+                    faces = crops[-1].faces
                 if faces.size:
                     parts.append(_Part(index, obstacle, faces, prisms.corners[faces]))
             else:
@@ -481,7 +492,7 @@ class MujocoWorld(World):
             gaps = np.minimum(gaps, gap)
         all_gaps = np.full(len(self.whiskers), np.inf)
         all_gaps[members] = gaps
-        return parts, all_gaps
+        return parts, all_gaps, crops
 
     def _prepare(self, scene: Scene, parts: list[_Part], gaps: np.ndarray, members: np.ndarray) -> None:
         """A model of the whiskers ``members`` and the obstacle ``parts`` (recompiled only when
@@ -530,13 +541,15 @@ class MujocoWorld(World):
 
     def run(self, setup: TrialSetup, active: np.ndarray) -> WorldResult:
         """Simulate the ``active`` whiskers; one whose contact jams is taken out (``jammed``) and
-        the others are simulated again without it."""
+        the others are simulated again without it; one that left the faces cropped to its free
+        path is simulated again with the faces near that run's path too, up to
+        :data:`SWEPT_RUNS` times, then with its whole reach (:mod:`pipeline.engines.swept_crop`)."""
         result = WorldResult.zeros(setup.samples, len(self.whiskers), self.links)
         members = np.flatnonzero(active)
-        if members.size:
-            parts, gaps = self._reachable(setup.scene, setup.pose, setup.samples / self.config.output_rate_hz,
-                                          members)
+        guides = None if setup.free_paths is None else {k: [setup.free_paths[k]] for k in members}
         while members.size:
+            parts, gaps, crops = self._reachable(setup.scene, setup.pose,
+                                                 setup.samples / self.config.output_rate_hz, members, guides)
             self._prepare(setup.scene, parts, gaps, members)
             try:
                 simulated = self._simulate(setup.only(members))
@@ -544,8 +557,13 @@ class MujocoWorld(World):
                 result.jammed.update(jam.messages)
                 members = np.setdiff1d(members, list(jam.messages))
                 continue
-            result.put(members, simulated)
-            break
+            escaped = np.zeros(len(members), bool)
+            for crop in crops:
+                escaped |= crop.escaped(simulated.nodes)
+            result.put(members[~escaped], simulated, ~escaped)
+            for k, nodes in zip(members[escaped], simulated.nodes[:, escaped].swapaxes(0, 1)):
+                guides[k] = guides[k] + [nodes] if len(guides[k]) < SWEPT_RUNS else None
+            members = members[escaped]
         return result
 
     def _simulate(self, setup: TrialSetup) -> WorldResult:
@@ -690,7 +708,7 @@ class MujocoEngine(Engine):
         # the same conditions from data.warning and handles them (jam refinement)
         mujoco.set_mju_user_warning(lambda message: None)
         self._prisms: dict[tuple, MeshPrisms] = {}
-        self._scene_key: object = None
+        self._scene_keys: list = []               # the scenes whose prisms are kept, latest last
         super().__init__(array, config)
 
     def step_levels(self, array: ArrayModel, config: EngineConfig) -> np.ndarray:
@@ -700,7 +718,11 @@ class MujocoEngine(Engine):
         return MujocoWorld(whiskers, self.config, dt_s, self._prisms)
 
     def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float, **options):
-        if scene.key != self._scene_key:          # meshes of other scenes are not needed again
-            self._prisms.clear()
-            self._scene_key = scene.key
+        if scene.key in self._scene_keys:         # a dataset cycles through a few scenes
+            self._scene_keys.remove(scene.key)
+        self._scene_keys.append(scene.key)
+        for key in self._scene_keys[:-PRISM_SCENES]:
+            for cached in [c for c in self._prisms if c[0] == key]:
+                del self._prisms[cached]
+        del self._scene_keys[:-PRISM_SCENES]
         return super().run(scene, pose, drive, duration_s, **options)
