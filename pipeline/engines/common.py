@@ -214,13 +214,14 @@ def path_distance_m(points_m: np.ndarray, start_m, velocity_m_s, duration_s: flo
     return np.linalg.norm(points_m - (start + s[:, None] * travel), axis=1)
 
 
-def clearance_m(points_m: np.ndarray, times_s: np.ndarray, scene) -> np.ndarray:
+def clearance_m(points_m: np.ndarray, times_s: np.ndarray, scene, beyond_m: float = np.inf) -> np.ndarray:
     """[P] lower bound of the distance (m) from each point, at its time, to the obstacles of
-    ``scene``; a moving obstacle is where its velocity has taken it."""
+    ``scene``; a moving obstacle is where its velocity has taken it. A distance above
+    ``beyond_m`` may be given as inf."""
     result = np.full(len(points_m), np.inf)
     for obstacle in scene.obstacles:
         travel = np.asarray(obstacle.velocity_m_s, float) * times_s[:, None]
-        result = np.minimum(result, obstacle.lower_distance_m(points_m - travel))
+        result = np.minimum(result, obstacle.lower_distance_m(points_m - travel, beyond_m))
     return result
 
 
@@ -278,7 +279,7 @@ class FreeMotion:
             if np.all(clearance_m(np.stack([centre, centre]), span, scene) > radius + pad):
                 result[k] = True
             else:
-                result[k] = bool(np.all(clearance_m(nodes, times, scene) > pad))
+                result[k] = bool(np.all(clearance_m(nodes, times, scene, beyond_m=pad) > pad))
         return result
 
     def recall(self, k: int, pose) -> tuple[np.ndarray, np.ndarray]:
