@@ -418,9 +418,14 @@ class MujocoWorld(World):
         self.n_driven = len(driven)
         self.obstacle_velocity = (np.concatenate([p.velocity_mm_s for p in moving]) if moving
                                   else np.zeros(0))
-        # per member, (qpos, axis index) of its follicle hinges: the base sensor turns with them
-        self.follicle = [[(m.jnt_qposadr[named(joint, f"w{k}/{j.label}")], "xyz".index(j.local_axis))
-                          for j in self.whiskers[k].layout.at_node(0)] for k in members]
+        # the follicle hinges, the base sensor turns with them: per (position in a whisker's
+        # sequence, axis index) the members that have one there and its qpos addresses
+        hinges: dict[tuple[int, int], list] = {}
+        for member, k in enumerate(members):
+            for position, j in enumerate(self.whiskers[k].layout.at_node(0)):
+                hinges.setdefault((position, "xyz".index(j.local_axis)), []).append(
+                    (member, m.jnt_qposadr[named(joint, f"w{k}/{j.label}")]))
+        self.follicle = [(axis, *map(np.array, zip(*rows))) for (_, axis), rows in sorted(hinges.items())]
         self.link_bodies = np.array([[named(body, f"w{k}/l{i}") for i in range(self.links)]
                                      for k in members])
         self.link_lengths_mm = np.array([self.whiskers[k].chain.link_lengths_m for k in members]) * U.LENGTH
@@ -676,11 +681,11 @@ class MujocoWorld(World):
         contact of one sample."""
         d = self.data
         wrench = d.sensordata.reshape(-1, 2, 3).copy()          # [w, (force, torque), 3], site frame
-        for k, hinges in enumerate(self.follicle):
-            rotation = np.eye(3)
-            for qpos, axis in hinges:
-                rotation = rotation @ axis_rotation(axis, d.qpos[qpos])
-            wrench[k] = wrench[k] @ rotation.T
+        if self.follicle:
+            rotation = np.tile(np.eye(3), (len(wrench), 1, 1))
+            for axis, member, qpos in self.follicle:
+                rotation[member] = rotation[member] @ axis_rotation(axis, d.qpos[qpos])
+            wrench = wrench @ rotation.transpose(0, 2, 1)
         with np.errstate(over="ignore", invalid="ignore"):           # a jam shows as inf/nan
             result.wrench[sample] = np.concatenate([wrench[:, 0] / U.FORCE, wrench[:, 1] / U.TORQUE], axis=1)
         nodes = np.concatenate([d.xpos[self.link_bodies], d.site_xpos[self.tip_sites][:, None]], axis=1)
