@@ -83,7 +83,11 @@ behind, clamped to :data:`PRISM_DEPTH_MM`; one contact point per capsule–prism
 multi-point convex contacts made whiskers jam between prisms). Only the faces some link can
 reach at the trial's pose are built, and the model is recompiled when that set changes
 (~0.05 ms per face); a world crops to the reach of the whiskers it simulates in the trial,
-not of all its whiskers (the others take the free path, :mod:`pipeline.engines.free_path`).
+not of all its whiskers (the others take the free path, :mod:`pipeline.engines.free_path`),
+and where the coarse path ran, to the faces near each whisker's coarse node paths, checked
+after the run (:mod:`pipeline.engines.swept_crop`: about half the faces, half the compile
+time). The prisms of the last :data:`PRISM_SCENES` scenes are kept (a dataset cycles through
+its scenes: rebuilding a scan's prisms cost ≈ 0.2 s per trial).
 Alternative measured and dropped: the scan as one rigid 2-D ``flex``
 (every triangle a double-sided collision element inflated by a skin, Bullet's kind of contact):
 0.14 s and 30 MB to compile 40 363 faces and about as fast to step, but fast tips passed
