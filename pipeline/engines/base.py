@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import time
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -87,9 +87,10 @@ class WorldResult:
 class TrialSetup:
     """What a world needs to run one trial: the scene, head pose and drive (continued past the
     trial's end), the number of output samples, per whisker of the world its free-joint angles
-    (rad) and rates (rad/s) at t = 0 and its loads (:mod:`pipeline.model.loads`), and whether a
-    whisker's base holds still from its first contact on, and the head's trajectory (None: the
-    head stays at ``pose``)."""
+    (rad) and rates (rad/s) at t = 0 and its loads (:mod:`pipeline.model.loads`), whether a
+    whisker's base holds still from its first contact on, the head's trajectory (None: the head
+    stays at ``pose``) and, where the coarse path ran, each whisker's free node paths (a mesh is
+    cropped to them, :mod:`pipeline.engines.swept_crop`)."""
 
     scene: Scene
     pose: Pose
@@ -100,14 +101,14 @@ class TrialSetup:
     loads: tuple
     hold_on_contact: bool = False
     head: HeadMotion | None = None
+    free_paths: tuple | None = None     # per whisker its coarse free node paths [T, N+1, 3] (m, world)
 
     def only(self, whiskers) -> "TrialSetup":
         """The same trial for the world's whiskers ``whiskers`` (indices)."""
-        from dataclasses import replace
-
         return replace(self, initial=tuple(self.initial[k] for k in whiskers),
                        initial_rates=tuple(self.initial_rates[k] for k in whiskers),
-                       loads=tuple(self.loads[k] for k in whiskers))
+                       loads=tuple(self.loads[k] for k in whiskers),
+                       free_paths=None if self.free_paths is None else tuple(self.free_paths[k] for k in whiskers))
 
 
 class World(ABC):
@@ -198,6 +199,8 @@ class Engine(ABC):
         coarse = np.zeros_like(reused)
         if self.free_path is not None and driven and not depends_on_pose and head_motion is None:
             coarse = ~reused & self.free_path.clear(scene, pose, drive, duration_s, times)
+            setup = replace(setup, free_paths=tuple(self.free_path.recall(k, pose)[1]
+                                                    for k in range(len(self.array.whiskers))))
         result = WorldResult.zeros(samples, len(self.array.whiskers), self.array.links)
         steps, refined = 0, {}
         for members, world in self.worlds:

@@ -221,14 +221,21 @@ def path_distance_m(points_m: np.ndarray, start_m, velocity_m_s, duration_s: flo
     return np.linalg.norm(points_m - (start + s[:, None] * travel), axis=1)
 
 
-def clearance_m(points_m: np.ndarray, times_s: np.ndarray, scene) -> np.ndarray:
+def clearance_m(points_m: np.ndarray, times_s: np.ndarray, scene, beyond_m: float = np.inf) -> np.ndarray:
     """[P] lower bound of the distance (m) from each point, at its time, to the obstacles of
-    ``scene``; a moving obstacle is where its velocity has taken it."""
+    ``scene``; a moving obstacle is where its velocity has taken it. A distance above
+    ``beyond_m`` may be given as inf."""
     result = np.full(len(points_m), np.inf)
     for obstacle in scene.obstacles:
         travel = np.asarray(obstacle.velocity_m_s, float) * times_s[:, None]
-        result = np.minimum(result, obstacle.lower_distance_m(points_m - travel))
+        result = np.minimum(result, obstacle.lower_distance_m(points_m - travel, beyond_m))
     return result
+
+
+def node_padding_m(whiskers, margin_m: float) -> np.ndarray:
+    """[W] how far (m) every point of a whisker's links lies at most from its nearest node, plus
+    ``margin_m``: the base radius plus half the longest link."""
+    return np.array([w.chain.node_radii_m[0] + 0.5 * w.chain.link_lengths_m.max() for w in whiskers]) + margin_m
 
 
 class FreeMotion:
@@ -244,8 +251,7 @@ class FreeMotion:
     """
 
     def __init__(self, whiskers, margin_m: float = CLEARANCE_MARGIN_M):
-        self.padding_m = np.array([w.chain.node_radii_m[0] + 0.5 * w.chain.link_lengths_m.max()
-                                   for w in whiskers]) + margin_m
+        self.padding_m = node_padding_m(whiskers, margin_m)
         self.key: object = None
         self.motions: dict[int, tuple[np.ndarray, np.ndarray, float]] = {}   # wrench, head nodes, pad
 
@@ -280,7 +286,7 @@ class FreeMotion:
             if np.all(clearance_m(np.stack([centre, centre]), span, scene) > radius + pad):
                 result[k] = True
             else:
-                result[k] = bool(np.all(clearance_m(nodes, times, scene) > pad))
+                result[k] = bool(np.all(clearance_m(nodes, times, scene, beyond_m=pad) > pad))
         return result
 
     def recall(self, k: int, pose) -> tuple[np.ndarray, np.ndarray]:

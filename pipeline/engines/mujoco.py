@@ -84,7 +84,11 @@ behind, clamped to :data:`PRISM_DEPTH_MM`; one contact point per capsule–prism
 multi-point convex contacts made whiskers jam between prisms). Only the faces some link can
 reach at the trial's pose are built, and the model is recompiled when that set changes
 (~0.05 ms per face); a world crops to the reach of the whiskers it simulates in the trial,
-not of all its whiskers (the others take the free path, :mod:`pipeline.engines.free_path`).
+not of all its whiskers (the others take the free path, :mod:`pipeline.engines.free_path`),
+and where the coarse path ran, to the faces near each whisker's coarse node paths, checked
+after the run (:mod:`pipeline.engines.swept_crop`: about half the faces, half the compile
+time). The prisms of the last :data:`PRISM_SCENES` scenes are kept (a dataset cycles through
+its scenes: rebuilding a scan's prisms cost ≈ 0.2 s per trial).
 Alternative measured and dropped: the scan as one rigid 2-D ``flex``
 (every triangle a double-sided collision element inflated by a skin, Bullet's kind of contact):
 0.14 s and 30 MB to compile 40 363 faces and about as fast to step, but fast tips passed
@@ -126,9 +130,10 @@ import numpy as np
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, TrialSetup, World, WorldResult
-from pipeline.engines.common import (ContactFlags, implausible, jam_message, link_reach_m, node_arc_fractions,
-                                     path_distance_m, start_rate)
+from pipeline.engines.common import (CLEARANCE_MARGIN_M, ContactFlags, implausible, jam_message, link_reach_m,
+                                     node_arc_fractions, node_padding_m, path_distance_m, start_rate)
 from pipeline.engines.stepping import damping_folds, folded_refinement_levels
+from pipeline.engines.swept_crop import SWEPT_RUNS, PrismSpheres, SweptCrop
 from pipeline.errors import SimulationError
 from pipeline.model.array import ArrayModel, WhiskerModel
 from pipeline.model.kinematics import Pose, ProtractionDrive
@@ -142,6 +147,7 @@ __all__ = ["MujocoEngine"]
 KINEMATIC_ARMATURE = 1e9       # × the whisker's inertia about its base (× an obstacle's mass)
 OBSTACLE_MASS_MG = 1e3         # moving obstacles: 1 g, made kinematic by the armature
 PRISM_DEPTH_MM = (0.05, 1.0)   # a face's prism reaches this far into the object (min, max)
+PRISM_SCENES = 4               # the engine keeps the prisms of this many scenes (≈ 6 MB per 40 k faces)
 ARENA_BYTES = 512 << 20         # MuJoCo's per-step scratch: a capsule lying across many prisms
                                # needs tens of MB; untouched pages cost no memory
 MAX_ACCELERATION = 1e10        # mjMAXVAL: MuJoCo's bound for a sane acceleration (rad/s², mm/s²)
@@ -168,7 +174,7 @@ class MeshPrisms:
     ``corners`` [F, 6, 3]: the face, then the face moved along its inward normal by half the
     distance to the next surface behind it (clamped to :data:`PRISM_DEPTH_MM`) and widened
     (:func:`_taper`); ``valid`` [F] excludes degenerate faces. ``index`` finds the faces near
-    points (m).
+    points (m), ``spheres`` bound the prisms.
     """
 
     def __init__(self, mesh: TriangleMesh):
@@ -188,6 +194,7 @@ class MeshPrisms:
         widen = (_taper(vertices, faces) * depth)[:, None, None] * outward
         back = front - (depth[:, None] * normal)[:, None] + widen
         self.corners = np.concatenate([front, back], axis=1)
+        self.spheres = PrismSpheres(self.corners)
 
 
 def _taper(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -308,6 +315,7 @@ class MujocoWorld(World):
         self.links = whiskers[0].chain.links
         self.link_reach_m = link_reach_m(whiskers)                 # [w, N]
         self.node_fractions = node_arc_fractions(whiskers)         # [w, N+1]
+        self.padding_m = node_padding_m(whiskers, CLEARANCE_MARGIN_M)   # [w]
         self._prisms = prisms
         self._built_key: object = None
         self._build([], np.arange(len(whiskers)))
@@ -459,9 +467,14 @@ class MujocoWorld(World):
         self.n_driven = len(driven)
         self.obstacle_velocity = (np.concatenate([p.velocity_mm_s for p in moving]) if moving
                                   else np.zeros(0))
-        # per member, (qpos, axis index) of its follicle hinges: the base sensor turns with them
-        self.follicle = [[(m.jnt_qposadr[named(joint, f"w{k}/{j.label}")], "xyz".index(j.local_axis))
-                          for j in self.whiskers[k].layout.at_node(0)] for k in members]
+        # the follicle hinges, the base sensor turns with them: per (position in a whisker's
+        # sequence, axis index) the members that have one there and its qpos addresses
+        hinges: dict[tuple[int, int], list] = {}
+        for member, k in enumerate(members):
+            for position, j in enumerate(self.whiskers[k].layout.at_node(0)):
+                hinges.setdefault((position, "xyz".index(j.local_axis)), []).append(
+                    (member, m.jnt_qposadr[named(joint, f"w{k}/{j.label}")]))
+        self.follicle = [(axis, *map(np.array, zip(*rows))) for (_, axis), rows in sorted(hinges.items())]
         self.link_bodies = np.array([[named(body, f"w{k}/l{i}") for i in range(self.links)]
                                      for k in members])
         self.link_lengths_mm = np.array([self.whiskers[k].chain.link_lengths_m for k in members]) * U.LENGTH
@@ -498,26 +511,35 @@ class MujocoWorld(World):
             self._prisms[scene.key, index] = MeshPrisms(scene.obstacles[index])
         return self._prisms[scene.key, index]
 
-    def _reachable(self, scene: Scene, pose: Pose, duration_s: float,
-                   members: np.ndarray, travel_m: np.ndarray | float = 0.0) -> tuple[list[_Part], np.ndarray]:
+    def _reachable(self, scene: Scene, pose: Pose, duration_s: float, members: np.ndarray,
+                   guides: dict | None = None,
+                   travel_m: np.ndarray | float = 0.0) -> tuple[list[_Part], np.ndarray, list[SweptCrop]]:
         """The obstacle parts this world's whiskers ``members`` can reach at ``pose`` within
-        ``duration_s`` (a static mesh cropped to the faces within their reach), and [w] a lower
+        ``duration_s`` (a static mesh cropped to the faces within their reach or, for a whisker
+        with node paths to follow in ``guides``, near those: :mod:`pipeline.engines.swept_crop`), [w] a lower
         bound of each whisker's distance from its base point to the nearest of them (inf if
-        none; always for the others); a moving head takes each base point up to ``travel_m``
-        [w, every whisker of the world] (m) from where it starts."""
+        none; always for the others), and the crops to check after the run; a moving head takes
+        each base point up to ``travel_m`` [w, every whisker of the world] (m) from where it
+        starts."""
         bases = pose.apply(np.array([self.whiskers[k].base_point_m for k in members]))
         travel_m = np.broadcast_to(np.asarray(travel_m, float), (len(self.whiskers),))[members]
         reach = self.link_reach_m[members, -1] + travel_m
         gaps = np.full(len(members), np.inf)
         parts: list[_Part] = []
+        crops: list[SweptCrop] = []
         for index, obstacle in enumerate(scene.obstacles):
             velocity = np.asarray(obstacle.velocity_m_s, float)
             if isinstance(obstacle, TriangleMesh):
                 prisms = self._mesh_prisms(scene, index)
             if isinstance(obstacle, TriangleMesh) and not velocity.any():
                 near, gap = prisms.index.near(bases, reach)
-                faces = np.unique(np.concatenate(near))
-                faces = faces[prisms.valid[faces]]
+                near = [faces[prisms.valid[faces]] for faces in near]
+                if guides is None:
+                    faces = np.unique(np.concatenate(near))
+                else:
+                    crops.append(SweptCrop(prisms.spheres, near, [guides.get(k) for k in members],
+                                           self.padding_m[members]))
+                    faces = crops[-1].faces
                 if faces.size:
                     parts.append(_Part(index, obstacle, faces, prisms.corners[faces]))
             else:
@@ -531,7 +553,7 @@ class MujocoWorld(World):
             gaps = np.minimum(gaps, gap)
         all_gaps = np.full(len(self.whiskers), np.inf)
         all_gaps[members] = np.maximum(gaps - travel_m, 0.0)
-        return parts, all_gaps
+        return parts, all_gaps, crops
 
     def _prepare(self, scene: Scene, parts: list[_Part], gaps: np.ndarray, members: np.ndarray) -> None:
         """A model of the whiskers ``members`` and the obstacle ``parts`` (recompiled only when
@@ -580,12 +602,14 @@ class MujocoWorld(World):
 
     def run(self, setup: TrialSetup, active: np.ndarray) -> WorldResult:
         """Simulate the ``active`` whiskers; one whose contact jams is taken out (``jammed``) and
-        the others are simulated again without it."""
+        the others are simulated again without it; one that left the faces cropped to its free
+        path is simulated again with the faces near that run's path too, up to
+        :data:`SWEPT_RUNS` times, then with its whole reach (:mod:`pipeline.engines.swept_crop`)."""
         result = WorldResult.zeros(setup.samples, len(self.whiskers), self.links)
         members = np.flatnonzero(active)
-        if members.size:
-            parts, gaps = self._reach(setup, members)
+        guides = None if setup.free_paths is None else {k: [setup.free_paths[k]] for k in members}
         while members.size:
+            parts, gaps, crops = self._reach(setup, members, guides=guides)
             self._prepare(setup.scene, parts, gaps, members)
             try:
                 simulated = self._simulate(setup.only(members))
@@ -593,19 +617,25 @@ class MujocoWorld(World):
                 result.jammed.update(jam.messages)
                 members = np.setdiff1d(members, list(jam.messages))
                 continue
-            result.put(members, simulated)
-            break
+            escaped = np.zeros(len(members), bool)
+            for crop in crops:
+                escaped |= crop.escaped(simulated.nodes)
+            result.put(members[~escaped], simulated, ~escaped)
+            for k, nodes in zip(members[escaped], simulated.nodes[:, escaped].swapaxes(0, 1)):
+                guides[k] = guides[k] + [nodes] if len(guides[k]) < SWEPT_RUNS else None
+            members = members[escaped]
         return result
 
-    def _reach(self, setup: TrialSetup, members: np.ndarray,
-               travel_m: float | None = None) -> tuple[list[_Part], np.ndarray]:
-        """:meth:`_reachable` for the trial's whiskers ``members``, its head's path taking each
-        base point up to ``travel_m`` (m; None: as far as the setup's head trajectory takes it)."""
+    def _reach(self, setup: TrialSetup, members: np.ndarray, travel_m: float | None = None,
+               guides: dict | None = None) -> tuple[list[_Part], np.ndarray, list[SweptCrop]]:
+        """:meth:`_reachable` for the trial's whiskers ``members`` (faces near their ``guides``),
+        its head's path taking each base point up to ``travel_m`` (m; None: as far as the
+        setup's head trajectory takes it)."""
         duration = setup.samples / self.config.output_rate_hz
         if travel_m is None:
             travel_m = 0.0 if setup.head is None else setup.head.base_travel_m(
                 np.array([w.base_point_m for w in self.whiskers]), np.arange(0.0, duration + self.dt_s, self.dt_s))
-        return self._reachable(setup.scene, setup.pose, duration, members, travel_m)
+        return self._reachable(setup.scene, setup.pose, duration, members, guides, travel_m)
 
     def stepping(self, setup: TrialSetup, active: np.ndarray, result: WorldResult, travel_m: float | None = None):
         """:meth:`_stepping` for the ``active`` whiskers (all of them: ``result`` is in their
@@ -613,7 +643,8 @@ class MujocoWorld(World):
         whose contact jams is parked (:meth:`_park`; no step refinement) and listed in
         ``result.jammed``."""
         members = np.flatnonzero(active)
-        self._prepare(setup.scene, *self._reach(setup, members, travel_m), members)
+        parts, gaps, _ = self._reach(setup, members, travel_m)
+        self._prepare(setup.scene, parts, gaps, members)
         return self._stepping(setup.only(members), result, park=True)
 
     def _simulate(self, setup: TrialSetup) -> WorldResult:
@@ -798,11 +829,11 @@ class MujocoWorld(World):
         contact of one sample."""
         d = self.data
         wrench = d.sensordata.reshape(-1, 2, 3).copy()          # [w, (force, torque), 3], site frame
-        for k, hinges in enumerate(self.follicle):
-            rotation = np.eye(3)
-            for qpos, axis in hinges:
-                rotation = rotation @ axis_rotation(axis, d.qpos[qpos])
-            wrench[k] = wrench[k] @ rotation.T
+        if self.follicle:
+            rotation = np.tile(np.eye(3), (len(wrench), 1, 1))
+            for axis, member, qpos in self.follicle:
+                rotation[member] = rotation[member] @ axis_rotation(axis, d.qpos[qpos])
+            wrench = wrench @ rotation.transpose(0, 2, 1)
         with np.errstate(over="ignore", invalid="ignore"):           # a jam shows as inf/nan
             result.wrench[sample] = np.concatenate([wrench[:, 0] / U.FORCE, wrench[:, 1] / U.TORQUE], axis=1)
         nodes = np.concatenate([d.xpos[self.link_bodies], d.site_xpos[self.tip_sites][:, None]], axis=1)
@@ -830,7 +861,7 @@ class MujocoEngine(Engine):
         # the same conditions from data.warning and handles them (jam refinement)
         mujoco.set_mju_user_warning(lambda message: None)
         self._prisms: dict[tuple, MeshPrisms] = {}
-        self._scene_key: object = None
+        self._scene_keys: list = []               # the scenes whose prisms are kept, latest last
         super().__init__(array, config)
 
     def step_levels(self, array: ArrayModel, config: EngineConfig) -> np.ndarray:
@@ -840,7 +871,11 @@ class MujocoEngine(Engine):
         return MujocoWorld(whiskers, self.config, dt_s, self._prisms)
 
     def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float, **options):
-        if scene.key != self._scene_key:          # meshes of other scenes are not needed again
-            self._prisms.clear()
-            self._scene_key = scene.key
+        if scene.key in self._scene_keys:         # a dataset cycles through a few scenes
+            self._scene_keys.remove(scene.key)
+        self._scene_keys.append(scene.key)
+        for key in self._scene_keys[:-PRISM_SCENES]:
+            for cached in [c for c in self._prisms if c[0] == key]:
+                del self._prisms[cached]
+        del self._scene_keys[:-PRISM_SCENES]
         return super().run(scene, pose, drive, duration_s, **options)

@@ -49,9 +49,9 @@ class Solid:
         """[P] whether each point (m, world) lies strictly inside, at t = 0."""
         raise NotImplementedError
 
-    def lower_distance_m(self, points_m: np.ndarray) -> np.ndarray:
+    def lower_distance_m(self, points_m: np.ndarray, beyond_m: float = np.inf) -> np.ndarray:
         """[P] a lower bound of each point's distance (m) to the obstacle at t = 0 (its
-        bounding sphere's)."""
+        bounding sphere's); one above ``beyond_m`` may be given as inf."""
         return np.linalg.norm(points_m - self.centre_m, axis=1) - self.bounding_radius_m
 
     def chains_through(self, nodes_m: np.ndarray) -> np.ndarray:
@@ -163,9 +163,10 @@ class TriangleMesh:
         """Which faces lie near given points (built on first use)."""
         return FaceIndex(self.vertices_m, self.faces)
 
-    def lower_distance_m(self, points_m: np.ndarray) -> np.ndarray:
-        """[P] a lower bound of each point's distance (m) to the mesh at t = 0."""
-        return self.face_index.lower_distance_m(points_m)
+    def lower_distance_m(self, points_m: np.ndarray, beyond_m: float = np.inf) -> np.ndarray:
+        """[P] a lower bound of each point's distance (m) to the mesh at t = 0; one above
+        ``beyond_m`` may be given as inf."""
+        return self.face_index.lower_distance_m(points_m, beyond_m)
 
     def chains_through(self, nodes_m: np.ndarray) -> np.ndarray:
         """[W] whether a link of chains with nodes [W, N+1, 3] (m, world) crosses the surface."""
