@@ -299,8 +299,10 @@ def trial(
     world = parse_scene(scene)
     drive = default_drive(world, model, duration_s)
     with Activity("trial", enabled=not json_output) as activity:
-        activity.step(f"simulating whiskers '{whiskers}' for {duration_s:g} s in {world.name} on {model.engine.name}")
-        output = run_trial(model, world, head, duration_s, whiskers, drive)
+        simulating = f"simulating whiskers '{whiskers}' for {duration_s:g} s in {world.name} on {model.engine.name}"
+        activity.step(simulating)
+        output = run_trial(model, world, head, duration_s, whiskers, drive, progress=lambda done, planned:
+                           activity.update(f"{simulating}: {done / planned:.0%} of the whisker steps done"))
         summary = {"scene": world.name, "engine": model.engine.name, "whiskers": len(output.whisker_names),
                    "duration_s": duration_s, "samples": len(output.time_s),
                    "whiskers_in_contact": output.whiskers_in_contact(),

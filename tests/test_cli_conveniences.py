@@ -9,6 +9,7 @@ import json
 import time
 from pathlib import Path
 
+import pytest
 import yaml
 
 import pipeline
@@ -98,3 +99,18 @@ def test_a_short_trial_is_silent_and_its_summary_does_not_wrap_in_a_log(tmp_path
     assert all(line.startswith("trial: ") for line in result.stderr.splitlines())   # progress only
     assert [line for line in result.stdout.splitlines() if str(out) in line], result.stdout   # one line
     assert max(map(len, result.stdout.splitlines())) > 80
+
+
+@pytest.mark.parametrize("engine", ["mujoco", "bullet"])
+def test_a_trial_reports_its_fraction_done_after_each_world(engine):
+    from pipeline.config.physics import ModelConfig
+    from pipeline.model.kinematics import Pose
+    from pipeline.protocols.whisking import parse_scene, run_trial
+
+    calls = []
+    output = run_trial(ModelConfig(engine={"name": engine}), parse_scene("wall"), Pose(), 0.01, "RC1,RC6,RA0,RE4",
+                       progress=lambda done, planned: calls.append((done, planned)))
+    assert len(calls) >= 2 and len({planned for _, planned in calls}) == 1           # whiskers step at 2+ sizes
+    done = [d for d, _ in calls]
+    assert done == sorted(done) and 0 < done[0] < calls[-1][1] and done[-1] == calls[-1][1]
+    assert calls[-1][1] == output.metadata["whisker_steps"]

@@ -36,10 +36,11 @@ def test_an_hdf5_1_10_tool_reads_every_variable(tmp_path):
     run = subprocess.run([h5dump, str(path)], capture_output=True, text=True, timeout=120)
     assert run.returncode == 0 and "error" not in run.stderr, (version, run.stderr[-2000:])
     names = _variables(path)
-    assert set(ARRAYS) - set(HEAD_MOTION_ARRAYS) <= set(names) and len(names) > 50
+    assert {f"samples/{name}" for name in ARRAYS} - {f"samples/{name}" for name in HEAD_MOTION_ARRAYS} \
+        <= set(names) and len(names) > 50
     for name in names:                              # every variable appears with its data
         assert f'DATASET "{name.rsplit("/", 1)[-1]}"' in run.stdout, name
-    moment = subprocess.run([h5dump, "-d", "/base_moment", "-c", "1,1,1,3", str(path)],
+    moment = subprocess.run([h5dump, "-d", "/samples/base_moment", "-c", "1,1,1,3", str(path)],
                             capture_output=True, text=True, timeout=60)
     assert moment.returncode == 0 and '"N m"' in moment.stdout
 
@@ -47,7 +48,7 @@ def test_an_hdf5_1_10_tool_reads_every_variable(tmp_path):
 def test_one_unit_per_variable_and_xarray_labels(tmp_path):
     path = tmp_path / "d.h5"
     write_trials(path, [0])
-    with xr.open_dataset(path, engine="h5netcdf") as ds:
+    with xr.open_dataset(path, engine="h5netcdf", group="samples") as ds:
         for name, variable in ds.variables.items():
             units = variable.attrs.get("units")
             assert units is None or isinstance(units, str), name          # never a list
@@ -63,10 +64,10 @@ def test_pint_xarray_and_cf_xarray_read_every_unit(tmp_path):
     cf_units = pytest.importorskip("cf_xarray.units")
     path = tmp_path / "d.h5"
     write_trials(path, [0])
-    for group in (None, "trials", "whiskers"):
+    for group in ("samples", "trials", "whiskers"):
         with xr.open_dataset(path, engine="h5netcdf", group=group) as ds:
             quantified = ds.pint.quantify(unit_registry=cf_units.units)        # raises on a unit it cannot parse
-            if group is None:
+            if group == "samples":
                 moment = quantified.base_moment.pint.to("mN mm")
                 np.testing.assert_allclose(moment.pint.magnitude, ds.base_moment.values * 1e6, rtol=1e-6)
                 assert sorted(ds.cf.axes["T"]) == ["node_time", "time"]              # the CF time axes

@@ -16,7 +16,7 @@ import pytest
 import pipeline.datasets as datasets
 from pipeline.config.physics import ModelConfig
 from pipeline.datasets import manifest, versions
-from pipeline.datasets.schema import ARRAYS, TRIAL_COLUMNS, WHISKER_COLUMNS, TrialRecord
+from pipeline.datasets.schema import ARRAYS, TRIAL_COLUMNS, WHISKER_COLUMNS, TrialRecord, component_names
 from pipeline.datasets.writer import DatasetWriter, Layout, trial_arrays, whisker_table
 from pipeline.errors import UserError
 from pipeline.model.kinematics import Pose, sinusoidal_whisk
@@ -65,19 +65,22 @@ def test_layout_attributes_and_chunks(tmp_path):
     with h5py.File(path, "r") as f:
         assert f.attrs["schema"] == "whisker-pipeline/dataset" and f.attrs["schema_version"] == 4
         assert f.attrs["sampling_rate_hz"] == 1000.0
-        force, moment = f["base_force"], f["base_moment"]
+        assert set(f) == {"samples", "trials", "whiskers"}                # the root: attributes only
+        samples = f["samples"]
+        force, moment = samples["base_force"], samples["base_moment"]
         assert force.shape == moment.shape == (5, T, 3, 3) and force.dtype == np.float32
         assert force.chunks == (1, T, 3, 3) and force.compression == "gzip" and force.shuffle
         assert force.compression_opts == 4
         assert list(force.attrs["axes"]) == ["trial", "time", "whisker", "xyz"]
         assert (force.attrs["units"], moment.attrs["units"]) == ("N", "N m")
         assert (force.attrs["long_name"], moment.attrs["long_name"]) == ("base force", "base moment")
-        assert f["time"].attrs["standard_name"] == "time" and "units" not in f["whisker"].attrs
-        assert f["contact"].shape == (5, T, 3, LINKS)
-        assert f["node_positions_m"].shape == (5, T // 10, 3, LINKS + 1, 3)
+        assert samples["time"].attrs["standard_name"] == "time" and "units" not in samples["whisker"].attrs
+        assert samples["contact"].shape == (5, T, 3, LINKS)
+        assert samples["node_positions_m"].shape == (5, T // 10, 3, LINKS + 1, 3)
         assert f["trials/duration_s"].attrs["units"] == "s"
-        assert list(f["trials/pose_rejections"].attrs["reasons"])[0] == "behind_surface"
-        assert set(f["trials"]) == set(TRIAL_COLUMNS) and set(f["whiskers"]) == set(WHISKER_COLUMNS)
+        assert f["trials/pose_rejections_behind_surface"].shape == (5,)
+        for group, row, columns in (("trials", "trial", TRIAL_COLUMNS), ("whiskers", "whisker", WHISKER_COLUMNS)):
+            assert set(f[group]) == {row, *(n for name, meta in columns.items() for n in component_names(name, meta))}
 
 
 def test_round_trip_with_named_axes(tmp_path):

@@ -44,7 +44,7 @@ def test_join_maps_every_shard_without_copying(tmp_path):
     assert sorted(p.name for p in (version / "recordings").iterdir()) == [
         "trial_000000.rrd", "trial_000002.rrd", "trial_000004.rrd"]
     with h5py.File(version / "data.h5", "r") as f:
-        assert f["base_force"].is_virtual and not f["trials/status"].is_virtual
+        assert f["samples/base_force"].is_virtual and not f["trials/status"].is_virtual
     with datasets.open_file("scan", root=tmp_path) as ds:
         assert list(ds.ok) == list(range(TRIALS))
         assert ds.trials["scene"].tolist() == [f"scene-{i}" for i in range(TRIALS)]
@@ -74,7 +74,7 @@ def test_joined_dataset_opens_in_xarray_with_named_dims(tmp_path):
     for number in range(1, SHARDS + 1):
         write_shard(tmp_path, number)
     version = join_shards(tmp_path, "scan")
-    with xr.open_dataset(version / "data.h5", engine="h5netcdf") as ds:
+    with xr.open_dataset(version / "data.h5", engine="h5netcdf", group="samples") as ds:
         assert ds.base_moment.dims == ("trial", "time", "whisker", "xyz")
         np.testing.assert_array_equal(ds.base_moment.sel(trial=5).values, fake_output(5).base_wrench[..., 3:])
     with xr.open_dataset(version / "data.h5", engine="h5netcdf", group="trials") as trials:

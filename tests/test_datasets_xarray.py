@@ -17,7 +17,7 @@ import xarray as xr
 import pipeline.datasets as datasets
 from pipeline.config.physics import MaterialConfig
 from pipeline.datasets.frames import to_head_frame, to_world_frame, whisker_frames
-from pipeline.datasets.schema import ARRAYS, TRIAL_COLUMNS, WHISKER_COLUMNS, TrialRecord
+from pipeline.datasets.schema import ARRAYS, TRIAL_COLUMNS, WHISKER_COLUMNS, TrialRecord, component_names
 from pipeline.datasets.writer import DatasetWriter, trial_arrays
 from pipeline.model.array import build_array
 from pipeline.model.kinematics import Pose, sinusoidal_whisk
@@ -30,7 +30,7 @@ V1_FIXTURE = Path(__file__).parent / "data" / "dataset_v1.h5"
 
 
 def open_xr(path: Path):
-    return xr.open_dataset(path, engine="h5netcdf")
+    return xr.open_dataset(path, engine="h5netcdf", group="samples")
 
 
 def test_xarray_opens_named_dims_with_coordinates_and_units(tmp_path):
@@ -60,12 +60,32 @@ def test_xarray_opens_named_dims_with_coordinates_and_units(tmp_path):
         trials, whiskers = tree["trials"].to_dataset(), tree["whiskers"].to_dataset()
         assert trials.scene.dims == ("trial",) and trials.scene.values[3] == "mesh:rock"
         assert trials.status.values.tolist() == ["ok", "ok", "", "ok", ""]
-        assert trials.pose_rejections.dims == ("trial", "reason")
-        assert trials.pose_rotation.dims == ("trial", "world_axis", "head_axis")
-        assert whiskers.rest_rotation.dims == ("whisker", "head_axis", "whisker_axis")
+        assert trials.pose_rejections_behind_surface.dims == ("trial",)
+        assert trials.pose_rotation_yx.dims == ("trial",)
+        assert whiskers.rest_rotation_xz.dims == ("whisker",)
         assert whiskers.name.values.tolist() == NAMES
         columns = [*trials.variables.values(), *whiskers.variables.values()]
         assert all("units" in v.attrs for v in columns if v.dtype.kind not in "OUS")
+    finally:
+        tree.close()
+
+
+def test_every_datatree_group_converts_to_a_dataframe_of_its_own_size(tmp_path):
+    """One row per trial for the trial table, per whisker for the whisker table, the product of
+    its own dims for every other group: no group inherits a dimension it does not use."""
+    path = tmp_path / "d.h5"
+    write_trials(path, [0, 1, 3])
+    tree = xr.open_datatree(path, engine="h5netcdf")
+    try:
+        assert not tree.to_dataset().sizes                           # the root: attributes only
+        for node in tree.subtree:
+            if node.is_root:
+                continue
+            frame = node.to_dataset().to_dataframe()
+            assert frame.shape[0] == int(np.prod(list(node.to_dataset(inherit=False).sizes.values()))), node.path
+        assert tree["trials"].to_dataset().to_dataframe().shape[0] == 5
+        assert tree["whiskers"].to_dataset().to_dataframe().shape[0] == len(NAMES)
+        assert tree["trials"].to_dataset().to_dataframe()["pose_position_m_y"].tolist()[0] == 0.02
     finally:
         tree.close()
 
@@ -202,10 +222,11 @@ def test_every_schema_column_is_written_with_its_dims(tmp_path):
     with h5py.File(path, "r") as f:
         for group, columns, row in (("trials", TRIAL_COLUMNS, "trial"), ("whiskers", WHISKER_COLUMNS, "whisker")):
             for name, meta in columns.items():
-                dims = [d[0].name.lstrip("/") for d in f[group][name].dims]
-                assert dims == [row, *meta["dims"]], (group, name)
-        assert np.isnan(f["trials/pose_rotation"][1]).all()          # pending row: NaN, not identity
-        np.testing.assert_allclose(f["trials/pose_rotation"][0], np.eye(3))
+                for stored in component_names(name, meta):
+                    assert [d[0].name for d in f[group][stored].dims] == [f"/{group}/{row}"], (group, stored)
+        rotation = np.stack([f[f"trials/pose_rotation_{a}{b}"][()] for a in "xyz" for b in "xyz"], axis=-1)
+        assert np.isnan(rotation[1]).all()                             # pending row: NaN, not identity
+        np.testing.assert_allclose(rotation[0].reshape(3, 3), np.eye(3))
 
 
 def test_world_frame_follows_the_engines_whiskers(tmp_path):

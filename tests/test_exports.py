@@ -49,7 +49,7 @@ def test_nwb_export_reads_back_with_the_datasets_values(dataset, tmp_path):
         wrench = np.concatenate([ds.trial(i)["base_wrench"] for i in range(3)])        # [3·T, W, 6]
         for j, signal in enumerate(SIGNALS):
             series = nwb.acquisition[signal]
-            assert series.rate == RATE_HZ and series.unit == ("N" if signal[0] == "F" else "N*m")
+            assert series.rate == RATE_HZ and series.unit == ("N" if signal[0] == "F" else "N m")
             assert "whisker frame" in series.description
             assert np.array_equal(series.data[:], wrench[..., j], equal_nan=True), signal
         contact = np.concatenate([ds.trial(i)["contact"] for i in range(3)])

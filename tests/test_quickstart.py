@@ -19,7 +19,7 @@ def python_snippets(page: Path) -> list[str]:
 
 def test_every_snippet_of_the_python_quick_start_runs(tmp_path):
     snippets = python_snippets(REPO / "docs" / "python.md")
-    assert len(snippets) == 5
+    assert len(snippets) == 6
     script = "\n".join(f"print('--- snippet {i}', flush=True)\n{code}" for i, code in enumerate(snippets))
     env = {**os.environ, "PIPELINE_HOME": str(tmp_path), "MPLBACKEND": "Agg",
            "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
@@ -27,6 +27,7 @@ def test_every_snippet_of_the_python_quick_start_runs(tmp_path):
                          timeout=300)
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-3000:]
     assert "['RC1', 'RC2'] (50,) (50, 2, 6)" in run.stdout
+    assert re.search(r"^4 2 ", run.stdout, flags=re.M)            # DataTree tables: 4 trials, 2 whiskers
     assert "4 trials ok" in run.stdout and "4 trials" in run.stdout.splitlines()[-1]
     assert (tmp_path / "outputs" / "datasets" / "quickstart" / "v1" / "manifest.json").is_file()
     assert (tmp_path / "rc1_mz.png").stat().st_size > 1000 and (tmp_path / "quickstart.nwb").is_file()

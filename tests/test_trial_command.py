@@ -47,4 +47,4 @@ def test_passive_peg_trial_records_no_whisking(tmp_path, pipeline_cli):
     assert result.returncode == 0, result.stderr
     with datasets.open_file(out) as ds:
         assert ds.trials["whisk_kind"][0] == "still"
-        assert np.all(ds.file["protraction_rad"][0] == 0)
+        assert np.all(ds.samples["protraction_rad"][0] == 0)

@@ -51,7 +51,7 @@ def describe(target: str | Path, root: Path | None = None, check: bool = False) 
             "whiskers": len(ds.whiskers["name"]), "samples_per_trial": int(ds.attrs["samples"]),
             "sampling_rate_hz": float(ds.attrs["sampling_rate_hz"]), "seed": ds.attrs.get("seed"),
             "scenes_ok": dict(Counter(ds.trials["scene"][ok].tolist())),
-            "arrays": [name for name in ARRAYS if name in ds.file],
+            "arrays": [name for name in ARRAYS if name in ds.samples],
             "created_utc": provenance.get("created_utc"), "git_commit": provenance.get("git_commit"),
             "engine": provenance.get("engine"),
         }

@@ -79,11 +79,11 @@ def scan(ds) -> dict:
     bad, jumps = [], {}
     for index in ds.ok:
         n = int(samples[index])
-        arrays = read_trial(ds.file, index, CHECKED_ARRAYS)
+        arrays = read_trial(ds.samples, index, CHECKED_ARRAYS)
         if non_finite(arrays, n, node_every):
             bad.append(int(index))
         wrench = np.concatenate([arrays[part] for part in WRENCH_PARTS], axis=-1)
-        count = edge_jumps(wrench[:n], read_array(ds.file["contact"], index)[:n])
+        count = edge_jumps(wrench[:n], read_array(ds.samples["contact"], index)[:n])
         if count:
             jumps[int(index)] = count
     return {"non_finite_ok_trials": bad, "edge_jump_trials": len(jumps), "edge_jump_pairs": sum(jumps.values()),

@@ -7,14 +7,16 @@ in :mod:`pipeline.datasets.schema`. Text is fixed-length UTF-8 with ``_Encoding 
 so xarray decodes it to ``str``. Scales and attachments are made before the writer enters
 SWMR mode (HDF5 cannot add attributes then); a copy of the file (recovery, join) attaches
 them again, since references do not survive a copy into another file. h5py is imported
-inside functions.
+inside functions. Each group holds the coordinate variables of its own dims
+(schema.GROUP_DIMS), so an ``xarray.DataTree`` child inherits none it does not use.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from pipeline.datasets.schema import ARRAYS, COORDINATES, TRIAL_COLUMNS, WHISKER_COLUMNS
+from pipeline.datasets.schema import (ARRAYS, COORDINATES, GROUP_DIMS, SAMPLES, TRIAL_COLUMNS, WHISKER_COLUMNS,
+                                      component_names)
 
 TABLES = {"trials": ("trial", TRIAL_COLUMNS), "whiskers": ("whisker", WHISKER_COLUMNS)}
 SCALE_ATTRIBUTES = ("DIMENSION_LIST", "REFERENCE_LIST", "CLASS", "NAME")
@@ -40,41 +42,42 @@ def describe(dataset, units: str, description: str, long_name: str = "", standar
 
 
 def write_coordinates(f, values: dict[str, np.ndarray]) -> None:
-    """Create the coordinate variables: ``values`` for the computed ones (trial, time, whisker,
-    link, and node_time and node if node positions are stored), the schema's labels for the
-    rest."""
-    for name, spec in COORDINATES.items():
-        data = values.get(name, spec.labels)
-        if len(data):
-            describe(f.create_dataset(name, data=np.asarray(data, storage_dtype(spec.dtype))),
-                     spec.units, spec.description, standard_name=spec.standard_name)
+    """Create the coordinate variables in the groups that use them (schema.GROUP_DIMS): ``values``
+    for the computed ones (trial, time, whisker, link, and node_time and node if node positions
+    are stored), the schema's labels for the rest; a dimension with no values is left out."""
+    for group, dims in GROUP_DIMS.items():
+        for name in dims:
+            data = values.get(name, COORDINATES[name].labels)
+            if len(data):
+                spec = COORDINATES[name]
+                describe(f.require_group(group).create_dataset(name, data=np.asarray(data, storage_dtype(spec.dtype))),
+                         spec.units, spec.description, standard_name=spec.standard_name)
 
 
 def _variables(f):
-    """(dataset, its dims) of every array and table column in the file."""
+    """(group, dataset, its dims) of every array and stored table column in the file."""
     for name, spec in ARRAYS.items():
-        if name in f:
-            yield f[name], spec.dims
+        if name in f[SAMPLES]:
+            yield f[SAMPLES], f[SAMPLES][name], spec.dims
     for group, (row, columns) in TABLES.items():
         for name, meta in columns.items():
-            if name in f[group]:
-                yield f[group][name], (row, *meta["dims"])
+            for stored in component_names(name, meta):
+                if stored in f[group]:
+                    yield f[group], f[group][stored], (row,)
 
 
 def attach_dimensions(f) -> None:
-    """Make every coordinate variable a dimension scale and attach the scales to every array and
-    column, replacing scale attributes a copy may have brought along. Files of schema version 1
-    have no coordinate variables and are left as they are."""
-    if "trial" not in f:
-        return
+    """Make every coordinate variable a dimension scale and attach the scales of its group to
+    every array and column there, replacing scale attributes a copy may have brought along.
+    Only files of the current layout (schema 4: a ``samples`` group)."""
     variables = list(_variables(f))
-    for dataset in [f[name] for name in COORDINATES if name in f] + [d for d, _ in variables]:
+    coordinates = [f[group][name] for group, dims in GROUP_DIMS.items() for name in dims if name in f[group]]
+    for dataset in coordinates + [d for _, d, _ in variables]:
         for key in SCALE_ATTRIBUTES:
             if key in dataset.attrs:
                 del dataset.attrs[key]
-    for name in COORDINATES:
-        if name in f:
-            f[name].make_scale(name)
-    for dataset, dims in variables:
+    for scale in coordinates:
+        scale.make_scale(scale.name.rsplit("/", 1)[-1])
+    for group, dataset, dims in variables:
         for axis, dim in enumerate(dims):
-            dataset.dims[axis].attach_scale(f[dim])
+            dataset.dims[axis].attach_scale(group[dim])

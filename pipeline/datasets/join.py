@@ -17,7 +17,7 @@ from pipeline.config.project import datasets_root
 from pipeline.datasets.dimensions import SCALE_ATTRIBUTES, attach_dimensions
 from pipeline.datasets.manifest import write_manifest
 from pipeline.datasets.reader import decode_attr
-from pipeline.datasets.schema import ARRAYS, CONFIG_FILE, DATA_FILE, FAILED, LIBVER, OK, PENDING
+from pipeline.datasets.schema import ARRAYS, CONFIG_FILE, DATA_FILE, FAILED, LIBVER, OK, PENDING, SAMPLES
 from pipeline.datasets.versions import MESHES_DIR, SHARDS_DIR, VersionLock, is_locked, new_version
 from pipeline.datasets.writer import recover
 from pipeline.errors import UserError
@@ -96,22 +96,25 @@ def _write_joined(path: Path, label: str, shards: list[tuple[Path, range]]) -> N
         del out.attrs["shard"]
         out.attrs.update(label=label, trial_range=[0, first["trials/status"].shape[0]],
                          joined_from=json.dumps([f"{SHARDS_DIR}/{p.name}" for p, _ in shards]))
-        for key in first:
-            if key not in ARRAYS:
+        for key in first:                  # tables and coordinates; the arrays map into the shards
+            if key != SAMPLES:
                 first.copy(first[key], out, name=key)
+        for key in first[SAMPLES]:
+            if key not in ARRAYS:
+                first.copy(first[SAMPLES][key], out.require_group(SAMPLES), name=key)
         for data, block in shards[1:]:
             with h5py.File(data, "r") as shard:
                 for column, values in shard["trials"].items():
                     out["trials"][column][block.start:block.stop] = values[block.start:block.stop]
         for name in ARRAYS:
-            if name not in first:
+            if name not in first[SAMPLES]:
                 continue
-            source = first[name]
+            source, inner = first[SAMPLES][name], f"{SAMPLES}/{name}"
             layout = h5py.VirtualLayout(shape=source.shape, dtype=source.dtype)
             for data, block in shards:
-                virtual = h5py.VirtualSource(f"{SHARDS_DIR}/{data.name}", name, shape=source.shape)
+                virtual = h5py.VirtualSource(f"{SHARDS_DIR}/{data.name}", inner, shape=source.shape)
                 layout[block.start:block.stop] = virtual[block.start:block.stop]
-            out.create_virtual_dataset(name, layout, fillvalue=source.fillvalue).attrs.update(
+            out.create_virtual_dataset(inner, layout, fillvalue=source.fillvalue).attrs.update(
                 {key: value for key, value in source.attrs.items() if key not in SCALE_ATTRIBUTES})
         attach_dimensions(out)
     os.replace(partial, path)

@@ -34,7 +34,8 @@ from typing import Any
 import numpy as np
 
 from pipeline.datasets.schema import (ARRAYS, COORDINATES, FAILED, LEGACY_ARRAYS, OK, PENDING, SIGNAL,
-                                      SIGNAL_UNITS_VARIABLE, TRIAL_COLUMNS, WHISKER_COLUMNS, WRENCH_PARTS)
+                                      SIGNAL_UNITS_VARIABLE, TRIAL_COLUMNS, WHISKER_COLUMNS, WRENCH_PARTS,
+                                      array_group, component_names)
 from pipeline.datasets.versions import resolve
 from pipeline.datasets.wrench import WRENCH, read_array, read_trial
 from pipeline.errors import UserError
@@ -87,8 +88,17 @@ def lazy_dataset_class():
 
 
 def _columns(group, schema: dict[str, dict]) -> dict[str, np.ndarray]:
-    """A table's columns as numpy (text decoded), in schema order (a version 1 file has fewer)."""
-    return {name: _decoded(group[name][()]) for name in schema if name in group}
+    """A table's columns as numpy (text decoded, components joined again: rows first), in schema
+    order (a version 1 file has fewer; before version 4 a column with components is one dataset)."""
+    columns = {}
+    for name, meta in schema.items():
+        stored = component_names(name, meta)
+        if name in group:
+            columns[name] = _decoded(group[name][()])
+        elif all(part in group for part in stored):
+            parts = np.stack([_decoded(group[part][()]) for part in stored], axis=-1)
+            columns[name] = parts.reshape(parts.shape[:1] + tuple(meta["shape"]))
+    return columns
 
 
 def table_frame(columns: dict[str, np.ndarray], schema: dict[str, dict], index_name: str):
@@ -118,6 +128,7 @@ class DatasetFile:
         self.file = open_hdf5(self.path, "dataset file")
         try:
             self.file.visititems(lambda name, item: None)   # every object header read: damage shows here
+            self.samples = array_group(self.file)
             self.attrs = {key: decode_attr(value) for key, value in self.file.attrs.items()}
             self._whiskers = _columns(self.file["whiskers"], WHISKER_COLUMNS)
             self.refresh()
@@ -141,8 +152,8 @@ class DatasetFile:
     def refresh(self) -> None:
         """Re-read the trial table (a dataset being written grows its finished trials)."""
         for name in ARRAYS:
-            if name in self.file:
-                self.file[name].refresh()
+            if name in self.samples:
+                self.samples[name].refresh()
         for column in self.file["trials"].values():
             column.refresh()
         self._trials = _columns(self.file["trials"], TRIAL_COLUMNS)
@@ -192,7 +203,7 @@ class DatasetFile:
 
     @property
     def time_s(self) -> np.ndarray:
-        return self.file["time" if "time" in self.file else "time_s"][()]
+        return self.samples["time" if "time" in self.samples else "time_s"][()]
 
     @functools.cached_property
     def _coords(self) -> dict[str, np.ndarray]:
@@ -203,8 +214,8 @@ class DatasetFile:
                   "signal": np.array(SIGNAL.labels), "link": np.arange(links), "node": np.arange(links + 1),
                   "xyz": np.array(COORDINATES["xyz"].labels), "euler": np.array(COORDINATES["euler"].labels)}
         for name in ("node_time", "node_time_s"):
-            if name in self.file:
-                coords["node_time"] = self.file[name][()]
+            if name in self.samples:
+                coords["node_time"] = self.samples[name][()]
         return coords
 
     def array(self, name: str):
@@ -214,17 +225,17 @@ class DatasetFile:
         import xarray as xr
         from xarray.core import indexing
 
-        if name in WRENCH_PARTS and WRENCH in self.file:            # schema versions 1 to 3
+        if name in WRENCH_PARTS and WRENCH in self.samples:            # schema versions 1 to 3
             part = WRENCH_PARTS.index(name)
             spec = ARRAYS[name]
             wrench = self.array(WRENCH).isel(signal=slice(3 * part, 3 * part + 3))
             return (wrench.drop_vars(["signal", SIGNAL_UNITS_VARIABLE]).rename(signal="xyz")
                     .assign_coords(xyz=self._coords["xyz"]).rename(name)
                     .assign_attrs(units=spec.units, long_name=spec.long_name, description=spec.description))
-        if name == WRENCH and all(part in self.file for part in WRENCH_PARTS):
-            datasets, spec = [self.file[part] for part in WRENCH_PARTS], LEGACY_ARRAYS[WRENCH]
-        elif (name in ARRAYS or name in LEGACY_ARRAYS) and name in self.file:
-            datasets, spec = [self.file[name]], {**ARRAYS, **LEGACY_ARRAYS}[name]
+        if name == WRENCH and all(part in self.samples for part in WRENCH_PARTS):
+            datasets, spec = [self.samples[part] for part in WRENCH_PARTS], LEGACY_ARRAYS[WRENCH]
+        elif (name in ARRAYS or name in LEGACY_ARRAYS) and name in self.samples:
+            datasets, spec = [self.samples[name]], {**ARRAYS, **LEGACY_ARRAYS}[name]
         else:
             raise KeyError(f"{self.path} has no '{name}' (arrays: {', '.join([*self.array_names, WRENCH])})")
         attrs = {key: decode_attr(datasets[0].attrs[key])
@@ -243,7 +254,7 @@ class DatasetFile:
     def array_names(self) -> list[str]:
         """The arrays of ``schema.ARRAYS`` this file has (``base_force`` and ``base_moment`` also
         when made from an older file's ``base_wrench``)."""
-        return [name for name in ARRAYS if name in self.file or (name in WRENCH_PARTS and WRENCH in self.file)]
+        return [name for name in ARRAYS if name in self.samples or (name in WRENCH_PARTS and WRENCH in self.samples)]
 
     @property
     def arrays(self):
@@ -285,7 +296,7 @@ class DatasetFile:
     def trial(self, index: int) -> dict[str, Any]:
         """Trial ``index``: its table row and every stored array (numpy, padded to full length)."""
         row = {name: column[index] for name, column in self._trials.items()}
-        arrays = read_trial(self.file, index, [*ARRAYS, WRENCH])
+        arrays = read_trial(self.samples, index, [*ARRAYS, WRENCH])
         return {"trial": int(index), **row, **arrays}
 
     def close(self) -> None:

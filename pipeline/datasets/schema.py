@@ -3,20 +3,26 @@
 One HDF5 file holds N trials in rows 0..N−1 (row = trial index). Trial-major arrays are
 chunked one trial per chunk; a trial is written data first, then its table row, its
 ``status`` last, each step flushed, so a row whose status is not pending is complete.
-Every array and column names its dimensions; the file holds a coordinate variable per
-dimension (an HDF5 dimension scale, :data:`COORDINATES`), so netCDF readers (xarray with
-h5netcdf) see named dims. Attributes follow the CF conventions: one ``units`` per variable
+Every array and column names its dimensions; a coordinate variable per dimension (an HDF5
+dimension scale, :data:`COORDINATES`) sits in the group that uses it, so netCDF readers (xarray
+with h5netcdf) see named dims. Groups (:data:`GROUP_DIMS`): the root holds only attributes, the
+per-sample arrays and their coordinates are in ``samples``, the trial and whisker tables in
+``trials`` and ``whiskers``, each column along its row dimension only (a column with components
+is stored as one column per component, :func:`stored_columns`), so every group of an
+``xarray.DataTree`` converts to a DataFrame of one row per element of its own dims. Attributes follow the CF conventions: one ``units`` per variable
 (UDUNITS spelling, e.g. "N m"), a ``long_name``, a ``standard_name`` where CF has one. The file
 is written with HDF5's 1.10 file format (``libver="v110"``: SWMR, and readable by HDF5 ≥ 1.10,
 so by MATLAB, R and Julia). Bump ``SCHEMA_VERSION`` on any change a reader would notice; older
 versions are still read: version 1 (no dimension scales, ``time_s``/``node_time_s`` for the
-time axes, no frames in the tables), version 2 (``point_of_contact`` = most proximal link in
+time axes, no frames in the tables), versions 1 to 3 hold the arrays and coordinates in the
+root and columns with components as 2-D datasets; version 2 (``point_of_contact`` = most proximal link in
 contact / links) and version 3 (force and moment in one array ``base_wrench`` along ``signal``,
 :data:`LEGACY_ARRAYS`, with six units).
 """
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field, fields
 
 import numpy as np
@@ -28,6 +34,7 @@ SCHEMA = "whisker-pipeline/dataset"
 SCHEMA_VERSION = 4
 LIBVER = ("v110", "v110")      # HDF5 file format: 1.10 (SWMR), not "latest" (2.0 layouts)
 DATA_FILE = "data.h5"
+SAMPLES = "samples"             # group of the per-sample arrays (schema 4); versions 1 to 3: the root
 CONFIG_FILE = "config.yaml"
 MANIFEST_FILE = "manifest.json"
 
@@ -165,7 +172,7 @@ class TrialRecord:
     pose_distance_m: float = _column(NAN, "f8", "m", "array origin to the aimed surface point")
     pose_attempts: int = _column(0, "i4", "", "poses drawn until one was accepted (0: fixed scene)")
     pose_rejections: tuple = _column((0,) * len(POSE_REJECTION_REASONS), "i4", "",
-                                     "rejected poses per reason (attribute 'reasons')", ("reason",))
+                                     "rejected poses per reason", ("reason",))
     whiskers_reaching: int = _column(0, "i2", "", "whiskers whose swept rest shape crosses the surface")
     whiskers_in_contact: int = _column(0, "i2", "", "whiskers with at least one contact in the trial")
     cpu_seconds: float = _column(0.0, "f8", "s", "worker CPU time for the whole trial")
@@ -197,3 +204,29 @@ WHISKER_COLUMNS: dict[str, dict] = {
          "whisker frame is Rzyx(e0 + rates*theta) @ Rzyx(e0).T @ rest_rotation", ("euler",)),
         ("euler_rates", "f8", "rad/rad", "rates: d(driven Z-Y-X joint angles)/d(protraction angle)", ("euler",)),
     ]}
+
+
+GROUP_DIMS = {SAMPLES: ("trial", "time", "whisker", "link", "xyz", "euler", "node_time", "node"),
+              "trials": ("trial",), "whiskers": ("whisker",)}
+
+
+def array_group(f):
+    """The group of an open file that holds the per-sample arrays (the root before version 4)."""
+    return f[SAMPLES] if SAMPLES in f else f
+
+
+def component_names(name: str, meta: dict) -> list[str]:
+    """Stored names of a table column's components, ``NAME_LABEL`` (labels of its dims joined,
+    e.g. pose_position_m_x, pose_rotation_xy); ``[name]`` for a scalar column."""
+    labels = itertools.product(*(COORDINATES[d].labels for d in meta["dims"]))
+    return [f"{name}_{''.join(label)}" for label in labels] if meta["dims"] else [name]
+
+
+def stored_columns(columns: dict[str, np.ndarray], schema: dict[str, dict]) -> dict[str, np.ndarray]:
+    """Table columns (rows first, then components) as stored: one 1-D column per component."""
+    stored = {}
+    for name, values in columns.items():
+        values = np.asarray(values)
+        names = component_names(name, schema[name])
+        stored.update(zip(names, values.reshape(len(values), len(names)).T))
+    return stored

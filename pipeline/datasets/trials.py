@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from pipeline.datasets.schema import ARRAYS, OK
+from pipeline.datasets.schema import ARRAYS, OK, array_group
 from pipeline.datasets.versions import resolve
 from pipeline.datasets.wrench import READABLE, WRENCH, read_trial
 from pipeline.hdf5_files import open_hdf5
@@ -55,7 +55,7 @@ class TrialDataset:
         f = self._opened()
         index = int(self.indices[item])
         return {"trial": index, "scene": str(self.scenes[item]), "samples": int(self.samples[item]),
-                **read_trial(f, index, self.arrays)}
+                **read_trial(array_group(f), index, self.arrays)}
 
     def __getstate__(self) -> dict[str, Any]:
         return {**self.__dict__, "_file": None, "_pid": None}

@@ -24,8 +24,8 @@ import numpy as np
 
 from pipeline.datasets.checks import non_finite
 from pipeline.datasets.dimensions import attach_dimensions, describe, storage_dtype, write_coordinates
-from pipeline.datasets.schema import (ARRAYS, FAILED, LIBVER, OK, PENDING, POSE_REJECTION_REASONS, SCHEMA,
-                                      SCHEMA_VERSION, TRIAL_COLUMNS, WHISKER_COLUMNS, TrialRecord)
+from pipeline.datasets.schema import (ARRAYS, FAILED, LIBVER, OK, PENDING, SAMPLES, SCHEMA, SCHEMA_VERSION,
+                                      TRIAL_COLUMNS, WHISKER_COLUMNS, TrialRecord, component_names, stored_columns)
 from pipeline.errors import UserError
 from pipeline.model.outputs import TrialOutput
 from pipeline.model.rotations import rotation_zyx
@@ -157,17 +157,22 @@ def encode(text: str, dtype: str) -> bytes:
     return data[:width].decode("utf-8", "ignore").encode() if len(data) > width else data
 
 
-def _create_column(group, name: str, meta: dict, rows: int, chunk_rows: int, data=None) -> None:
-    dtype = storage_dtype(meta["dtype"])
-    shape = (rows,) + tuple(meta["shape"])
-    if data is not None:
-        column = group.create_dataset(name, data=np.asarray(data, dtype=dtype).reshape(shape))
-    else:
-        default = TrialRecord.__dataclass_fields__[name].default
-        fill = meta["fill"] if meta["fill"] is not None else np.asarray(default, dtype).ravel()[0]
-        column = group.create_dataset(name, shape=shape, dtype=dtype, chunks=(chunk_rows,) + shape[1:],
-                                      fillvalue=fill)
-    describe(column, meta["units"], meta["doc"])
+def _create_columns(group, schema: dict[str, dict], rows: int, chunk_rows: int, data=None) -> None:
+    """A table's columns in ``group``, one 1-D column per component (schema.stored_columns):
+    filled with ``data`` (column name → values, rows first), or empty with the schema's fill."""
+    for name, meta in schema.items():
+        dtype = storage_dtype(meta["dtype"])
+        names = component_names(name, meta)
+        if data is not None:
+            values = stored_columns({name: np.asarray(data[name], dtype=dtype)}, schema)
+        else:
+            default = TrialRecord.__dataclass_fields__[name].default
+            fill = meta["fill"] if meta["fill"] is not None else np.asarray(default, dtype).ravel()[0]
+        for stored in names:
+            column = group.create_dataset(stored, data=values[stored]) if data is not None else \
+                group.create_dataset(stored, shape=(rows,), dtype=dtype, chunks=(chunk_rows,), fillvalue=fill)
+            component = f" ({stored[len(name) + 1:]} component)" if stored != name else ""
+            describe(column, meta["units"], meta["doc"] + component)
 
 
 def create_file(path: Path, layout: Layout, attrs: dict[str, Any]):
@@ -177,7 +182,7 @@ def create_file(path: Path, layout: Layout, attrs: dict[str, Any]):
     f = h5py.File(path, "w", libver=LIBVER)
     f.attrs.update(schema=SCHEMA, schema_version=SCHEMA_VERSION, trials=layout.trials,
                    samples=layout.samples, sampling_rate_hz=layout.sampling_rate_hz, links=layout.links,
-                   node_every=layout.node_every, units="SI: m, s, rad, N, N*m")
+                   node_every=layout.node_every, units="SI: m, s, rad, N, N m")
     for key, value in attrs.items():
         f.attrs[key] = json.dumps(value) if isinstance(value, (dict, list, tuple)) else value
     computed = {"trial": np.arange(layout.trials), "time": layout.time_s, "whisker": layout.whiskers["name"],
@@ -185,25 +190,21 @@ def create_file(path: Path, layout: Layout, attrs: dict[str, Any]):
     if layout.node_every:
         computed.update(node_time=layout.node_time_s, node=np.arange(layout.links + 1))
     write_coordinates(f, computed)
-    whiskers = f.create_group("whiskers")
-    for name, meta in WHISKER_COLUMNS.items():
-        _create_column(whiskers, name, meta, len(layout.whiskers["name"]), 0, layout.whiskers[name])
-    trials = f.create_group("trials")
-    for name, meta in TRIAL_COLUMNS.items():
-        _create_column(trials, name, meta, layout.trials, min(layout.trials, TABLE_CHUNK_ROWS))
-    trials["pose_rejections"].attrs["reasons"] = list(POSE_REJECTION_REASONS)
+    _create_columns(f["whiskers"], WHISKER_COLUMNS, len(layout.whiskers["name"]), 0, layout.whiskers)
+    _create_columns(f["trials"], TRIAL_COLUMNS, layout.trials, min(layout.trials, TABLE_CHUNK_ROWS))
+    samples = f[SAMPLES]
     compression = dict(compression="gzip", compression_opts=layout.compression_level, shuffle=True) \
         if layout.compression_level else {}
     for name in layout.arrays:
         spec, shape = ARRAYS[name], layout.shape(name)
-        data = f.create_dataset(name, shape=shape, dtype=spec.dtype, chunks=(1,) + shape[1:],
+        data = samples.create_dataset(name, shape=shape, dtype=spec.dtype, chunks=(1,) + shape[1:],
                                 fillvalue=spec.fill, **compression)
         describe(data, spec.units, spec.description, spec.long_name, spec.standard_name)
         data.attrs["axes"] = list(spec.dims)
     for name in ("base_force", "base_moment"):
-        f[name].attrs["frame"] = "whisker"
+        samples[name].attrs["frame"] = "whisker"
     if layout.node_every:
-        f["node_positions_m"].attrs.update(frame="world", every=layout.node_every)
+        samples["node_positions_m"].attrs.update(frame="world", every=layout.node_every)
     attach_dimensions(f)
     return f
 
@@ -238,8 +239,9 @@ class DatasetWriter:
         self.file.swmr_mode = True
         # Open handles, never temporary ones: a temporary h5py object flushes its chunk when it
         # is garbage collected, where a write error (a full disk) is only printed, not raised.
-        self._arrays = {name: self.file[name] for name in ARRAYS if name in self.file}
-        self._columns = {name: self.file["trials"][name] for name in TRIAL_COLUMNS}
+        self._arrays = {name: self.file[SAMPLES][name] for name in ARRAYS if name in self.file[SAMPLES]}
+        self._columns = {stored: self.file["trials"][stored] for name, meta in TRIAL_COLUMNS.items()
+                         for stored in component_names(name, meta)}
         self._status = self._columns["status"][:]
         self._failed = False             # a write failed: closing may fail too (resume recovers the file)
 
@@ -341,10 +343,11 @@ class DatasetWriter:
         if arrays:
             self._sync()
             self._check_on_disk(index, arrays)
-        for name, value in asdict(record).items():
-            if name != "status":
-                meta = TRIAL_COLUMNS[name]
-                self._columns[name][index] = encode(value, meta["dtype"]) if meta["dtype"][0] == "S" else value
+        row = {name: [encode(value, meta["dtype"]) if meta["dtype"][0] == "S" else value]
+               for (name, value), meta in zip(asdict(record).items(), TRIAL_COLUMNS.values())}
+        for stored, value in stored_columns(row, TRIAL_COLUMNS).items():
+            if stored != "status":
+                self._columns[stored][index] = value[0]
         self._columns["status"][index] = record.status.encode()
         self._sync()
         self._status[index] = record.status.encode()

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import time
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -141,6 +142,9 @@ class Engine(ABC):
     """One backend's worlds for an array, and the trial template of the module docstring."""
 
     name: str = ""
+    progress: Callable[[int, int], None] | None = None
+    """Called after each world of a trial with (whisker steps done, planned): the trial's
+    fraction done, a few times per trial at no cost per step."""
 
     def __init__(self, array: ArrayModel, config: EngineConfig):
         self.array, self.config = array, config
@@ -203,12 +207,15 @@ class Engine(ABC):
                                                     for k in range(len(self.array.whiskers))))
         result = WorldResult.zeros(samples, len(self.array.whiskers), self.array.links)
         steps, refined = 0, {}
-        for members, world in self.worlds:
-            active = ~(reused | coarse)[members]
+        plan = [(members, world, ~(reused | coarse)[members]) for members, world in self.worlds]
+        planned = sum(samples * world.steps_per_sample * int(active.sum()) for _, world, active in plan)
+        for members, world, active in plan:
             if not active.any():
                 continue
             part = world.run(setup.only(members), active)
             steps += samples * world.steps_per_sample * int(active.sum())
+            if self.progress is not None:
+                self.progress(min(steps, planned), planned)
             for local, message in part.jammed.items():
                 k = members[local]
                 alone, refined[self.array.whiskers[k].name], extra_steps = self._refine(

@@ -25,7 +25,8 @@ from pipeline.config.project import project_root
 from pipeline.errors import UserError
 from pipeline.exports.nwb_metadata import NwbMetadata
 from pipeline.exports.source import DatasetTrials, read_trials
-from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS
+from pipeline.datasets.schema import ARRAYS, WRENCH_PARTS
+from pipeline.model.outputs import SIGNALS
 from pipeline.storage import replacing
 
 WRENCH_FRAME = ("whisker frame, fixed to the follicle and moving with it: origin at the base point, x along "
@@ -151,7 +152,8 @@ def build_nwbfile(data: DatasetTrials, metadata: NwbMetadata | None = None):
         "not part of the model, so the age is the open range 'P0D/' (no bound)")
     nwbfile.add_acquisition(_whisker_table(data))
     wrench = _concatenated(data.base_wrench)
-    for j, (signal, unit) in enumerate(zip(SIGNALS, SIGNAL_UNITS)):
+    units = [ARRAYS[part].units for part in WRENCH_PARTS for _ in range(3)]      # the dataset's: N, N m
+    for j, (signal, unit) in enumerate(zip(SIGNALS, units)):
         nwbfile.add_acquisition(TimeSeries(
             name=signal, data=H5DataIO(wrench[..., j], compression="gzip"), unit=unit, rate=rate,
             starting_time=float(data.time_s[0]),

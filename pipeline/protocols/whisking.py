@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import cached_property
 
 from pipeline.config.physics import ModelConfig
@@ -80,8 +81,11 @@ class Whisking:
 
 
 def run_trial(config: ModelConfig, scene: Scene, pose: Pose = Pose(), duration_s: float | None = None,
-              whiskers: str | None = None, drive: ProtractionDrive | None = None) -> TrialOutput:
-    """Build the configured array (or a selection of it) and run one trial on a new engine."""
+              whiskers: str | None = None, drive: ProtractionDrive | None = None,
+              progress: Callable[[int, int], None] | None = None) -> TrialOutput:
+    """Build the configured array (or a selection of it) and run one trial on a new engine;
+    ``progress``: called with (whisker steps done, planned) as the trial goes (Engine.progress)."""
     duration_s = config.whisk.duration_s if duration_s is None else duration_s
     with Whisking(config, whiskers) as whisking:
+        whisking.engine.progress = progress
         return whisking.run(scene, pose, drive or default_drive(scene, config, duration_s), duration_s)
