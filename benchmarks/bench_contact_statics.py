@@ -1,11 +1,13 @@
 """Contact statics against the elastica (issue 24): the full table, and how quasi-static it is.
 
 Run: .venv/bin/python benchmarks/bench_contact_statics.py [--engines bullet,mujoco]
-     [--whiskers RC1,RC3,RC5] [--fractions 0.3,0.6,0.85] [--frictions 0,0.5] [--speed-check]
+     [--whiskers RC1,RC3,RC5] [--fractions 0.3,0.6,0.85] [--frictions 0,0.5] [--facets 0,16,64,256]
+     [--speed-check]
 
 Each case turns one whisker of the model rat slowly into a thin peg and compares the base
 moment and forces with the planar elastica (pipeline/reports/contact_statics.py). Printed: one
-row per whisker × contact position × μ × engine (RMS errors in % of the elastica's largest
+row per whisker × contact position × μ × engine × peg (``--facets``: 0 the analytic
+cylinder, n a triangle mesh with n flat sides round; RMS errors in % of the elastica's largest
 value, slip-off angles, deepest point of the centre line inside the peg). ``--speed-check``
 instead runs each engine's RC3 60 % μ = 0 case at the drive speed and at half of it and prints
 the change of the base signals at the same angle (RMS and largest, in % of the elastica's
@@ -52,6 +54,7 @@ def main() -> None:
     parser.add_argument("--whiskers", default=",".join(C.WHISKERS))
     parser.add_argument("--fractions", default=",".join(f"{f:g}" for f in C.FRACTIONS))
     parser.add_argument("--frictions", default=",".join(f"{f:g}" for f in C.FRICTIONS))
+    parser.add_argument("--facets", default="0", help="pegs: 0 the cylinder, n a mesh of n sides")
     parser.add_argument("--speed", type=float, default=C.SPEED_DEG_S, help="drive speed, °/s")
     parser.add_argument("--speed-check", action="store_true")
     args = parser.parse_args()
@@ -62,7 +65,8 @@ def main() -> None:
         return
     start = time.perf_counter()
     results = C.run_cases(config, args.whiskers.split(","), [float(f) for f in args.fractions.split(",")],
-                          [float(f) for f in args.frictions.split(",")], engines, progress=print)
+                          [float(f) for f in args.frictions.split(",")], engines, progress=print,
+                          facets=[int(n) for n in args.facets.split(",")])
     print(" | ".join(C.TABLE_COLUMNS))
     for row in C.table_rows(results):
         print(" | ".join(row))

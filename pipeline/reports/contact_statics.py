@@ -16,6 +16,11 @@ the axial force in % of the elastica's largest |F|; the slip-off angle differenc
 elastica, degrees; the engine slips off at its last sample in contact when none follows within
 :data:`SLIP_HOLD_DEG`); pass-through: a point of the centre line (sampled along the links)
 deeper than :data:`PASS_THROUGH_M` inside the peg.
+
+The peg is a :class:`~pipeline.scenes.obstacles.Cylinder` (``facets`` 0), or a closed
+:class:`~pipeline.scenes.obstacles.TriangleMesh` with ``facets`` flat sides round (vertices on
+the circle, rings every :data:`MESH_RING_M` along the axis, capped): the engines' scan contact
+(Bullet's own solver with a skin, MuJoCo's prism per face) against the same elastica.
 """
 
 from __future__ import annotations
@@ -33,7 +38,7 @@ from pipeline.model.whisker import WhiskerGeometry, rest_nodes
 from pipeline.references.elastica import Path, Peg, Rod, peg_touching, quasi_static_path
 from pipeline.reports.checks import Section, check, rigid
 from pipeline.reports.published import Published
-from pipeline.scenes.obstacles import Cylinder, Scene, points_along
+from pipeline.scenes.obstacles import Cylinder, Scene, TriangleMesh, points_along
 
 WHISKERS = ("RC1", "RC3", "RC5")
 FRACTIONS = (0.30, 0.60, 0.85)
@@ -49,6 +54,8 @@ REFERENCE_STEP_DEG = 0.25
 ROD_GRID = 401
 SLIP_HOLD_DEG = 1.0
 PASS_THROUGH_M = 0.05e-3
+MESH_FACETS = (16, 64, 256)      # meshed pegs: flat sides round
+MESH_RING_M = 2e-3               # meshed pegs: spacing of the vertex rings along the axis
 
 
 @dataclass(frozen=True)
@@ -57,10 +64,12 @@ class Case:
     fraction: float
     friction: float
     engine: str
+    facets: int = 0                 # 0: the analytic peg; else a meshed one (module docstring)
 
     @property
     def label(self) -> str:
-        return f"{self.whisker} {self.fraction:.0%} μ={self.friction:g} {self.engine}"
+        peg = f" mesh {self.facets}" if self.facets else ""
+        return f"{self.whisker} {self.fraction:.0%} μ={self.friction:g} {self.engine}{peg}"
 
 
 @dataclass
@@ -100,15 +109,44 @@ def reference_path(rod: Rod, peg: Peg, friction: float, sweep_deg: float = SWEEP
     return quasi_static_path(rod, peg, angles, friction)
 
 
+def peg_mesh(peg: Peg, facets: int, length_m: float = PEG_LENGTH_M) -> TriangleMesh:
+    """The vertical peg as a closed triangle mesh: ``facets`` flat sides with their vertices on
+    the circle, rings every :data:`MESH_RING_M` (at most) along z ∈ ±length/2, a fan per cap;
+    faces wound outward."""
+    rings = max(2, int(np.ceil(length_m / MESH_RING_M)) + 1)
+    phi = 2 * np.pi * np.arange(facets) / facets
+    z = np.linspace(-0.5 * length_m, 0.5 * length_m, rings)
+    cx, cy = peg.centre_m
+    side = np.stack([np.tile(cx + peg.radius_m * np.cos(phi), rings), np.tile(cy + peg.radius_m * np.sin(phi), rings),
+                     np.repeat(z, facets)], axis=1)
+    vertices = np.concatenate([side, [[cx, cy, z[0]], [cx, cy, z[-1]]]])
+    bottom, top = len(side), len(side) + 1
+    k = np.arange(facets)
+    faces = []
+    for r in range(rings - 1):
+        a, b = r * facets + k, r * facets + (k + 1) % facets            # ring r, counter-clockwise
+        faces += [np.stack([a, b, b + facets], axis=1), np.stack([a, b + facets, a + facets], axis=1)]
+    last = (rings - 1) * facets
+    faces += [np.stack([np.full(facets, bottom), (k + 1) % facets, k], axis=1),
+              np.stack([np.full(facets, top), last + k, last + (k + 1) % facets], axis=1)]
+    return TriangleMesh(vertices, np.concatenate(faces), source=f"peg-{facets}-{cx:.6g}-{cy:.6g}-{peg.radius_m:g}")
+
+
+def peg_obstacle(peg: Peg, facets: int = 0):
+    """The peg as the engines see it: a Cylinder (``facets`` 0) or :func:`peg_mesh`."""
+    return peg_mesh(peg, facets) if facets else Cylinder(peg.radius_m, PEG_LENGTH_M, (*peg.centre_m, 0.0))
+
+
 def run_engine(config: ModelConfig, geometry: WhiskerGeometry, peg: Peg, speed_deg_s: float = SPEED_DEG_S,
-               sweep_deg: float = SWEEP_DEG):
-    """(protraction angle per sample in degrees, TrialOutput) of one slow turn into the peg."""
+               sweep_deg: float = SWEEP_DEG, facets: int = 0):
+    """(protraction angle per sample in degrees, TrialOutput) of one slow turn into the peg
+    (``facets``: :func:`peg_obstacle`)."""
     from pipeline.engines import create_engine
 
     end_deg = TOUCH_ANGLE_DEG + sweep_deg
     duration = end_deg / speed_deg_s
     drive = ProtractionDrive(np.array([0.0, duration]), np.radians([0.0, end_deg]), interpolation="linear")
-    scene = Scene("contact-statics", (Cylinder(peg.radius_m, PEG_LENGTH_M, (*peg.centre_m, 0.0)),))
+    scene = Scene(f"contact-statics-{facets}", (peg_obstacle(peg, facets),))
     material, extensions = model_parts(config)
     with create_engine(config, single_whisker(geometry, material, extensions=extensions)) as engine:
         output = engine.run(scene, Pose(), drive, duration)
@@ -174,13 +212,15 @@ def run_case(config: ModelConfig, case: Case, speed_deg_s: float = SPEED_DEG_S,
     peg = peg_touching(rod, case.fraction, np.radians(TOUCH_ANGLE_DEG), PEG_RADIUS_M)
     path = path or reference_path(rod, peg, case.friction, sweep_deg)
     angle, output = run_engine(bench_config(config, case.engine, case.friction), geometry, peg, speed_deg_s,
-                               sweep_deg)
+                               sweep_deg, case.facets)
     return compare(case, angle, output, path, peg)
 
 
 def run_cases(config: ModelConfig, whiskers=WHISKERS, fractions=FRACTIONS, frictions=FRICTIONS,
-              engines=ENGINES, progress=lambda _: None, sweep_deg: float = SWEEP_DEG) -> list[CaseResult]:
-    """Every case; the elastica is solved once per whisker × position × friction."""
+              engines=ENGINES, progress=lambda _: None, sweep_deg: float = SWEEP_DEG,
+              facets=(0,)) -> list[CaseResult]:
+    """Every case (``facets``: the pegs, 0 the analytic one); the elastica is solved once per
+    whisker × position × friction."""
     results = []
     for whisker in whiskers:
         geometry = geometry_of(config, whisker)
@@ -190,13 +230,14 @@ def run_cases(config: ModelConfig, whiskers=WHISKERS, fractions=FRACTIONS, frict
             for friction in frictions:
                 path = reference_path(rod, peg, friction, sweep_deg)
                 for engine in engines:
-                    case = Case(whisker, fraction, friction, engine)
-                    progress(f"contact statics: {case.label}")
-                    results.append(run_case(config, case, path=path, sweep_deg=sweep_deg))
+                    for peg_facets in facets:
+                        case = Case(whisker, fraction, friction, engine, peg_facets)
+                        progress(f"contact statics: {case.label}")
+                        results.append(run_case(config, case, path=path, sweep_deg=sweep_deg))
     return results
 
 
-TABLE_COLUMNS = ("whisker", "position", "μ", "engine", "M rms %", "F⊥ rms %", "F∥ rms % of |F|",
+TABLE_COLUMNS = ("whisker", "position", "μ", "engine", "peg", "M rms %", "F⊥ rms %", "F∥ rms % of |F|",
                  "M bias %", "slip-off elastica °", "slip-off engine °", "deepest mm", "pass-through")
 
 
@@ -208,7 +249,7 @@ def table_rows(results: list[CaseResult]) -> list[list[str]]:
     rows = []
     for r in results:
         e, c = r.errors, r.case
-        rows.append([c.whisker, f"{c.fraction:.0%}", f"{c.friction:g}", c.engine,
+        rows.append([c.whisker, f"{c.fraction:.0%}", f"{c.friction:g}", c.engine, f"mesh {c.facets}" if c.facets else "cylinder",
                      f"{e['moment_rms_pct']:.1f}", f"{e['transverse_rms_pct']:.1f}", f"{e['axial_rms_pct_of_f']:.1f}",
                      f"{e['moment_bias_pct']:+.1f}", angle(e["slip_off_ref_deg"]), angle(e["slip_off_engine_deg"]),
                      f"{e['deepest_mm']:.3f}", "yes" if e["pass_through"] else "no"])
