@@ -1,13 +1,14 @@
 """Contact statics against the elastica (issue 24): the full table, and how quasi-static it is.
 
 Run: .venv/bin/python benchmarks/bench_contact_statics.py [--engines bullet,mujoco]
-     [--whiskers RC1,RC3,RC5] [--fractions 0.3,0.6,0.85] [--frictions 0,0.5] [--facets 0,16,64,256]
+     [--whiskers RC1,RC3,RC5] [--fractions 0.3,0.6,0.85] [--frictions 0,0.5] [--facets 0,16,64,256] [--wall]
      [--speed-check]
 
 Each case turns one whisker of the model rat slowly into a thin peg and compares the base
 moment and forces with the planar elastica (pipeline/reports/contact_statics.py). Printed: one
 row per whisker × contact position × μ × engine × peg (``--facets``: 0 the analytic
-cylinder, n a triangle mesh with n flat sides round; RMS errors in % of the elastica's largest
+cylinder, n a triangle mesh with n flat sides round; ``--wall``: a flat wall touched by the
+tip instead, 0 a Box, n > 0 the box as a triangle mesh; RMS errors in % of the elastica's largest
 value, slip-off angles, deepest point of the centre line inside the peg). ``--speed-check``
 instead runs each engine's RC3 60 % μ = 0 case at the drive speed and at half of it and prints
 the change of the base signals at the same angle (RMS and largest, in % of the elastica's
@@ -55,6 +56,7 @@ def main() -> None:
     parser.add_argument("--fractions", default=",".join(f"{f:g}" for f in C.FRACTIONS))
     parser.add_argument("--frictions", default=",".join(f"{f:g}" for f in C.FRICTIONS))
     parser.add_argument("--facets", default="0", help="pegs: 0 the cylinder, n a mesh of n sides")
+    parser.add_argument("--wall", action="store_true", help="a flat wall at the tip instead of pegs")
     parser.add_argument("--speed", type=float, default=C.SPEED_DEG_S, help="drive speed, °/s")
     parser.add_argument("--speed-check", action="store_true")
     args = parser.parse_args()
@@ -66,7 +68,7 @@ def main() -> None:
     start = time.perf_counter()
     results = C.run_cases(config, args.whiskers.split(","), [float(f) for f in args.fractions.split(",")],
                           [float(f) for f in args.frictions.split(",")], engines, progress=print,
-                          facets=[int(n) for n in args.facets.split(",")])
+                          facets=[int(n) for n in args.facets.split(",")], wall=args.wall)
     print(" | ".join(C.TABLE_COLUMNS))
     for row in C.table_rows(results):
         print(" | ".join(row))

@@ -21,6 +21,11 @@ The peg is a :class:`~pipeline.scenes.obstacles.Cylinder` (``facets`` 0), or a c
 :class:`~pipeline.scenes.obstacles.TriangleMesh` with ``facets`` flat sides round (vertices on
 the circle, rings every :data:`MESH_RING_M` along the axis, capped): the engines' scan contact
 (Bullet's own solver with a skin, MuJoCo's prism per face) against the same elastica.
+
+A wall case (``wall``) puts a flat wall, normal −y, where the tip touches it at the touch angle:
+a :class:`~pipeline.scenes.obstacles.Box` (``facets`` 0) or the same box as a triangle mesh
+(12 faces); the tip then slides along it. Its elastica is a peg of radius :data:`WALL_RADIUS_M`
+tangent to the wall there (≤ 0.02 mm from the plane over the tip's travel).
 """
 
 from __future__ import annotations
@@ -35,10 +40,10 @@ from pipeline.model.extensions import model_parts
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.morphology import load_morphology
 from pipeline.model.whisker import WhiskerGeometry, rest_nodes
-from pipeline.references.elastica import Path, Peg, Rod, peg_touching, quasi_static_path
+from pipeline.references.elastica import Path, Peg, Rod, peg_touching, quasi_static_path, rest_shape, rotate
 from pipeline.reports.checks import Section, check, rigid
 from pipeline.reports.published import Published
-from pipeline.scenes.obstacles import Cylinder, Scene, TriangleMesh, points_along
+from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh, points_along
 
 WHISKERS = ("RC1", "RC3", "RC5")
 FRACTIONS = (0.30, 0.60, 0.85)
@@ -56,6 +61,8 @@ SLIP_HOLD_DEG = 1.0
 PASS_THROUGH_M = 0.05e-3
 MESH_FACETS = (16, 64, 256)      # meshed pegs: flat sides round
 MESH_RING_M = 2e-3               # meshed pegs: spacing of the vertex rings along the axis
+WALL_RADIUS_M = 1.0              # the elastica's stand-in for a flat wall
+WALL_HALF_EXTENTS_M = (10e-3, 1e-3, 10e-3)    # the wall box: along x, thickness (y), height (z)
 
 
 @dataclass(frozen=True)
@@ -64,12 +71,18 @@ class Case:
     fraction: float
     friction: float
     engine: str
-    facets: int = 0                 # 0: the analytic peg; else a meshed one (module docstring)
+    facets: int = 0                 # 0: the analytic peg or Box wall; else meshed (module docstring)
+    wall: bool = False              # a flat wall touched by the tip instead of a peg (``fraction`` 1)
+
+    @property
+    def obstacle(self) -> str:
+        if self.wall:
+            return "wall mesh" if self.facets else "wall box"
+        return f"mesh {self.facets}" if self.facets else "cylinder"
 
     @property
     def label(self) -> str:
-        peg = f" mesh {self.facets}" if self.facets else ""
-        return f"{self.whisker} {self.fraction:.0%} μ={self.friction:g} {self.engine}{peg}"
+        return f"{self.whisker} {self.fraction:.0%} μ={self.friction:g} {self.engine} {self.obstacle}"
 
 
 @dataclass
@@ -132,21 +145,43 @@ def peg_mesh(peg: Peg, facets: int, length_m: float = PEG_LENGTH_M) -> TriangleM
     return TriangleMesh(vertices, np.concatenate(faces), source=f"peg-{facets}-{cx:.6g}-{cy:.6g}-{peg.radius_m:g}")
 
 
-def peg_obstacle(peg: Peg, facets: int = 0):
-    """The peg as the engines see it: a Cylinder (``facets`` 0) or :func:`peg_mesh`."""
+def wall_touching(rod: Rod, touch_angle_rad: float) -> Peg:
+    """The elastica's wall: a circle of radius :data:`WALL_RADIUS_M` on the +y side of the rest
+    shape's tip turned by ``touch_angle_rad``, touching it there with its lowest point."""
+    tip = rotate(rest_shape(rod)[-1:], touch_angle_rad)[0]
+    return Peg((float(tip[0]), float(tip[1] + rod.radius_m[-1] + WALL_RADIUS_M)), WALL_RADIUS_M)
+
+
+def wall_obstacle(peg: Peg, meshed: bool):
+    """The flat wall tangent to the elastica's ``peg`` at its lowest point: a Box, or the same
+    box as a closed triangle mesh."""
+    import trimesh
+
+    centre = (peg.centre_m[0], peg.centre_m[1] - peg.radius_m + WALL_HALF_EXTENTS_M[1], 0.0)
+    if not meshed:
+        return Box(WALL_HALF_EXTENTS_M, centre)
+    box = trimesh.creation.box(2 * np.asarray(WALL_HALF_EXTENTS_M))
+    return TriangleMesh(np.asarray(box.vertices) + centre, np.asarray(box.faces), source=f"wall-{centre}")
+
+
+def peg_obstacle(peg: Peg, facets: int = 0, wall: bool = False):
+    """The obstacle as the engines see it: a Cylinder (``facets`` 0) or :func:`peg_mesh`; for a
+    wall :func:`wall_obstacle`."""
+    if wall:
+        return wall_obstacle(peg, bool(facets))
     return peg_mesh(peg, facets) if facets else Cylinder(peg.radius_m, PEG_LENGTH_M, (*peg.centre_m, 0.0))
 
 
 def run_engine(config: ModelConfig, geometry: WhiskerGeometry, peg: Peg, speed_deg_s: float = SPEED_DEG_S,
-               sweep_deg: float = SWEEP_DEG, facets: int = 0):
+               sweep_deg: float = SWEEP_DEG, facets: int = 0, wall: bool = False):
     """(protraction angle per sample in degrees, TrialOutput) of one slow turn into the peg
-    (``facets``: :func:`peg_obstacle`)."""
+    (``facets``, ``wall``: :func:`peg_obstacle`)."""
     from pipeline.engines import create_engine
 
     end_deg = TOUCH_ANGLE_DEG + sweep_deg
     duration = end_deg / speed_deg_s
     drive = ProtractionDrive(np.array([0.0, duration]), np.radians([0.0, end_deg]), interpolation="linear")
-    scene = Scene(f"contact-statics-{facets}", (peg_obstacle(peg, facets),))
+    scene = Scene(f"contact-statics-{facets}-{wall}", (peg_obstacle(peg, facets, wall),))
     material, extensions = model_parts(config)
     with create_engine(config, single_whisker(geometry, material, extensions=extensions)) as engine:
         output = engine.run(scene, Pose(), drive, duration)
@@ -209,29 +244,36 @@ def run_case(config: ModelConfig, case: Case, speed_deg_s: float = SPEED_DEG_S,
     touch (``path``: the elastica, if known)."""
     geometry = geometry_of(config, case.whisker)
     rod = rod_of(geometry, config.material.youngs_modulus_gpa * 1e9)
-    peg = peg_touching(rod, case.fraction, np.radians(TOUCH_ANGLE_DEG), PEG_RADIUS_M)
+    peg = obstacle_circle(rod, case.fraction, case.wall)
     path = path or reference_path(rod, peg, case.friction, sweep_deg)
     angle, output = run_engine(bench_config(config, case.engine, case.friction), geometry, peg, speed_deg_s,
-                               sweep_deg, case.facets)
+                               sweep_deg, case.facets, case.wall)
     return compare(case, angle, output, path, peg)
+
+
+def obstacle_circle(rod: Rod, fraction: float, wall: bool) -> Peg:
+    """The elastica's obstacle: the peg touched at ``fraction`` of S, or the wall's circle."""
+    if wall:
+        return wall_touching(rod, np.radians(TOUCH_ANGLE_DEG))
+    return peg_touching(rod, fraction, np.radians(TOUCH_ANGLE_DEG), PEG_RADIUS_M)
 
 
 def run_cases(config: ModelConfig, whiskers=WHISKERS, fractions=FRACTIONS, frictions=FRICTIONS,
               engines=ENGINES, progress=lambda _: None, sweep_deg: float = SWEEP_DEG,
-              facets=(0,)) -> list[CaseResult]:
-    """Every case (``facets``: the pegs, 0 the analytic one); the elastica is solved once per
-    whisker × position × friction."""
+              facets=(0,), wall: bool = False) -> list[CaseResult]:
+    """Every case (``facets``: the pegs, 0 the analytic one; ``wall``: the walls instead of
+    pegs, ``fractions`` ignored); the elastica is solved once per whisker × position × friction."""
     results = []
     for whisker in whiskers:
         geometry = geometry_of(config, whisker)
         rod = rod_of(geometry, config.material.youngs_modulus_gpa * 1e9)
-        for fraction in fractions:
-            peg = peg_touching(rod, fraction, np.radians(TOUCH_ANGLE_DEG), PEG_RADIUS_M)
+        for fraction in (1.0,) if wall else fractions:
+            peg = obstacle_circle(rod, fraction, wall)
             for friction in frictions:
                 path = reference_path(rod, peg, friction, sweep_deg)
                 for engine in engines:
                     for peg_facets in facets:
-                        case = Case(whisker, fraction, friction, engine, peg_facets)
+                        case = Case(whisker, fraction, friction, engine, peg_facets, wall)
                         progress(f"contact statics: {case.label}")
                         results.append(run_case(config, case, path=path, sweep_deg=sweep_deg))
     return results
@@ -249,7 +291,7 @@ def table_rows(results: list[CaseResult]) -> list[list[str]]:
     rows = []
     for r in results:
         e, c = r.errors, r.case
-        rows.append([c.whisker, f"{c.fraction:.0%}", f"{c.friction:g}", c.engine, f"mesh {c.facets}" if c.facets else "cylinder",
+        rows.append([c.whisker, f"{c.fraction:.0%}", f"{c.friction:g}", c.engine, c.obstacle,
                      f"{e['moment_rms_pct']:.1f}", f"{e['transverse_rms_pct']:.1f}", f"{e['axial_rms_pct_of_f']:.1f}",
                      f"{e['moment_bias_pct']:+.1f}", angle(e["slip_off_ref_deg"]), angle(e["slip_off_engine_deg"]),
                      f"{e['deepest_mm']:.3f}", "yes" if e["pass_through"] else "no"])
