@@ -82,7 +82,8 @@ class Case:
 
     @property
     def label(self) -> str:
-        return f"{self.whisker} {self.fraction:.0%} μ={self.friction:g} {self.engine} {self.obstacle}"
+        shape = f" {self.obstacle}" if self.facets or self.wall else ""
+        return f"{self.whisker} {self.fraction:.0%} μ={self.friction:g} {self.engine}{shape}"
 
 
 @dataclass
