@@ -64,7 +64,9 @@ the step: the peaks of whiskers sliding on scans (24 dataset trials, every step 
 benchmarks/bench_statistics.py): median change of peak |M| 1.2 %, of peak F_t 3.4 %,
 P90 36 % and 57 % (creeping pyramidal friction: 15 % and 34 %; P90 of 12-trial halves
 differ by up to 15 points): a whisker that sticks on a faceted surface lets go at a
-step-sensitive instant. Projected Gauss–Seidel solver, up to
+step-sensitive instant (the worst pairs are tips sticking at the default step, converged at
+half of it; μ = 0 removes it; a meshed peg at 500 °/s reproduces it:
+``bench_contact_statics.py --step-check``, docs/model.md §2). Projected Gauss–Seidel solver, up to
 :data:`SOLVER_ITERATIONS` sweeps per constraint island (the Newton solver of MuJoCo 4.0.0 has a
 sparse-factorisation bug, fixed in 4.0.1, and its island-wide convergence test made a
 whisker's result depend on its neighbours' contacts by 10⁻¹⁵). Whisker capsules have

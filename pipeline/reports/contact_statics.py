@@ -16,6 +16,16 @@ the axial force in % of the elastica's largest |F|; the slip-off angle differenc
 elastica, degrees; the engine slips off at its last sample in contact when none follows within
 :data:`SLIP_HOLD_DEG`); pass-through: a point of the centre line (sampled along the links)
 deeper than :data:`PASS_THROUGH_M` inside the peg.
+
+The peg is a :class:`~pipeline.scenes.obstacles.Cylinder` (``facets`` 0), or a closed
+:class:`~pipeline.scenes.obstacles.TriangleMesh` with ``facets`` flat sides round (vertices on
+the circle, rings every :data:`MESH_RING_M` along the axis, capped): the engines' scan contact
+(Bullet's own solver with a skin, MuJoCo's prism per face) against the same elastica.
+
+A wall case (``wall``) puts a flat wall, normal −y, where the tip touches it at the touch angle:
+a :class:`~pipeline.scenes.obstacles.Box` (``facets`` 0) or the same box as a triangle mesh
+(12 faces); the tip then slides along it. Its elastica is a peg of radius :data:`WALL_RADIUS_M`
+tangent to the wall there (≤ 0.02 mm from the plane over the tip's travel).
 """
 
 from __future__ import annotations
@@ -30,10 +40,10 @@ from pipeline.model.extensions import model_parts
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.morphology import load_morphology
 from pipeline.model.whisker import WhiskerGeometry, rest_nodes
-from pipeline.references.elastica import Path, Peg, Rod, peg_touching, quasi_static_path
+from pipeline.references.elastica import Path, Peg, Rod, peg_touching, quasi_static_path, rest_shape, rotate
 from pipeline.reports.checks import Section, check, rigid
 from pipeline.reports.published import Published
-from pipeline.scenes.obstacles import Cylinder, Scene, points_along
+from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh, points_along
 
 WHISKERS = ("RC1", "RC3", "RC5")
 FRACTIONS = (0.30, 0.60, 0.85)
@@ -49,6 +59,10 @@ REFERENCE_STEP_DEG = 0.25
 ROD_GRID = 401
 SLIP_HOLD_DEG = 1.0
 PASS_THROUGH_M = 0.05e-3
+MESH_FACETS = (16, 64, 256)      # meshed pegs: flat sides round
+MESH_RING_M = 2e-3               # meshed pegs: spacing of the vertex rings along the axis
+WALL_RADIUS_M = 1.0              # the elastica's stand-in for a flat wall
+WALL_HALF_EXTENTS_M = (10e-3, 1e-3, 10e-3)    # the wall box: along x, thickness (y), height (z)
 
 
 @dataclass(frozen=True)
@@ -57,10 +71,19 @@ class Case:
     fraction: float
     friction: float
     engine: str
+    facets: int = 0                 # 0: the analytic peg or Box wall; else meshed (module docstring)
+    wall: bool = False              # a flat wall touched by the tip instead of a peg (``fraction`` 1)
+
+    @property
+    def obstacle(self) -> str:
+        if self.wall:
+            return "wall mesh" if self.facets else "wall box"
+        return f"mesh {self.facets}" if self.facets else "cylinder"
 
     @property
     def label(self) -> str:
-        return f"{self.whisker} {self.fraction:.0%} μ={self.friction:g} {self.engine}"
+        shape = f" {self.obstacle}" if self.facets or self.wall else ""
+        return f"{self.whisker} {self.fraction:.0%} μ={self.friction:g} {self.engine}{shape}"
 
 
 @dataclass
@@ -100,15 +123,66 @@ def reference_path(rod: Rod, peg: Peg, friction: float, sweep_deg: float = SWEEP
     return quasi_static_path(rod, peg, angles, friction)
 
 
+def peg_mesh(peg: Peg, facets: int, length_m: float = PEG_LENGTH_M) -> TriangleMesh:
+    """The vertical peg as a closed triangle mesh: ``facets`` flat sides with their vertices on
+    the circle, rings every :data:`MESH_RING_M` (at most) along z ∈ ±length/2, a fan per cap;
+    faces wound outward."""
+    rings = max(2, int(np.ceil(length_m / MESH_RING_M)) + 1)
+    phi = 2 * np.pi * np.arange(facets) / facets
+    z = np.linspace(-0.5 * length_m, 0.5 * length_m, rings)
+    cx, cy = peg.centre_m
+    side = np.stack([np.tile(cx + peg.radius_m * np.cos(phi), rings), np.tile(cy + peg.radius_m * np.sin(phi), rings),
+                     np.repeat(z, facets)], axis=1)
+    vertices = np.concatenate([side, [[cx, cy, z[0]], [cx, cy, z[-1]]]])
+    bottom, top = len(side), len(side) + 1
+    k = np.arange(facets)
+    faces = []
+    for r in range(rings - 1):
+        a, b = r * facets + k, r * facets + (k + 1) % facets            # ring r, counter-clockwise
+        faces += [np.stack([a, b, b + facets], axis=1), np.stack([a, b + facets, a + facets], axis=1)]
+    last = (rings - 1) * facets
+    faces += [np.stack([np.full(facets, bottom), (k + 1) % facets, k], axis=1),
+              np.stack([np.full(facets, top), last + k, last + (k + 1) % facets], axis=1)]
+    return TriangleMesh(vertices, np.concatenate(faces), source=f"peg-{facets}-{cx:.6g}-{cy:.6g}-{peg.radius_m:g}")
+
+
+def wall_touching(rod: Rod, touch_angle_rad: float) -> Peg:
+    """The elastica's wall: a circle of radius :data:`WALL_RADIUS_M` on the +y side of the rest
+    shape's tip turned by ``touch_angle_rad``, touching it there with its lowest point."""
+    tip = rotate(rest_shape(rod)[-1:], touch_angle_rad)[0]
+    return Peg((float(tip[0]), float(tip[1] + rod.radius_m[-1] + WALL_RADIUS_M)), WALL_RADIUS_M)
+
+
+def wall_obstacle(peg: Peg, meshed: bool):
+    """The flat wall tangent to the elastica's ``peg`` at its lowest point: a Box, or the same
+    box as a closed triangle mesh."""
+    import trimesh
+
+    centre = (peg.centre_m[0], peg.centre_m[1] - peg.radius_m + WALL_HALF_EXTENTS_M[1], 0.0)
+    if not meshed:
+        return Box(WALL_HALF_EXTENTS_M, centre)
+    box = trimesh.creation.box(2 * np.asarray(WALL_HALF_EXTENTS_M))
+    return TriangleMesh(np.asarray(box.vertices) + centre, np.asarray(box.faces), source=f"wall-{centre}")
+
+
+def peg_obstacle(peg: Peg, facets: int = 0, wall: bool = False):
+    """The obstacle as the engines see it: a Cylinder (``facets`` 0) or :func:`peg_mesh`; for a
+    wall :func:`wall_obstacle`."""
+    if wall:
+        return wall_obstacle(peg, bool(facets))
+    return peg_mesh(peg, facets) if facets else Cylinder(peg.radius_m, PEG_LENGTH_M, (*peg.centre_m, 0.0))
+
+
 def run_engine(config: ModelConfig, geometry: WhiskerGeometry, peg: Peg, speed_deg_s: float = SPEED_DEG_S,
-               sweep_deg: float = SWEEP_DEG):
-    """(protraction angle per sample in degrees, TrialOutput) of one slow turn into the peg."""
+               sweep_deg: float = SWEEP_DEG, facets: int = 0, wall: bool = False):
+    """(protraction angle per sample in degrees, TrialOutput) of one slow turn into the peg
+    (``facets``, ``wall``: :func:`peg_obstacle`)."""
     from pipeline.engines import create_engine
 
     end_deg = TOUCH_ANGLE_DEG + sweep_deg
     duration = end_deg / speed_deg_s
     drive = ProtractionDrive(np.array([0.0, duration]), np.radians([0.0, end_deg]), interpolation="linear")
-    scene = Scene("contact-statics", (Cylinder(peg.radius_m, PEG_LENGTH_M, (*peg.centre_m, 0.0)),))
+    scene = Scene(f"contact-statics-{facets}-{wall}", (peg_obstacle(peg, facets, wall),))
     material, extensions = model_parts(config)
     with create_engine(config, single_whisker(geometry, material, extensions=extensions)) as engine:
         output = engine.run(scene, Pose(), drive, duration)
@@ -171,32 +245,42 @@ def run_case(config: ModelConfig, case: Case, speed_deg_s: float = SPEED_DEG_S,
     touch (``path``: the elastica, if known)."""
     geometry = geometry_of(config, case.whisker)
     rod = rod_of(geometry, config.material.youngs_modulus_gpa * 1e9)
-    peg = peg_touching(rod, case.fraction, np.radians(TOUCH_ANGLE_DEG), PEG_RADIUS_M)
+    peg = obstacle_circle(rod, case.fraction, case.wall)
     path = path or reference_path(rod, peg, case.friction, sweep_deg)
     angle, output = run_engine(bench_config(config, case.engine, case.friction), geometry, peg, speed_deg_s,
-                               sweep_deg)
+                               sweep_deg, case.facets, case.wall)
     return compare(case, angle, output, path, peg)
 
 
+def obstacle_circle(rod: Rod, fraction: float, wall: bool) -> Peg:
+    """The elastica's obstacle: the peg touched at ``fraction`` of S, or the wall's circle."""
+    if wall:
+        return wall_touching(rod, np.radians(TOUCH_ANGLE_DEG))
+    return peg_touching(rod, fraction, np.radians(TOUCH_ANGLE_DEG), PEG_RADIUS_M)
+
+
 def run_cases(config: ModelConfig, whiskers=WHISKERS, fractions=FRACTIONS, frictions=FRICTIONS,
-              engines=ENGINES, progress=lambda _: None, sweep_deg: float = SWEEP_DEG) -> list[CaseResult]:
-    """Every case; the elastica is solved once per whisker × position × friction."""
+              engines=ENGINES, progress=lambda _: None, sweep_deg: float = SWEEP_DEG,
+              facets=(0,), wall: bool = False) -> list[CaseResult]:
+    """Every case (``facets``: the pegs, 0 the analytic one; ``wall``: the walls instead of
+    pegs, ``fractions`` ignored); the elastica is solved once per whisker × position × friction."""
     results = []
     for whisker in whiskers:
         geometry = geometry_of(config, whisker)
         rod = rod_of(geometry, config.material.youngs_modulus_gpa * 1e9)
-        for fraction in fractions:
-            peg = peg_touching(rod, fraction, np.radians(TOUCH_ANGLE_DEG), PEG_RADIUS_M)
+        for fraction in (1.0,) if wall else fractions:
+            peg = obstacle_circle(rod, fraction, wall)
             for friction in frictions:
                 path = reference_path(rod, peg, friction, sweep_deg)
                 for engine in engines:
-                    case = Case(whisker, fraction, friction, engine)
-                    progress(f"contact statics: {case.label}")
-                    results.append(run_case(config, case, path=path, sweep_deg=sweep_deg))
+                    for peg_facets in facets:
+                        case = Case(whisker, fraction, friction, engine, peg_facets, wall)
+                        progress(f"contact statics: {case.label}")
+                        results.append(run_case(config, case, path=path, sweep_deg=sweep_deg))
     return results
 
 
-TABLE_COLUMNS = ("whisker", "position", "μ", "engine", "M rms %", "F⊥ rms %", "F∥ rms % of |F|",
+TABLE_COLUMNS = ("whisker", "position", "μ", "engine", "peg", "M rms %", "F⊥ rms %", "F∥ rms % of |F|",
                  "M bias %", "slip-off elastica °", "slip-off engine °", "deepest mm", "pass-through")
 
 
@@ -208,7 +292,7 @@ def table_rows(results: list[CaseResult]) -> list[list[str]]:
     rows = []
     for r in results:
         e, c = r.errors, r.case
-        rows.append([c.whisker, f"{c.fraction:.0%}", f"{c.friction:g}", c.engine,
+        rows.append([c.whisker, f"{c.fraction:.0%}", f"{c.friction:g}", c.engine, c.obstacle,
                      f"{e['moment_rms_pct']:.1f}", f"{e['transverse_rms_pct']:.1f}", f"{e['axial_rms_pct_of_f']:.1f}",
                      f"{e['moment_bias_pct']:+.1f}", angle(e["slip_off_ref_deg"]), angle(e["slip_off_engine_deg"]),
                      f"{e['deepest_mm']:.3f}", "yes" if e["pass_through"] else "no"])
