@@ -92,6 +92,11 @@ class HeadMotion:
         return cls.steady(pose, np.zeros(3), np.zeros(3), duration_s)
 
     @property
+    def moves(self) -> bool:
+        """Whether any knot's pose differs from the first's."""
+        return bool(np.any(self.position_m != self.position_m[0]) or np.any(self.euler_zyx_rad != self.euler_zyx_rad[0]))
+
+    @property
     def duration_s(self) -> float:
         return float(self.time_s[-1] - self.time_s[0])
 
@@ -139,10 +144,11 @@ class HeadMotion:
             return [()] * len(rows)
         return [(HeadFrameInertia(*row),) for row in rows]
 
-    def table(self, times) -> dict[str, np.ndarray]:
+    def table(self, times, derivative: int = 0) -> dict[str, np.ndarray]:
         """Per time of ``times`` [T]: ``head_position_m`` [T, 3] and ``head_euler_zyx_rad``
-        [T, 3] (the dataset's columns, docs/dataset.md)."""
-        values = self._values(np.atleast_1d(times), 0)
+        [T, 3] (the dataset's columns, docs/dataset.md), or their ``derivative``-th time
+        derivatives (per s)."""
+        values = self._values(np.atleast_1d(times), derivative)
         return {"head_position_m": values[:, :3], "head_euler_zyx_rad": values[:, 3:]}
 
     def base_travel_m(self, base_points_m: np.ndarray, times) -> np.ndarray:
