@@ -58,14 +58,15 @@ class HeadPlant:
 
     def interval(self, duration_s: float, command: np.ndarray):
         """The head over the next ``duration_s`` under the twist ``command`` [6]: a function of
-        step times relative to now (multiples of ``step_s`` in [0, duration_s]) →
+        step times relative to now (multiples of ``step_s`` in [0, duration_s + step_s]: MuJoCo's
+        jointed head aims one step beyond the interval, :mod:`pipeline.engines.session`) →
         (positions [n, 3], rotations [n, 3, 3], per time its inertial loads), and the pose and
         twist state at the interval's end (:meth:`commit`)."""
         n = int(round(duration_s / self.step_s))
-        grid = np.arange(n + 1) * self.step_s                        # now, then every step
+        grid = np.arange(n + 2) * self.step_s                        # now, then every step, one beyond
         twist, twist_rate, _ = self.twist.at(grid, command)
         middle, _, _ = self.twist.at(grid[1:] - 0.5 * self.step_s, command)
-        positions, rotations = np.empty((n + 1, 3)), np.empty((n + 1, 3, 3))
+        positions, rotations = np.empty((n + 2, 3)), np.empty((n + 2, 3, 3))
         positions[0], rotations[0] = self.position, self.rotation
         for i, (v, w) in enumerate(zip(middle[:, [1, 0, 2]], middle[:, [4, 5, 3]]), start=1):
             turn, travel = twist_exponential(v, w, self.step_s)
@@ -85,7 +86,7 @@ class HeadPlant:
             return positions[index], rotations[index], [loads[i] for i in index]
 
         def commit() -> None:
-            self.position, self.rotation = positions[-1], rotations[-1]
+            self.position, self.rotation = positions[n], rotations[n]
             self.twist.advance(duration_s, command)
 
         return frames, commit
