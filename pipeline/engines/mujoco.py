@@ -3,8 +3,9 @@
 Model. One MjModel per step size (the whiskers that share ``engine.dt_s / 2**j``, see
 :mod:`pipeline.engines.stepping`), built with ``mujoco.MjSpec`` in mm–mg–s
 (:mod:`pipeline.engines.units`: tip-link inertias are ~10⁻¹⁸ kg·m² in SI, and MuJoCo refuses
-anything below 10⁻¹⁵). A mocap body is the head (the pose of a trial; a moving head's is set
-every step, :mod:`pipeline.model.head_motion`). Under it, per whisker,
+anything below 10⁻¹⁵). The head is a mocap body at the trial's pose, or, when it moves (a head
+trajectory that moves, or a closed-loop session), a body on kinematic joints (Moving head
+below). Under it, per whisker,
 a follicle body at the base point carries the three driven hinges Z, Y, X; link 1 hangs from
 it, rigidly or on the compliant follicle's hinges; every further link is a body with the
 hinges of its node (:mod:`pipeline.model.joints`: z, y and, with twist, x; MuJoCo composes a
@@ -37,6 +38,19 @@ landing rule corrects that at the next step, so the base follows the drive to ro
 while the chain feels the full inertial load of a moving base (a mocap follicle would move
 the whisker without that load, a position actuator would lag). ``stop_drive_on_contact``
 replaces q* by the angles a whisker had at its first contact.
+
+Moving head. A moving head is a body on three slides (world x, y, z) and the hinges Z, Y, X of
+its Euler angles (:class:`~pipeline.model.kinematics.Pose`), kinematic as the follicle
+hinges (armatures 10⁹ times the whiskers' mass and moment of inertia about the head origin),
+their targets the trajectory's position and unwrapped angles at each step's end. MuJoCo then
+sees the whiskers' world velocities (contact damping and friction act on the sliding relative
+to the obstacle: a whisker at rest in a head passing a peg at 0.05 m/s and a peg passing the
+still head at −0.05 m/s differ by ≤ 8·10⁻⁵ of each base wrench component's peak; with the
+mocap head and a fictitious frame load, up to 2.7×) and the frame's inertial load on the
+chain is MuJoCo's own. A still head stays a mocap body: its trials are bit-identical to a
+trial without a trajectory. The head joins every whisker into one kinematic tree and one
+constraint island, so with a moving head a whisker's contacts are solved together with the
+other whiskers' (Independence below does not hold; the free path is off for a moving head).
 
 Base wrench. ``force`` and ``torque`` sensors on a site at link 1's proximal node read the
 wrench the follicle exerts on the whisker about the base point (MuJoCo's ``cfrc_int`` after
@@ -119,7 +133,6 @@ and 100 sweeps up to 5 % and 8 %), which the template's reuse of free motion rel
 from __future__ import annotations
 
 from dataclasses import dataclass
-from types import SimpleNamespace
 
 import numpy as np
 
@@ -263,12 +276,10 @@ def head_coordinates(table: dict[str, np.ndarray]) -> np.ndarray:
 
 
 class MujocoPlan:
-    """What a world's kinematic joints and the head do at each step of a trial (internal units):
-    ``targets`` [steps + 1, kinematic] the driven hinges' and obstacle slides' positions at the
-    end of each step, ``head_position_mm`` [steps + 1, 3], ``head_quat`` (w, x, y, z) and
-    ``head_inertia`` (per step, the loads to add) at each step's start; the head rows only with
-    a head trajectory. Built from the drive and trajectory (open loop); :meth:`set_protraction`
-    and :meth:`set_head` rewrite rows (closed loop)."""
+    """What a world's kinematic joints do at each step of a trial (internal units): ``targets``
+    [steps + 1, kinematic] the driven hinges', obstacle slides' and a jointed head's positions
+    at the end of each step. Built from the drive and trajectory (open loop);
+    :meth:`set_protraction` and :meth:`set_head` rewrite rows (closed loop)."""
 
     def __init__(self, world: "MujocoWorld", offset: np.ndarray, theta_rate: np.ndarray, setup: TrialSetup,
                  n_steps: int):
@@ -280,21 +291,16 @@ class MujocoPlan:
         thetas = np.asarray(setup.drive(self.times), float)
         self.targets = offset + theta_rate * thetas[1:, None] + self.slide_rate * self.times[1:, None]
         self.whisker_of_joint = np.repeat(np.arange(len(world.members)), 3)     # driven hinges Z, Y, X
-        head = setup.head
         self.jointed_head = world.jointed_head
         if self.jointed_head:
-            self.targets[:, -6:] = head_coordinates(head.table(self.times[1:]))
-        elif head is not None:
-            positions, rotations = head.frames(self.times[:n_steps + 1])
-            self.head_position_mm, self.head_quat = positions * U.LENGTH, [quat_wxyz(r) for r in rotations]
-            self.head_inertia = head.inertia(self.times[:n_steps + 1])
+            self.targets[:, -6:] = head_coordinates(setup.head.table(self.times[1:]))
 
     def interval(self, sample: int, spp: int) -> tuple[slice, np.ndarray, np.ndarray]:
-        """(rows, their targets' times, their head frames' times) that the generator steps through
-        before it records ``sample`` (at the start of the step after the interval: one step's
-        targets beyond the sample's time). A jointed head's frames are targets too."""
+        """(rows, their targets' times, their head frames' times: the same, the head's frames are
+        targets too) that the generator steps through before it records ``sample`` (at the
+        start of the step after the interval: one step's targets beyond the sample's time)."""
         rows = slice(0 if sample == 0 else sample * spp + 1, (sample + 1) * spp + 1)
-        return rows, self.times[1:][rows], self.times[1:][rows] if self.jointed_head else self.times[rows]
+        return rows, self.times[1:][rows], self.times[1:][rows]
 
     def set_protraction(self, steps: slice, theta_rad: np.ndarray) -> None:
         """Steps ``steps`` end at protraction ``theta_rad`` [n, members] (rad) per whisker."""
@@ -302,18 +308,11 @@ class MujocoPlan:
         self.targets[steps, :n] = (self.offset[:n] + self.theta_rate[:n] * theta_rad[:, self.whisker_of_joint])
 
     def set_head(self, steps: slice, positions_m: np.ndarray, rotations: np.ndarray, inertia: list) -> None:
-        """Steps ``steps`` start (a jointed head's: end) with the head at ``positions_m`` [n, 3],
-        ``rotations`` [n, 3, 3], its inertial loads ``inertia`` (per step a tuple of loads; a
-        jointed head's come from MuJoCo and are ignored)."""
-        if self.jointed_head:
-            before = self.targets[max(steps.start - 1, 0), -3:]
-            angles = np.array([yaw_pitch_roll(r) for r in rotations])
-            angles = np.unwrap(np.vstack([before, angles]), axis=0)[1:]
-            self.targets[steps, -6:] = head_coordinates({"head_position_m": positions_m, "head_euler_zyx_rad": angles})
-            return
-        self.head_position_mm[steps] = positions_m * U.LENGTH
-        self.head_quat[steps] = [quat_wxyz(r) for r in rotations]
-        self.head_inertia[steps] = inertia
+        """Steps ``steps`` end with the (jointed) head at ``positions_m`` [n, 3], ``rotations``
+        [n, 3, 3]; its inertial load ``inertia`` comes from MuJoCo itself and is not used."""
+        before = self.targets[max(steps.start - 1, 0), -3:]
+        angles = np.unwrap(np.vstack([before, [yaw_pitch_roll(r) for r in rotations]]), axis=0)[1:]
+        self.targets[steps, -6:] = head_coordinates({"head_position_m": positions_m, "head_euler_zyx_rad": angles})
 
 
 class MujocoWorld(World):
@@ -511,9 +510,6 @@ class MujocoWorld(World):
         self.link_bodies = np.array([[named(body, f"w{k}/l{i}") for i in range(self.links)]
                                      for k in members])
         self.link_lengths_mm = np.array([self.whiskers[k].chain.link_lengths_m for k in members]) * U.LENGTH
-        # every member's links as one chain's, for a load on all of them at once (_apply_frame_load)
-        self.link_masses = SimpleNamespace(link_mass_kg=np.concatenate(
-            [self.whiskers[k].chain.link_mass_kg for k in members]))
 
         def joints(b):
             return np.arange(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
@@ -705,21 +701,13 @@ class MujocoWorld(World):
         qpos, qvel, qfrc = d.qpos, d.qvel, d.qfrc_applied
         kinematic, armature, spring_rate = self.kinematic, self.armature, self.spring_rate
         step_function = mujoco.mj_step
-        loads, head = setup.loads, None if self.jointed_head else setup.head     # head: the mocap's
-        inertial = False                 # this step had the head frame's load
-        own = np.zeros(n_w, bool)
-        own[loaded] = True
+        loads = setup.loads
         yield plan
         for step in range(n_steps + 1):
             np.multiply(spring_rate, qvel, out=qfrc)
             qfrc[kinematic] = armature * (((targets[step] - qpos[kinematic]) / h - qvel[kinematic]) / h)
-            if head is not None:
-                d.mocap_pos[0], d.mocap_quat[0] = plan.head_position_mm[step], plan.head_quat[step]
             if loaded:
                 self._apply_loads(loads, loaded)
-            if head is not None and (plan.head_inertia[step] or inertial):   # once more without: clears it
-                self._apply_frame_load(plan.head_inertia[step], own)
-                inertial = bool(plan.head_inertia[step])
             sample, due = divmod(step, spp)
             records = due == 0 and sample > 0
             if due < 2:
@@ -796,29 +784,6 @@ class MujocoWorld(World):
         proximal = d.xpos[bodies]
         distal = proximal + d.xmat[bodies][:, 0::3] * self.link_lengths_mm.ravel()[links, None]
         return links, contact.pos[pressed][mine], proximal, distal
-
-    def _apply_frame_load(self, frame: tuple, own: np.ndarray) -> None:
-        """The head frame's inertial load (``frame``: () or one
-        :class:`~pipeline.model.head_motion.HeadFrameInertia`) on every member's links at once,
-        added to the wrenches of members with loads of their own (``own`` [w], applied this
-        step) and replacing the others'."""
-        import mujoco
-
-        m, d = self.model, self.data
-        bodies = self.link_bodies.ravel()
-        force = np.zeros((len(bodies), 3))
-        if frame:
-            mujoco.mj_kinematics(m, d)
-            mujoco.mj_comPos(m, d)
-            mujoco.mj_comVel(m, d)
-            omega = d.cvel[bodies, :3]          # cvel: [ω, v] at the tree's subtree centre of mass
-            velocity = (d.cvel[bodies, 3:] + np.cross(omega, d.xipos[bodies] - d.subtree_com[m.body_rootid[bodies]]))
-            state = LinkState(d.xipos[bodies] / U.LENGTH, None, velocity / U.LENGTH, omega)
-            force = frame[0].link_forces(self.link_masses, state)[0] * U.FORCE
-        mine = np.repeat(own, self.links)
-        d.xfrc_applied[bodies[mine], :3] += force[mine]
-        d.xfrc_applied[bodies[~mine]] = 0.0
-        d.xfrc_applied[bodies[~mine], :3] = force[~mine]
 
     def _apply_loads(self, loads, loaded: list[int]) -> None:
         """The loads' per-link forces on members ``loaded`` at the current state, as wrenches
