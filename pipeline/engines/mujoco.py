@@ -147,7 +147,7 @@ from pipeline.model.array import ArrayModel, WhiskerModel
 from pipeline.model.head_motion import HeadMotion
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.loads import LinkState, total_link_forces
-from pipeline.model.rotations import axis_rotation, quat_wxyz, rot_z, yaw_pitch_roll
+from pipeline.model.rotations import axis_rotation, euler_zyx, quat_wxyz, rot_z
 from pipeline.model.whisker import WhiskerChain, link_centres_of_mass
 from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
 
@@ -311,7 +311,7 @@ class MujocoPlan:
         """Steps ``steps`` end with the (jointed) head at ``positions_m`` [n, 3], ``rotations``
         [n, 3, 3]; its inertial load ``inertia`` comes from MuJoCo itself and is not used."""
         before = self.targets[max(steps.start - 1, 0), -3:]
-        angles = np.unwrap(np.vstack([before, [yaw_pitch_roll(r) for r in rotations]]), axis=0)[1:]
+        angles = np.unwrap(np.vstack([before, euler_zyx(rotations)]), axis=0)[1:]
         self.targets[steps, -6:] = head_coordinates({"head_position_m": positions_m, "head_euler_zyx_rad": angles})
 
 
