@@ -3,8 +3,9 @@
 Model. One MjModel per step size (the whiskers that share ``engine.dt_s / 2**j``, see
 :mod:`pipeline.engines.stepping`), built with ``mujoco.MjSpec`` in mm–mg–s
 (:mod:`pipeline.engines.units`: tip-link inertias are ~10⁻¹⁸ kg·m² in SI, and MuJoCo refuses
-anything below 10⁻¹⁵). A mocap body is the head (the pose of a trial; a moving head's is set
-every step, :mod:`pipeline.model.head_motion`). Under it, per whisker,
+anything below 10⁻¹⁵). The head is a mocap body at the trial's pose, or, when it moves (a head
+trajectory that moves, or a closed-loop session), a body on kinematic joints (Moving head
+below). Under it, per whisker,
 a follicle body at the base point carries the three driven hinges Z, Y, X; link 1 hangs from
 it, rigidly or on the compliant follicle's hinges; every further link is a body with the
 hinges of its node (:mod:`pipeline.model.joints`: z, y and, with twist, x; MuJoCo composes a
@@ -37,6 +38,19 @@ landing rule corrects that at the next step, so the base follows the drive to ro
 while the chain feels the full inertial load of a moving base (a mocap follicle would move
 the whisker without that load, a position actuator would lag). ``stop_drive_on_contact``
 replaces q* by the angles a whisker had at its first contact.
+
+Moving head. A moving head is a body on three slides (world x, y, z) and the hinges Z, Y, X of
+its Euler angles (:class:`~pipeline.model.kinematics.Pose`), kinematic as the follicle
+hinges (armatures 10⁹ times the whiskers' mass and moment of inertia about the head origin),
+their targets the trajectory's position and unwrapped angles at each step's end. MuJoCo then
+sees the whiskers' world velocities (contact damping and friction act on the sliding relative
+to the obstacle: a whisker at rest in a head passing a peg at 0.05 m/s and a peg passing the
+still head at −0.05 m/s differ by ≤ 8·10⁻⁵ of each base wrench component's peak; with the
+mocap head and a fictitious frame load, up to 2.7×) and the frame's inertial load on the
+chain is MuJoCo's own. A still head stays a mocap body: its trials are bit-identical to a
+trial without a trajectory. The head joins every whisker into one kinematic tree and one
+constraint island, so with a moving head a whisker's contacts are solved together with the
+other whiskers' (Independence below does not hold; the free path is off for a moving head).
 
 Base wrench. ``force`` and ``torque`` sensors on a site at link 1's proximal node read the
 wrench the follicle exerts on the whisker about the base point (MuJoCo's ``cfrc_int`` after
@@ -125,7 +139,6 @@ and 100 sweeps up to 5 % and 8 %), which the template's reuse of free motion rel
 from __future__ import annotations
 
 from dataclasses import dataclass
-from types import SimpleNamespace
 
 import numpy as np
 
@@ -138,9 +151,10 @@ from pipeline.engines.stepping import damping_folds, folded_refinement_levels
 from pipeline.engines.swept_crop import SWEPT_RUNS, PrismSpheres, SweptCrop
 from pipeline.errors import SimulationError
 from pipeline.model.array import ArrayModel, WhiskerModel
+from pipeline.model.head_motion import HeadMotion
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.loads import LinkState, total_link_forces
-from pipeline.model.rotations import axis_rotation, quat_wxyz, rot_z
+from pipeline.model.rotations import axis_rotation, euler_zyx, quat_wxyz, rot_z
 from pipeline.model.whisker import WhiskerChain, link_centres_of_mass
 from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
 
@@ -264,35 +278,38 @@ class _Part:
         return (self.index, None if self.faces is None else self.faces.tobytes())
 
 
+def head_coordinates(table: dict[str, np.ndarray]) -> np.ndarray:
+    """[T, 6] a jointed head's slide and hinge coordinates (mm, rad) from a
+    :meth:`~pipeline.model.head_motion.HeadMotion.table` (or its rates, per s)."""
+    return np.hstack([table["head_position_m"] * U.LENGTH, table["head_euler_zyx_rad"]])
+
+
 class MujocoPlan:
-    """What a world's kinematic joints and the head do at each step of a trial (internal units):
-    ``targets`` [steps + 1, kinematic] the driven hinges' and obstacle slides' positions at the
-    end of each step, ``head_position_mm`` [steps + 1, 3], ``head_quat`` (w, x, y, z) and
-    ``head_inertia`` (per step, the loads to add) at each step's start; the head rows only with
-    a head trajectory. Built from the drive and trajectory (open loop); :meth:`set_protraction`
-    and :meth:`set_head` rewrite rows (closed loop)."""
+    """What a world's kinematic joints do at each step of a trial (internal units): ``targets``
+    [steps + 1, kinematic] the driven hinges', obstacle slides' and a jointed head's positions
+    at the end of each step. Built from the drive and trajectory (open loop);
+    :meth:`set_protraction` and :meth:`set_head` rewrite rows (closed loop)."""
 
     def __init__(self, world: "MujocoWorld", offset: np.ndarray, theta_rate: np.ndarray, setup: TrialSetup,
                  n_steps: int):
         h = world.dt_s
         self.times = np.arange(n_steps + 2) * h
         self.offset, self.theta_rate = offset, theta_rate
-        self.slide_rate = np.concatenate([np.zeros(world.n_driven), world.obstacle_velocity])
+        self.slide_rate = np.concatenate([np.zeros(world.n_driven), world.obstacle_velocity,
+                                          np.zeros(len(world.head_qpos))])
         thetas = np.asarray(setup.drive(self.times), float)
         self.targets = offset + theta_rate * thetas[1:, None] + self.slide_rate * self.times[1:, None]
         self.whisker_of_joint = np.repeat(np.arange(len(world.members)), 3)     # driven hinges Z, Y, X
-        head = setup.head
-        if head is not None:
-            positions, rotations = head.frames(self.times[:n_steps + 1])
-            self.head_position_mm, self.head_quat = positions * U.LENGTH, [quat_wxyz(r) for r in rotations]
-            self.head_inertia = head.inertia(self.times[:n_steps + 1])
+        self.jointed_head = world.jointed_head
+        if self.jointed_head:
+            self.targets[:, -6:] = head_coordinates(setup.head.table(self.times[1:]))
 
     def interval(self, sample: int, spp: int) -> tuple[slice, np.ndarray, np.ndarray]:
-        """(rows, their targets' times, their head frames' times) that the generator steps through
-        before it records ``sample`` (at the start of the step after the interval: one step's
-        targets beyond the sample's time)."""
+        """(rows, their targets' times, their head frames' times: the same, the head's frames are
+        targets too) that the generator steps through before it records ``sample`` (at the
+        start of the step after the interval: one step's targets beyond the sample's time)."""
         rows = slice(0 if sample == 0 else sample * spp + 1, (sample + 1) * spp + 1)
-        return rows, self.times[1:][rows], self.times[rows]
+        return rows, self.times[1:][rows], self.times[1:][rows]
 
     def set_protraction(self, steps: slice, theta_rad: np.ndarray) -> None:
         """Steps ``steps`` end at protraction ``theta_rad`` [n, members] (rad) per whisker."""
@@ -300,11 +317,11 @@ class MujocoPlan:
         self.targets[steps, :n] = (self.offset[:n] + self.theta_rate[:n] * theta_rad[:, self.whisker_of_joint])
 
     def set_head(self, steps: slice, positions_m: np.ndarray, rotations: np.ndarray, inertia: list) -> None:
-        """Steps ``steps`` start with the head at ``positions_m`` [n, 3], ``rotations`` [n, 3, 3],
-        its inertial loads ``inertia`` (per step a tuple of loads)."""
-        self.head_position_mm[steps] = positions_m * U.LENGTH
-        self.head_quat[steps] = [quat_wxyz(r) for r in rotations]
-        self.head_inertia[steps] = inertia
+        """Steps ``steps`` end with the (jointed) head at ``positions_m`` [n, 3], ``rotations``
+        [n, 3, 3]; its inertial load ``inertia`` comes from MuJoCo itself and is not used."""
+        before = self.targets[max(steps.start - 1, 0), -3:]
+        angles = np.unwrap(np.vstack([before, euler_zyx(rotations)]), axis=0)[1:]
+        self.targets[steps, -6:] = head_coordinates({"head_position_m": positions_m, "head_euler_zyx_rad": angles})
 
 
 class MujocoWorld(World):
@@ -329,9 +346,10 @@ class MujocoWorld(World):
         element.solref = [max(CONTACT_TIME_CONSTANT_S, 2.0 * self.config.dt_s), 1.0]
         element.solimp = [*CONTACT_IMPEDANCE, 0.5, 2.0]
 
-    def _build(self, parts: list[_Part], members: np.ndarray) -> None:
+    def _build(self, parts: list[_Part], members: np.ndarray, jointed_head: bool = False) -> None:
         """Compile the whiskers ``members`` (indices into this world's) and ``parts`` into a new
-        model and data."""
+        model and data; the head a mocap body, or with ``jointed_head`` a body on kinematic
+        slides and hinges (module docstring, Moving head)."""
         import mujoco
 
         spec = mujoco.MjSpec()
@@ -351,7 +369,9 @@ class MujocoWorld(World):
         option.disableflags |= mujoco.mjtDisableBit.mjDSBL_MULTICCD     # one point per capsule–prism
         if not any(isinstance(p.obstacle, TriangleMesh) for p in parts):
             option.enableflags |= mujoco.mjtEnableBit.mjENBL_SPECULATIVE
-        head = spec.worldbody.add_body(name="head", mocap=True)
+        head = (self._add_jointed_head(spec, members) if jointed_head
+                else spec.worldbody.add_body(name="head", mocap=True))
+        self.jointed_head = jointed_head
         for k in members:
             self._add_whisker(spec, head, k, self.whiskers[k])
         for part in parts:
@@ -360,6 +380,28 @@ class MujocoWorld(World):
         self.data = mujoco.MjData(self.model)
         self.members = members
         self._index(parts)
+
+    def _add_jointed_head(self, spec, members: np.ndarray):
+        """The head on three kinematic slides (world x, y, z) and hinges Z, Y, X (its Euler
+        angles), their armatures 10⁹ times the whiskers' mass and moment of inertia about the head
+        origin, so that the contact solver sees the whiskers' world velocities."""
+        import mujoco
+
+        chains = [self.whiskers[k].chain for k in members]
+        bases = np.array([self.whiskers[k].base_point_m for k in members]) * U.LENGTH
+        mass = sum(float(c.link_mass_kg.sum()) for c in chains) * U.MASS
+        inertia = sum(base_inertia_mg_mm2(c) + float(c.link_mass_kg.sum()) * U.MASS * float(b @ b)
+                      for c, b in zip(chains, bases))
+        head = spec.worldbody.add_body(name="head")
+        head.explicitinertial = True
+        head.mass, head.inertia = mass, [inertia] * 3
+        for axis, label in zip((_X, _Y, _Z), "xyz"):
+            head.add_joint(name=f"head/{label}", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis,
+                           armature=KINEMATIC_ARMATURE * mass)
+        for axis, label in zip((_Z, _Y, _X), "zyx"):
+            head.add_joint(name=f"head/turn_{label}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=axis,
+                           armature=KINEMATIC_ARMATURE * inertia)
+        return head
 
     def _add_whisker(self, spec, head, k: int, whisker: WhiskerModel) -> None:
         import mujoco
@@ -464,7 +506,10 @@ class MujocoWorld(World):
         moving = [p for p in parts if p.velocity_mm_s.any()]
         driven = [m.jnt_qposadr[named(joint, f"w{k}/drive_{a}")] for k in members for a in "zyx"]
         slides = [m.jnt_qposadr[named(joint, f"obstacle{p.index}/{a}")] for p in moving for a in "xyz"]
-        self.kinematic = np.array(driven + slides, np.int64)       # hinge/slide: qpos = dof address
+        head = ([m.jnt_qposadr[named(joint, f"head/{a}")] for a in ("x", "y", "z", "turn_z", "turn_y", "turn_x")]
+                if self.jointed_head else [])
+        self.head_qpos = np.array(head, np.int64)
+        self.kinematic = np.array(driven + slides + head, np.int64)  # hinge/slide: qpos = dof address
         self.armature = m.dof_armature[self.kinematic].copy()
         self.n_driven = len(driven)
         self.obstacle_velocity = (np.concatenate([p.velocity_mm_s for p in moving]) if moving
@@ -480,9 +525,6 @@ class MujocoWorld(World):
         self.link_bodies = np.array([[named(body, f"w{k}/l{i}") for i in range(self.links)]
                                      for k in members])
         self.link_lengths_mm = np.array([self.whiskers[k].chain.link_lengths_m for k in members]) * U.LENGTH
-        # every member's links as one chain's, for a load on all of them at once (_apply_frame_load)
-        self.link_masses = SimpleNamespace(link_mass_kg=np.concatenate(
-            [self.whiskers[k].chain.link_mass_kg for k in members]))
 
         def joints(b):
             return np.arange(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
@@ -493,8 +535,9 @@ class MujocoWorld(World):
         self.tip_sites = np.array([named(mujoco.mjtObj.mjOBJ_SITE, f"w{k}/tip") for k in members])
         self.whisker_geoms = np.array([named(geom, f"w{k}/g{i}") for k in members
                                        for i in range(self.links)])
-        self.tree_member = np.full(m.ntree, -1, np.int64)        # kinematic tree → member
-        self.tree_member[m.body_treeid[[named(body, f"w{k}") for k in members]]] = np.arange(len(members))
+        self.dof_member = np.full(m.nv, -1, np.int64)               # dof → member (−1: head, obstacles)
+        for j, qpos in enumerate(self.free_qpos):                    # hinges: qpos address = dof address
+            self.dof_member[np.concatenate([self.kinematic[3 * j:3 * j + 3], qpos])] = j
         self.link_of_geom = np.full(m.ngeom + 1, -1, np.int64)    # last entry: geom −1 (a flex)
         self.link_of_geom[self.whisker_geoms] = np.arange(len(self.whisker_geoms))
         stiffness = np.zeros(m.nv)
@@ -557,14 +600,16 @@ class MujocoWorld(World):
         all_gaps[members] = np.maximum(gaps - travel_m, 0.0)
         return parts, all_gaps, crops
 
-    def _prepare(self, scene: Scene, parts: list[_Part], gaps: np.ndarray, members: np.ndarray) -> None:
+    def _prepare(self, scene: Scene, parts: list[_Part], gaps: np.ndarray, members: np.ndarray,
+                 jointed_head: bool) -> None:
         """A model of the whiskers ``members`` and the obstacle ``parts`` (recompiled only when
-        they changed) in which only the links that can reach a part collide."""
+        they changed), its head jointed or not, in which only the links that can reach a part
+        collide."""
         import mujoco
 
-        key = (scene.key if parts else None, tuple(p.key for p in parts), members.tobytes())
+        key = (scene.key if parts else None, tuple(p.key for p in parts), members.tobytes(), jointed_head)
         if key != self._built_key:
-            self._build(parts, members)
+            self._build(parts, members, jointed_head)
             self._built_key = key
         m = self.model
         reach = self.link_reach_m[members] >= gaps[members, None]
@@ -577,25 +622,29 @@ class MujocoWorld(World):
 
     # -- trial ---------------------------------------------------------------------------
     def _reset(self, pose: Pose, drive: ProtractionDrive, initial: list[np.ndarray],
-               initial_rates: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """Head at ``pose``, driven joints as the drive at t = 0, free joints at ``initial``
-        (per member, rad) moving at ``initial_rates`` (rad/s); returns the kinematic targets'
-        offsets and θ-rates."""
+               initial_rates: list[np.ndarray], head: HeadMotion | None) -> tuple[np.ndarray, np.ndarray]:
+        """Head at ``pose`` (a jointed head: as ``head`` at t = 0, moving), driven joints as the
+        drive at t = 0, free joints at ``initial`` (per member, rad) moving at ``initial_rates``
+        (rad/s); returns the kinematic targets' offsets and θ-rates."""
         import mujoco
 
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
-        d.mocap_pos[0] = np.asarray(pose.position_m, float) * U.LENGTH
-        d.mocap_quat[0] = quat_wxyz(pose.rotation)
+        if not self.jointed_head:
+            d.mocap_pos[0] = np.asarray(pose.position_m, float) * U.LENGTH
+            d.mocap_quat[0] = quat_wxyz(pose.rotation)
         whiskers = [self.whiskers[k] for k in self.members]
         rest = np.concatenate([w.rest_joint_angles for w in whiskers]).astype(float)
         rates = np.concatenate([w.joint_rates for w in whiskers]).astype(float)
-        n_obstacle = len(self.obstacle_velocity)
-        offset = np.concatenate([rest, np.zeros(n_obstacle)])
-        theta_rate = np.concatenate([rates, np.zeros(n_obstacle)])
+        n_other = len(self.obstacle_velocity) + len(self.head_qpos)
+        offset = np.concatenate([rest, np.zeros(n_other)])
+        theta_rate = np.concatenate([rates, np.zeros(n_other)])
         d.qpos[self.kinematic] = offset + theta_rate * float(drive(0.0))
         d.qvel[self.kinematic] = theta_rate * start_rate(drive, self.dt_s)
-        d.qvel[self.kinematic[self.n_driven:]] = self.obstacle_velocity
+        d.qvel[self.kinematic[self.n_driven:self.n_driven + len(self.obstacle_velocity)]] = self.obstacle_velocity
+        if self.jointed_head:
+            d.qpos[self.head_qpos] = head_coordinates(head.table(0.0))[0]
+            d.qvel[self.head_qpos] = head_coordinates(head.table(0.0, derivative=1))[0]
         for qpos, angles, angle_rates in zip(self.free_qpos, initial, initial_rates):   # per member
             d.qpos[qpos] = angles
             d.qvel[qpos] = angle_rates                          # hinges: qpos address = dof address
@@ -612,7 +661,7 @@ class MujocoWorld(World):
         guides = None if setup.free_paths is None else {k: [setup.free_paths[k]] for k in members}
         while members.size:
             parts, gaps, crops = self._reach(setup, members, guides=guides)
-            self._prepare(setup.scene, parts, gaps, members)
+            self._prepare(setup.scene, parts, gaps, members, setup.head is not None and setup.head.moves)
             try:
                 simulated = self._simulate(setup.only(members))
             except _Jam as jam:
@@ -646,7 +695,7 @@ class MujocoWorld(World):
         ``result.jammed``."""
         members = np.flatnonzero(active)
         parts, gaps, _ = self._reach(setup, members, travel_m)
-        self._prepare(setup.scene, parts, gaps, members)
+        self._prepare(setup.scene, parts, gaps, members, True)
         return self._stepping(setup.only(members), result, park=True)
 
     def _simulate(self, setup: TrialSetup) -> WorldResult:
@@ -671,7 +720,7 @@ class MujocoWorld(World):
         import mujoco
 
         m, d, h, spp = self.model, self.data, self.dt_s, self.steps_per_sample
-        offset, theta_rate = self._reset(setup.pose, setup.drive, setup.initial, setup.initial_rates)
+        offset, theta_rate = self._reset(setup.pose, setup.drive, setup.initial, setup.initial_rates, setup.head)
         n_w, n_steps = len(self.members), setup.samples * spp
         plan = MujocoPlan(self, offset, theta_rate, setup, n_steps)
         targets = plan.targets
@@ -685,21 +734,13 @@ class MujocoWorld(World):
         qpos, qvel, qfrc = d.qpos, d.qvel, d.qfrc_applied
         kinematic, armature, spring_rate = self.kinematic, self.armature, self.spring_rate
         step_function = mujoco.mj_step
-        loads, head = setup.loads, setup.head
-        inertial = False                 # this step had the head frame's load
-        own = np.zeros(n_w, bool)
-        own[loaded] = True
+        loads = setup.loads
         yield plan
         for step in range(n_steps + 1):
             np.multiply(spring_rate, qvel, out=qfrc)
             qfrc[kinematic] = armature * (((targets[step] - qpos[kinematic]) / h - qvel[kinematic]) / h)
-            if head is not None:
-                d.mocap_pos[0], d.mocap_quat[0] = plan.head_position_mm[step], plan.head_quat[step]
             if loaded:
                 self._apply_loads(loads, loaded)
-            if head is not None and (plan.head_inertia[step] or inertial):   # once more without: clears it
-                self._apply_frame_load(plan.head_inertia[step], own)
-                inertial = bool(plan.head_inertia[step])
             sample, due = divmod(step, spp)
             records = due == 0 and sample > 0
             if due < 2:
@@ -742,7 +783,7 @@ class MujocoWorld(World):
         m, d = self.model, self.data
         result.jammed.update(messages)
         local = np.flatnonzero(np.isin(self.members, list(messages)))
-        dofs = np.isin(self.tree_member[m.dof_treeid], local)
+        dofs = np.isin(self.dof_member, local)
         d.qpos[dofs] = np.nan_to_num(d.qpos[dofs], nan=0.0, posinf=0.0, neginf=0.0)  # hinges: qpos = dof address
         for j in local:
             d.qpos[self.free_qpos[j]] = 0.0
@@ -756,7 +797,7 @@ class MujocoWorld(World):
         huge: caught at once, before the next step's solve spreads them to every whisker."""
         qacc = self.data.qacc
         bad = ~np.isfinite(qacc) | (np.abs(qacc) > MAX_ACCELERATION)
-        members = np.unique(self.tree_member[self.model.dof_treeid[bad]])
+        members = np.unique(self.dof_member[bad])
         if not np.any(members >= 0):
             raise SimulationError(f"non-finite acceleration outside the whiskers at t = {time_s:.4f} s")
         raise _Jam({int(self.members[j]): f"non-finite acceleration on {self.whiskers[self.members[j]].name} "
@@ -776,29 +817,6 @@ class MujocoWorld(World):
         proximal = d.xpos[bodies]
         distal = proximal + d.xmat[bodies][:, 0::3] * self.link_lengths_mm.ravel()[links, None]
         return links, contact.pos[pressed][mine], proximal, distal
-
-    def _apply_frame_load(self, frame: tuple, own: np.ndarray) -> None:
-        """The head frame's inertial load (``frame``: () or one
-        :class:`~pipeline.model.head_motion.HeadFrameInertia`) on every member's links at once,
-        added to the wrenches of members with loads of their own (``own`` [w], applied this
-        step) and replacing the others'."""
-        import mujoco
-
-        m, d = self.model, self.data
-        bodies = self.link_bodies.ravel()
-        force = np.zeros((len(bodies), 3))
-        if frame:
-            mujoco.mj_kinematics(m, d)
-            mujoco.mj_comPos(m, d)
-            mujoco.mj_comVel(m, d)
-            omega = d.cvel[bodies, :3]          # cvel: [ω, v] at the tree's subtree centre of mass
-            velocity = (d.cvel[bodies, 3:] + np.cross(omega, d.xipos[bodies] - d.subtree_com[m.body_rootid[bodies]]))
-            state = LinkState(d.xipos[bodies] / U.LENGTH, None, velocity / U.LENGTH, omega)
-            force = frame[0].link_forces(self.link_masses, state)[0] * U.FORCE
-        mine = np.repeat(own, self.links)
-        d.xfrc_applied[bodies[mine], :3] += force[mine]
-        d.xfrc_applied[bodies[~mine]] = 0.0
-        d.xfrc_applied[bodies[~mine], :3] = force[~mine]
 
     def _apply_loads(self, loads, loaded: list[int]) -> None:
         """The loads' per-link forces on members ``loaded`` at the current state, as wrenches

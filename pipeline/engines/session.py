@@ -8,10 +8,10 @@ the sample recorded at its end. The engine and its compiled worlds stay alive be
 and nothing in a session draws random numbers: the same controls give bit-identical samples.
 
 Timing. MuJoCo records a sample at the start of the step after the interval, and that step's
-driven joints already aim at the next interval's first target: the controller's protraction
-function is asked for times up to one step beyond the sample's time (it continues the current
-interval's control there; the next interval's control takes over one step later, a latency of
-one engine step, ≤ 0.1 ms). The Bullet engine records after the interval's last step.
+driven joints (and head) already aim at the next interval's first target: the controller's
+protraction and head functions are asked for times up to one step beyond the sample's time (it
+continues the current interval's control there; the next interval's control takes over one
+step later, a latency of one engine step, ≤ 0.1 ms). The Bullet engine records after the interval's last step.
 
 Limits. Free motions are not reused and a whisker whose contact jams (e.g. pressed into a wall
 by the head) is not re-simulated with a finer step: it is parked for the rest of the session

@@ -43,12 +43,14 @@ class CriticalLag:
 class HeadPlant:
     """The head's pose and lagged body twist. Twist order (head axes): forward (rostral),
     lateral, dorsal velocity (m/s), then yaw, pitch, roll rate (rad/s) about the dorsal, lateral
-    and rostral axes (docs/frames.md)."""
+    and rostral axes (docs/frames.md). Frames every ``step_s`` (s), up to ``beyond_s`` (s, a
+    multiple of it) past each interval."""
 
-    def __init__(self, pose: Pose, tau_s: float, step_s: float):
+    def __init__(self, pose: Pose, tau_s: float, step_s: float, beyond_s: float):
         self.rotation, self.position = pose.rotation, np.asarray(pose.position_m, float)
         self.twist = CriticalLag(np.zeros(6), tau_s)
         self.step_s = step_s
+        self.beyond = int(round(beyond_s / step_s))
 
     @property
     def pose(self) -> Pose:
@@ -58,14 +60,16 @@ class HeadPlant:
 
     def interval(self, duration_s: float, command: np.ndarray):
         """The head over the next ``duration_s`` under the twist ``command`` [6]: a function of
-        step times relative to now (multiples of ``step_s`` in [0, duration_s]) →
+        step times relative to now (multiples of ``step_s`` in [0, duration_s + beyond_s]: MuJoCo's
+        jointed head aims one of its world's steps beyond the interval,
+        :mod:`pipeline.engines.session`) →
         (positions [n, 3], rotations [n, 3, 3], per time its inertial loads), and the pose and
         twist state at the interval's end (:meth:`commit`)."""
         n = int(round(duration_s / self.step_s))
-        grid = np.arange(n + 1) * self.step_s                        # now, then every step
+        grid = np.arange(n + 1 + self.beyond) * self.step_s          # now, every step, and beyond
         twist, twist_rate, _ = self.twist.at(grid, command)
         middle, _, _ = self.twist.at(grid[1:] - 0.5 * self.step_s, command)
-        positions, rotations = np.empty((n + 1, 3)), np.empty((n + 1, 3, 3))
+        positions, rotations = np.empty((len(grid), 3)), np.empty((len(grid), 3, 3))
         positions[0], rotations[0] = self.position, self.rotation
         for i, (v, w) in enumerate(zip(middle[:, [1, 0, 2]], middle[:, [4, 5, 3]]), start=1):
             turn, travel = twist_exponential(v, w, self.step_s)
@@ -85,7 +89,7 @@ class HeadPlant:
             return positions[index], rotations[index], [loads[i] for i in index]
 
         def commit() -> None:
-            self.position, self.rotation = positions[-1], rotations[-1]
+            self.position, self.rotation = positions[n], rotations[n]
             self.twist.advance(duration_s, command)
 
         return frames, commit

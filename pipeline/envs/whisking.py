@@ -108,7 +108,8 @@ class WhiskingEnv(gym.Env):
         self.start = Pose()
         self.session = Session(engine, self.scene, self.start, self.max_steps, self.travel_m)
         self.finest_step_s = float(min(world.dt_s for _, world in engine.worlds))
-        self.head = HeadPlant(self.start, self.head_tau_s, self.finest_step_s)
+        self.head = HeadPlant(self.start, self.head_tau_s, self.finest_step_s,
+                              max(world.dt_s for _, world in engine.worlds))
         self.whisk = CriticalLag(np.zeros(int(self.group.max()) + 1), self.whisk_tau_s)
         self.history: list = []
         self.head_poses = [self.start]

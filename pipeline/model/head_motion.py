@@ -9,12 +9,12 @@ constant *body* twist (velocity and angular rates in head axes: forward = rostra
 dorsal z; yaw about z, pitch about x, roll about y): the exact SE(3) exponential at knots
 :data:`KNOT_INTERVAL_S` apart.
 
-Engines (scheme). The engines keep the whiskers' joints relative to the head and move the head
-kinematically: at every step the head frame (MuJoCo's mocap body, Bullet's base of every
-whisker) is placed at the trajectory's pose, so contacts are found where the whiskers are.
-The simulator then integrates the whiskers' equations in the head frame as if it were fixed;
-the head's motion enters as the inertial (fictitious) load of a non-inertial frame on every
-link's centre of mass (:class:`HeadFrameInertia`):
+Engines (scheme). MuJoCo moves the head as a body on kinematic slides and hinges that land on
+the trajectory's pose at every step (:mod:`pipeline.engines.mujoco`, Moving head): contacts see
+world velocities and the frame's inertial load is MuJoCo's own. Bullet places every whisker's
+(fixed) base at the trajectory's pose each step and integrates the whiskers' equations in the
+head frame as if it were fixed; the head's motion enters as the inertial (fictitious) load of
+a non-inertial frame on every link's centre of mass (:class:`HeadFrameInertia`):
 
     f = −m·(a_O + α × r + ω × (ω × r) + 2·ω × v_rel)
 
@@ -23,10 +23,10 @@ with a_O the head origin's acceleration, ω and α the head's angular velocity a
 to the head (what the simulator reports with the head held still). The fictitious torques on a
 link about its own centre of mass (−I·α − ω × I·ω; the model rat's largest link inertia is
 5.7·10⁻¹⁴ kg·m²) stay below 10⁻¹¹ N·m for α, ω² ≲ 100 rad/s², five orders below base moments
-of ~10⁻⁶ N·m, and are left out. What the scheme does not see: the contact solver takes a whisker's velocity relative to
-the head, not to the obstacle, for its damping and friction (a sliding direction off by the
-head's own velocity at the contact: 0.02–0.12 m/s for the default approach speeds, against a
-tip speed of ≈ 1 m/s for a 50 mm whisker whisking ±25° at 8 Hz).
+of ~10⁻⁶ N·m, and are left out. Bullet's contact friction takes each obstacle's velocity
+relative to the head frame's point at the contact (the step's mean head twist), so it acts on
+the true sliding velocity; contacts with triangle meshes (Bullet's own solver) still see the
+velocity relative to the head.
 """
 
 from __future__ import annotations
@@ -92,6 +92,11 @@ class HeadMotion:
         return cls.steady(pose, np.zeros(3), np.zeros(3), duration_s)
 
     @property
+    def moves(self) -> bool:
+        """Whether any knot's pose differs from the first's."""
+        return bool(np.any(self.position_m != self.position_m[0]) or np.any(self.euler_zyx_rad != self.euler_zyx_rad[0]))
+
+    @property
     def duration_s(self) -> float:
         return float(self.time_s[-1] - self.time_s[0])
 
@@ -139,10 +144,11 @@ class HeadMotion:
             return [()] * len(rows)
         return [(HeadFrameInertia(*row),) for row in rows]
 
-    def table(self, times) -> dict[str, np.ndarray]:
+    def table(self, times, derivative: int = 0) -> dict[str, np.ndarray]:
         """Per time of ``times`` [T]: ``head_position_m`` [T, 3] and ``head_euler_zyx_rad``
-        [T, 3] (the dataset's columns, docs/dataset.md)."""
-        values = self._values(np.atleast_1d(times), 0)
+        [T, 3] (the dataset's columns, docs/dataset.md), or their ``derivative``-th time
+        derivatives (per s)."""
+        values = self._values(np.atleast_1d(times), derivative)
         return {"head_position_m": values[:, :3], "head_euler_zyx_rad": values[:, 3:]}
 
     def base_travel_m(self, base_points_m: np.ndarray, times) -> np.ndarray:

@@ -47,14 +47,20 @@ def rotation_zyx(yaw, pitch, roll) -> np.ndarray:
 def yaw_pitch_roll(matrix) -> tuple[float, float, float]:
     """(yaw, pitch, roll) in rad of a rotation matrix: the inverse of :func:`rotation_zyx`. At
     pitch ±π/2 (gimbal lock) roll is 0 and yaw carries the rest; the matrix is still exact."""
+    return tuple(float(a) for a in euler_zyx(matrix))
+
+
+def euler_zyx(matrices) -> np.ndarray:
+    """[..., 3] :func:`yaw_pitch_roll` of rotation matrices [..., 3, 3]."""
     import warnings
 
     from scipy.spatial.transform import Rotation
 
+    matrices = np.asarray(matrices, float)
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", "Gimbal lock detected")
-        angles = Rotation.from_matrix(np.asarray(matrix, float)).as_euler("ZYX")
-    return tuple(float(a) for a in angles)
+        angles = Rotation.from_matrix(matrices.reshape(-1, 3, 3)).as_euler("ZYX")
+    return angles.reshape(matrices.shape[:-1])
 
 
 def skew(v) -> np.ndarray:
