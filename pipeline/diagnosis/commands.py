@@ -104,7 +104,28 @@ def run_calibrate_sets(paths, library: bool, where: str | None, hold_out: bool, 
     if library:
         _with_statics(result, lines, result["params"]["E"], f"the joint fit of {', '.join(result['sets'])}",
                       material)
+        _with_damping_laws(result, lines, material)
     return _jsonable(result), lines
+
+
+def _with_damping_laws(data: dict, lines: list[str], material) -> None:
+    """Add which damping law the library supports (:func:`~.damping_evidence.damping_law_evidence`)."""
+    from pipeline.diagnosis.damping_evidence import C1_MODES_HZ, damping_law_evidence
+
+    evidence = damping_law_evidence(material)
+    data["damping_laws"] = evidence
+    lines.append(f"  damping law (untrimmed whiskers; C1 measured {' / '.join(f'{f:.0f}' for f in C1_MODES_HZ)} Hz):")
+    for law, row in evidence["laws"].items():
+        c1 = row["c1"]
+        modes = " / ".join("overdamped" if not math.isfinite(f) else f"{f:.0f} Hz ζ {z:.3f}"
+                           for f, z in zip(c1["f_hz"], c1["zeta"]))
+        lines.append(f"    {law:<13} E {row['E_pa'] / 1e9:.2f} GPa, parameter {row['parameter']:.3f}, held-out error "
+                     f"{row['held_out_error']:.3f}; C1 {modes}; multi-mode {'yes' if c1['multi_mode_consistent'] else 'no'}, "
+                     f"f within 15 % {'yes' if c1['f_within_15pct'] else 'no'}, ζ1 in 0.11-0.17 "
+                     f"{'yes' if c1['zeta1_in_range'] else 'no'}")
+    tie = f" (tied on held-out error with {', '.join(evidence['tied'][1:])})" if len(evidence["tied"]) > 1 else ""
+    engines = "" if evidence["engines_have_it"] else "; the engines have only eq. 3 and Kelvin–Voigt joint dampers"
+    lines.append(f"    the evidence picks: {evidence['picked']}{tie}{engines}")
 
 
 def _with_statics(data: dict, lines: list[str], dynamic_e: dict, label: str, material) -> None:
@@ -195,6 +216,7 @@ def _with_condition_splits(data: dict, lines: list[str], tables, material) -> tu
         _with_statics(data, lines, untrimmed["E"], "the untrimmed sets (trimmed=no)", material)
     else:
         _with_statics(data, lines, data["params"]["E"], "the final model", material)
+    _with_damping_laws(data, lines, material)
     return _jsonable(data), lines
 
 
