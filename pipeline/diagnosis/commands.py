@@ -101,7 +101,51 @@ def run_calibrate_sets(paths, library: bool, where: str | None, hold_out: bool, 
         lines += [f"    {w}: f1 {r['f1_model_hz']:.1f} Hz vs {r['f1_measured_hz']:.1f} Hz ({100 * r['f1_error']:+.1f} %), "
                   f"ζ1 {r['zeta1_model']:.3f} vs {r['zeta1_measured']:.2f}" for w, r in h["whiskers"].items()]
     lines += [f"  note: {n}" for n in result["notes"]]
+    if library:
+        _with_statics(result, lines, result["params"]["E"], f"the joint fit of {', '.join(result['sets'])}",
+                      material)
+        _with_damping_laws(result, lines, material)
     return _jsonable(result), lines
+
+
+def _with_damping_laws(data: dict, lines: list[str], material) -> None:
+    """Add which damping law the library supports (:func:`~.damping_evidence.damping_law_evidence`)."""
+    from pipeline.diagnosis.damping_evidence import C1_MODES_HZ, damping_law_evidence
+
+    evidence = damping_law_evidence(material)
+    data["damping_laws"] = evidence
+    lines.append(f"  damping law (untrimmed whiskers; C1 measured {' / '.join(f'{f:.0f}' for f in C1_MODES_HZ)} Hz):")
+    for law, row in evidence["laws"].items():
+        c1 = row["c1"]
+        modes = " / ".join("overdamped" if not math.isfinite(f) else f"{f:.0f} Hz ζ {z:.3f}"
+                           for f, z in zip(c1["f_hz"], c1["zeta"]))
+        lines.append(f"    {law:<13} E {row['E_pa'] / 1e9:.2f} GPa, parameter {row['parameter']:.3f}, held-out error "
+                     f"{row['held_out_error']:.3f}; C1 {modes}; multi-mode {'yes' if c1['multi_mode_consistent'] else 'no'}, "
+                     f"f within 15 % {'yes' if c1['f_within_15pct'] else 'no'}, ζ1 in 0.11-0.17 "
+                     f"{'yes' if c1['zeta1_in_range'] else 'no'}")
+    tie = f" (tied on held-out error with {', '.join(evidence['tied'][1:])})" if len(evidence["tied"]) > 1 else ""
+    engines = "" if evidence["engines_have_it"] else "; the engines have only eq. 3 and Kelvin–Voigt joint dampers"
+    lines.append(f"    the evidence picks: {evidence['picked']}{tie}{engines}")
+
+
+def _with_statics(data: dict, lines: list[str], dynamic_e: dict, label: str, material) -> None:
+    """Add the quasi-static measurements' E against the dynamic ``dynamic_e`` ({'value', 'sd'}, Pa)
+    of the fit named by ``label`` (:func:`pipeline.diagnosis.statics.static_vs_dynamic`)."""
+    from pipeline.diagnosis.parameters import ModelSpec
+    from pipeline.diagnosis.statics import static_vs_dynamic
+    from pipeline.measurements.statics import static_records
+
+    s = static_vs_dynamic(static_records(), ModelSpec(material), dynamic_e["value"], dynamic_e["sd"])
+    data["static"] = {**s, "dynamic_fit": label}
+    lines.append("  quasi-static measurements (linear chain statics; E per source):")
+    lines += [f"    {name:<20} {src['whisker']:<30} E {src['E_pa'] / 1e9:.2f} GPa"
+              + (f" ± {src['sd_pa'] / 1e9:.2f}" if math.isfinite(src["sd_pa"]) else "")
+              for name, src in s["sources"].items()]
+    verdict = "one model explains both" if s["one_model_explains_both"] else "no single E explains both"
+    lines.append(f"    static E {s['static_E_pa'] / 1e9:.2f} ± {s['static_se_pa'] / 1e9:.2f} GPa vs dynamic "
+                 f"{s['dynamic_E_pa'] / 1e9:.2f} ± {s['dynamic_sd_pa'] / 1e9:.2f} GPa ({label}): z {s['z']:+.2f}, "
+                 f"{verdict} (the resonances fix E/ρ: the static E fits them with the density × "
+                 f"{s['density_factor']:.2f})")
 
 
 def _candidates_need_a_series(candidates: str, what) -> UserError:
@@ -167,6 +211,12 @@ def _with_condition_splits(data: dict, lines: list[str], tables, material) -> tu
                            for value, p in s["params"].items())
         lines.append(f"    {s['condition']:<12} χ² {s['chi2_shared']:.1f} → {s['chi2_split']:.1f} "
                      f"(gain {100 * s['gain']:.0f} %, ΔBIC {s['delta_bic']:+.1f}); {values}")
+    untrimmed = next((s["params"]["no"] for s in splits if s["condition"] == "trimmed"), None)
+    if untrimmed is not None:
+        _with_statics(data, lines, untrimmed["E"], "the untrimmed sets (trimmed=no)", material)
+    else:
+        _with_statics(data, lines, data["params"]["E"], "the final model", material)
+    _with_damping_laws(data, lines, material)
     return _jsonable(data), lines
 
 
