@@ -673,8 +673,9 @@ def calibrate(
 ) -> None:
     """Fit model parameters to measured data (median symmetric accuracy), with uncertainties;
     several resonance tables (or --library) are fitted jointly, with each set's misfit."""
-    from pipeline.diagnosis.commands import run_calibrate, run_calibrate_sets
+    from pipeline.diagnosis.commands import parse_where, run_calibrate, run_calibrate_sets
 
+    parse_where(where)                   # a bad --where is refused before any progress line
     save_model = _writable_out(save_model, "--save-model", file=True, replace=force)
     material = _model_config(config, {"material": {"preset": preset}}).material
     files = list(files or [])

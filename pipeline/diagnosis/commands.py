@@ -55,17 +55,11 @@ def run_calibrate(path: Path, names: str, method: str, objective: str, material,
     return _jsonable(result), lines
 
 
-def _tables(paths, library: bool, where: str | None) -> list:
-    """Resonance tables of ``paths`` plus the shipped library's, kept when they match ``where``
-    ('key=value;...', conditions of docs/measurements.md)."""
-    from pipeline.measurements import ResonanceTable, load_measurement
-    from pipeline.measurements.library import load_library
+def parse_where(where: str | None) -> dict[str, str]:
+    """The conditions of ``--where`` ('key=value;...', docs/measurements.md); UserError naming a
+    term that is not one."""
     from pipeline.measurements.table import CONDITIONS
 
-    tables = [load_measurement(p) for p in paths] + (load_library() if library else [])
-    for table, path in zip(tables, paths):
-        if not isinstance(table, ResonanceTable):
-            raise UserError(f"{path}: a joint fit takes resonance tables (.csv) only")
     wanted = {}
     for item in filter(None, (part.strip() for part in (where or "").split(";"))):
         key, _, value = (x.strip() for x in item.partition("="))
@@ -73,6 +67,20 @@ def _tables(paths, library: bool, where: str | None) -> list:
             raise UserError(f"--where '{item}': not a condition (known: "
                             + "; ".join(f"{k}={'|'.join(v)}" for k, v in CONDITIONS.items()) + ")")
         wanted[key] = value
+    return wanted
+
+
+def _tables(paths, library: bool, where: str | None) -> list:
+    """Resonance tables of ``paths`` plus the shipped library's, kept when they match ``where``
+    ('key=value;...', conditions of docs/measurements.md)."""
+    from pipeline.measurements import ResonanceTable, load_measurement
+    from pipeline.measurements.library import load_library
+
+    tables = [load_measurement(p) for p in paths] + (load_library() if library else [])
+    for table, path in zip(tables, paths):
+        if not isinstance(table, ResonanceTable):
+            raise UserError(f"{path}: a joint fit takes resonance tables (.csv) only")
+    wanted = parse_where(where)
     chosen = [t for t in tables if all(t.conditions[k] == v for k, v in wanted.items())]
     if not chosen:
         raise UserError(f"no measurement set matches --where '{where}'")
