@@ -162,3 +162,57 @@ FOUND = [   # argument lists the fuzzer found giving a traceback, kept for every
 @pytest.mark.parametrize("args", FOUND, ids=range(len(FOUND)))
 def test_command_lines_the_fuzzer_found(args, project):
     holds(args, project)
+
+
+# --------------------------------------------------------------------------- meshes (`trial --scene mesh:PATH`)
+
+CUBE = [(0, 0, 0), (0.01, 0, 0), (0, 0.01, 0), (0, 0, 0.01)]
+TETRA = [(1, 2, 3), (1, 2, 4), (1, 3, 4), (2, 3, 4)]      # OBJ indices are 1-based
+
+
+def obj_text(vertices, faces) -> bytes:
+    return "".join([*(f"v {x!r} {y!r} {z!r}\n" for x, y, z in vertices),
+                    *(f"f {a} {b} {c}\n" for a, b, c in faces)]).encode()
+
+
+coordinates = st.one_of(st.floats(-0.05, 0.05), st.sampled_from([float("nan"), float("inf"), 1e300, -1e300, 0.0]))
+geometry = st.tuples(st.lists(st.tuples(coordinates, coordinates, coordinates), max_size=6),
+                     st.lists(st.tuples(*[st.integers(-3, 8)] * 3), max_size=6))
+
+
+def mesh_files():
+    from test_fuzz_parsers import damaged
+
+    valid = obj_text(CUBE, TETRA)
+    return st.one_of(st.tuples(st.just(".obj"), damaged(valid)),
+                     st.tuples(st.just(".obj"), geometry.map(lambda g: obj_text(*g))),
+                     st.tuples(st.sampled_from([".ply", ".stl"]), st.binary(max_size=200)))
+
+
+def _fuzz_mesh(examples: int, project: Path):
+    @budget(examples)
+    @given(mesh_files())
+    def run(mesh):
+        suffix, data = mesh
+        path = project / f"scene{suffix}"
+        path.write_bytes(data)
+        holds(["trial", *CHEAP_TRIAL, "--scene", f"mesh:{path}"], project)
+    run()
+
+
+def test_fuzz_mesh_scene_exits_0_or_2_with_one_error_line(project):
+    _fuzz_mesh(FAST, project)
+
+
+@pytest.mark.slow
+def test_fuzz_mesh_scene_long_run(project):
+    _fuzz_mesh(SLOW, project)
+
+
+@pytest.mark.parametrize("vertices", [[(0, 0, 0)] * 3, [(0, 0, 0), (0.01, 0, 0), (0.02, 0, 0)]], ids=["point", "line"])
+def test_a_mesh_of_zero_area_triangles_is_one_error_line(vertices, project):
+    """Such a mesh ran to `ok` as an obstacle nothing can touch."""
+    path = project / "flat.obj"
+    path.write_bytes(obj_text(vertices, [(1, 2, 3)]))
+    code, _, err = run_main(["trial", *CHEAP_TRIAL, "--scene", f"mesh:{path}"], project)
+    assert code == 2 and "zero area" in err and str(path) in err, err

@@ -69,6 +69,9 @@ def load_mesh(path: str | Path) -> TriangleMesh:
     vertices, faces = np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
     if len(faces) == 0 or not np.all(np.isfinite(vertices)):
         raise UserError(f"{path}: mesh has no triangles or non-finite vertices")
+    corners = vertices[faces]
+    if not np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]).any():
+        raise UserError(f"{path}: every triangle of the mesh has zero area (no surface to touch)")
     if np.ptp(vertices, axis=0).max() > 50:
         raise UserError(f"{path}: mesh spans {np.ptp(vertices, axis=0).max():.0f} units; "
                         "meshes must be in metres (build them with `pipeline build-meshes`)")
