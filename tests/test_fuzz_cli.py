@@ -216,3 +216,30 @@ def test_a_mesh_of_zero_area_triangles_is_one_error_line(vertices, project):
     path.write_bytes(obj_text(vertices, [(1, 2, 3)]))
     code, _, err = run_main(["trial", *CHEAP_TRIAL, "--scene", f"mesh:{path}"], project)
     assert code == 2 and "zero area" in err and str(path) in err, err
+
+
+def scan_files():
+    from test_fuzz_parsers import POINTS, damaged
+
+    return st.tuples(st.sampled_from([".ply", ".xyz", ".pts", ".pcd"]), damaged(POINTS) | st.binary(max_size=120))
+
+
+def _fuzz_scans(examples: int, project: Path):
+    @budget(examples)
+    @given(scan_files())
+    def run(scan):
+        suffix, data = scan
+        shutil.rmtree(project / "scans", ignore_errors=True)
+        (project / "scans").mkdir()
+        (project / "scans" / f"scan{suffix}").write_bytes(data)
+        holds(["build-meshes", "--scans", "scans", "--out", "meshes-out", "--force"], project)
+    run()
+
+
+def test_fuzz_build_meshes_exits_0_or_2_with_one_error_line(project):
+    _fuzz_scans(FAST, project)
+
+
+@pytest.mark.slow
+def test_fuzz_build_meshes_long_run(project):
+    _fuzz_scans(SLOW, project)
