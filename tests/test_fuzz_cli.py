@@ -243,3 +243,24 @@ def test_fuzz_build_meshes_exits_0_or_2_with_one_error_line(project):
 @pytest.mark.slow
 def test_fuzz_build_meshes_long_run(project):
     _fuzz_scans(SLOW, project)
+
+
+def test_a_mesh_over_the_triangle_limit_is_one_error_line(project, monkeypatch):
+    """A 2-million-triangle scene ran > 400 s with no word; the limit (174 762, pybullet's most)
+    is lowered here through its environment variable."""
+    path = project / "tetra.obj"
+    path.write_bytes(obj_text(CUBE, TETRA))
+    monkeypatch.setenv("PIPELINE_MAX_MESH_FACES", "3")
+    code, _, err = run_main(["trial", *CHEAP_TRIAL, "--scene", f"mesh:{path}"], project)
+    assert code == 2 and "4 triangles, more than 3 (PIPELINE_MAX_MESH_FACES)" in err, err
+    monkeypatch.setenv("PIPELINE_MAX_MESH_FACES", "many")
+    assert run_main(["trial", *CHEAP_TRIAL, "--scene", f"mesh:{path}"], project)[0] == 2
+
+
+def test_a_mesh_beyond_pybullets_vertex_limit_is_one_error_line(project):
+    """131 073 vertices (pybullet takes 131 072): `pybullet.error` traceback before."""
+    path = project / "many-vertices.obj"
+    zigzag = [(0.03 + 1e-7 * i, 1e-3 * (i % 2), 1e-3 * (i % 3)) for i in range(131_073)]
+    path.write_bytes(obj_text(zigzag, [(i, i + 1, i + 2) for i in range(1, 131_072, 3)]))
+    code, _, err = run_main(["trial", *CHEAP_TRIAL, "--engine", "bullet", "--scene", f"mesh:{path}"], project)
+    assert code == 2 and "pybullet cannot take this mesh (131073 vertices" in err, err
