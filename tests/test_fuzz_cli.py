@@ -252,7 +252,7 @@ def test_a_mesh_over_the_triangle_limit_is_one_error_line(project, monkeypatch):
     path.write_bytes(obj_text(CUBE, TETRA))
     monkeypatch.setenv("PIPELINE_MAX_MESH_FACES", "3")
     code, _, err = run_main(["trial", *CHEAP_TRIAL, "--scene", f"mesh:{path}"], project)
-    assert code == 2 and "4 triangles, more than 3 (PIPELINE_MAX_MESH_FACES)" in err, err
+    assert code == 2 and "triangles: 4, more than 3 (PIPELINE_MAX_MESH_FACES)" in err, err
     monkeypatch.setenv("PIPELINE_MAX_MESH_FACES", "many")
     assert run_main(["trial", *CHEAP_TRIAL, "--scene", f"mesh:{path}"], project)[0] == 2
 

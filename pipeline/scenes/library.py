@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
 from pipeline.errors import UserError
+from pipeline.limits import refuse_over
 from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
 
 
@@ -60,19 +60,9 @@ MAX_FACES_ENV = "PIPELINE_MAX_MESH_FACES"
 MAX_FACES = 174_762     # pybullet's most (524 288 indices); a 2-million-triangle scene ran > 400 s
 
 
-def max_mesh_faces() -> int:
-    """The most triangles of a scene mesh: ``PIPELINE_MAX_MESH_FACES`` if set, else :data:`MAX_FACES`."""
-    text = os.environ.get(MAX_FACES_ENV, "").strip()
-    if not text:
-        return MAX_FACES
-    if not text.isascii() or not text.isdigit() or int(text) == 0:
-        raise UserError(f"{MAX_FACES_ENV}={text!r}: must be a positive whole number of triangles")
-    return int(text)
-
-
 def load_mesh(path: str | Path) -> TriangleMesh:
-    """A cleaned scan mesh (OBJ/PLY/STL, vertices in metres, at most :func:`max_mesh_faces`
-    triangles) as a static obstacle."""
+    """A cleaned scan mesh (OBJ/PLY/STL, vertices in metres, at most :data:`MAX_FACES` triangles
+    unless ``PIPELINE_MAX_MESH_FACES`` says otherwise) as a static obstacle."""
     import trimesh
 
     path = Path(path)
@@ -85,9 +75,8 @@ def load_mesh(path: str | Path) -> TriangleMesh:
     vertices, faces = np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
     if len(faces) == 0 or not np.all(np.isfinite(vertices)):
         raise UserError(f"{path}: mesh has no triangles or non-finite vertices")
-    if len(faces) > max_mesh_faces():
-        raise UserError(f"{path}: {len(faces)} triangles, more than {max_mesh_faces()} ({MAX_FACES_ENV}); "
-                        "simplify it (`pipeline build-meshes`, meshes.simplify.target_edge_mm)")
+    refuse_over(f"{path}: triangles", len(faces), MAX_FACES_ENV, MAX_FACES,
+                "simplify it (`pipeline build-meshes`, meshes.simplify.target_edge_mm)")
     corners = vertices[faces]
     if not np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]).any():
         raise UserError(f"{path}: every triangle of the mesh has zero area (no surface to touch)")
