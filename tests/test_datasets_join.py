@@ -79,3 +79,15 @@ def test_joined_dataset_opens_in_xarray_with_named_dims(tmp_path):
         np.testing.assert_array_equal(ds.base_moment.sel(trial=5).values, fake_output(5).base_wrench[..., 3:])
     with xr.open_dataset(version / "data.h5", engine="h5netcdf", group="trials") as trials:
         assert trials.scene.dims == ("trial",) and trials.scene.values[4] == "scene-4"
+
+
+def test_a_second_join_names_the_join_in_progress_and_its_pid(tmp_path):
+    """Issue 28: the second `datasets join` of a run said "being written"; it names the join."""
+    import os
+
+    from pipeline.datasets.versions import VersionLock
+
+    run = write_shard(tmp_path, 1).parent
+    with VersionLock(run, "joined"):                         # the first join, still running
+        with pytest.raises(UserError, match=f"{run} is being joined by pid {os.getpid()}$"):
+            join_shards(tmp_path, "scan")

@@ -234,3 +234,16 @@ def test_readers_on_damage_the_fuzzer_found(parser, tmp_path):
     data = bytearray((DATA / "dataset_v1.h5").read_bytes() if parser == "dataset-hdf5" else measurement_bytes())
     data[offset] ^= mask
     PARSERS[parser][1](bytes(data), tmp_path)
+
+
+def test_a_table_over_the_row_limit_is_one_error_line(tmp_path, monkeypatch):
+    """A 2 000-row table kept `calibrate` busy > 300 s unsaid; the limit (500 rows) is lowered here
+    through its environment variable."""
+    from pipeline.measurements.table import load_table
+
+    path = tmp_path / "table.csv"
+    path.write_bytes(TABLE + TABLE.splitlines(keepends=True)[-1].replace(b"C2,", b"C3,"))
+    assert len(load_table(path).records) == 2
+    monkeypatch.setenv("PIPELINE_MAX_TABLE_ROWS", "1")
+    with pytest.raises(UserError, match=f"^{path}: rows: 2, more than 1 \\(PIPELINE_MAX_TABLE_ROWS\\);"):
+        load_table(path)

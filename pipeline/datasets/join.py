@@ -126,7 +126,7 @@ def join_shards(root: Path | None, name: str, run: str | None = None) -> Path:
     joined, so two joins at once make one version, not two sharing the same shard files."""
     root = datasets_root(root)
     run_folder = _run_folder(root, name, run)
-    with VersionLock(run_folder):           # a second `join` of the same run at once stops here
+    with VersionLock(run_folder, "joined"):  # a second `join` of the same run at once stops here
         return _join_locked(root, name, run_folder)
 
 

@@ -103,10 +103,12 @@ def resolve(target: str | Path, root: str | Path | None = None) -> Path:
 
 class VersionLock:
     """Exclusive lock of a version (or shard) folder for the one process writing it (filelock's
-    ``flock`` on ``LOCK_FILE``, which names the writer's pid while it holds the lock)."""
+    ``flock`` on ``LOCK_FILE``, which names what the holder does and its pid while it holds the
+    lock: "written by pid N", "joined by pid N")."""
 
-    def __init__(self, folder: Path):
+    def __init__(self, folder: Path, activity: str = "written"):
         self.path = Path(folder) / LOCK_FILE
+        self.activity = activity
         self._lock = FileLock(self.path, is_singleton=False)
 
     def __enter__(self) -> "VersionLock":
@@ -114,8 +116,8 @@ class VersionLock:
             self._lock.acquire(blocking=False)
         except Timeout:
             owner = self.path.read_text().strip() if self.path.is_file() else ""
-            raise UserError(f"{self.path.parent} is being written by {owner or 'another process'}") from None
-        self.path.write_text(f"pid {os.getpid()}")
+            raise UserError(f"{self.path.parent} is being {owner or 'written by another process'}") from None
+        self.path.write_text(f"{self.activity} by pid {os.getpid()}")
         return self
 
     def __exit__(self, *exc) -> None:

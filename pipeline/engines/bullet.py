@@ -79,6 +79,7 @@ from pipeline.engines.base import Engine, TrialSetup, World, WorldResult
 from pipeline.engines.bullet_contact import find_contacts
 from pipeline.engines.bullet_whisker import IDENTITY_QUAT, BulletWhisker, quat
 from pipeline.engines.common import ContactFlags, implausible, jam_message, node_arc_fractions
+from pipeline.errors import UserError
 from pipeline.model.array import WhiskerModel
 from pipeline.model.kinematics import ProtractionDrive
 from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
@@ -118,8 +119,12 @@ def _mesh_shape(client: int, mesh: TriangleMesh) -> int:
     import pybullet as p
 
     inner = mesh.vertices_m * U.LENGTH - MESH_MARGIN_MM * mesh.vertex_normals
-    return p.createCollisionShape(p.GEOM_MESH, physicsClientId=client, vertices=inner.tolist(),
-                                  indices=mesh.faces.astype(int).ravel().tolist())
+    try:
+        return p.createCollisionShape(p.GEOM_MESH, physicsClientId=client, vertices=inner.tolist(),
+                                      indices=mesh.faces.astype(int).ravel().tolist())
+    except (p.error, SystemError) as exc:   # beyond 131 072 vertices or 524 288 indices
+        raise UserError(f"{mesh.source}: pybullet cannot take this mesh ({len(inner)} vertices, "
+                        f"{len(mesh.faces)} triangles): {' '.join(str(exc).split())}") from None
 
 
 SHAPES = {Cylinder: _cylinder_shape, Box: _box_shape, TriangleMesh: _mesh_shape}

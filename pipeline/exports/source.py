@@ -91,12 +91,13 @@ def read_trials(target: str | Path, root: str | Path | None = None,
         status = ds.status
         if isinstance(trials, str):
             trials = parse_trials(trials, len(status), option)
+        unknown = [int(i) for i in ([] if trials is None else trials)
+                   if not 0 <= i < len(status)]     # before numpy: an int of any size
+        if unknown:
+            raise UserError(f"{option} {unknown[0]}: {ds.path} has trials 0..{len(status) - 1}")
         rows = np.flatnonzero(status == OK) if trials is None else np.asarray(trials, dtype=int)
         if rows.size == 0:
             raise UserError(f"{ds.path}: no ok trial to export")
-        unknown = [int(i) for i in rows if not 0 <= i < len(status)]
-        if unknown:
-            raise UserError(f"{option} {unknown[0]}: {ds.path} has trials 0..{len(status) - 1}")
         pending = [int(i) for i in rows if status[i] == PENDING]
         if pending:
             raise UserError(f"{option} {pending[0]}: trial not simulated yet (pending) in {ds.path}")

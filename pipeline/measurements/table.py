@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from pipeline.errors import UserError
+from pipeline.limits import refuse_over
 from pipeline.model.whisker import WhiskerGeometry
 
 FORMAT = "whisker-pipeline/resonance-table"
@@ -27,6 +28,8 @@ REQUIRED = ("whisker", "arc_length_m", "base_diameter_m", "tip_diameter_m", "f1_
 OPTIONAL = ("curvature_per_m", "f1_sd_hz", "f2_hz", "f2_sd_hz", "f3_hz", "f3_sd_hz",
             "log_decrement", "log_decrement_sd", "damping_ratio", "damping_ratio_sd", "trials")
 MODES = 3
+MAX_ROWS_ENV = "PIPELINE_MAX_TABLE_ROWS"
+MAX_ROWS = 500       # calibrate fits ~1 s per row: 500 rows ≈ 8 min (a 2 000-row table ran > 300 s unsaid)
 MAX_FREQUENCY_HZ = 1e5         # whisker modes lie between ~10 Hz and ~10 kHz; this bound keeps fits finite
 _CONDITIONS = re.compile(r"#\s*conditions:\s*(.*)$")
 # what a table may state about its measurements: key → allowed values (first: assumed when absent)
@@ -149,6 +152,8 @@ def load_table(path: str | Path) -> ResonanceTable:
     numbered = [(i + 1, line) for i, line in enumerate(lines) if line.strip() and not line.startswith("#")]
     if not numbered:
         raise UserError(f"{path}: no header row")
+    refuse_over(f"{path}: rows", len(numbered) - 1, MAX_ROWS_ENV, MAX_ROWS,
+                "split the table, or fit a subset of its whiskers")
     reader = csv.DictReader([line for _, line in numbered])
     columns = [c.strip() for c in reader.fieldnames or []]
     reader.fieldnames = columns

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.errors import UserError
+from pipeline.limits import refuse_over
 from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
 
 
@@ -55,8 +56,13 @@ def collision_edge(contact_point_m: np.ndarray, normal: np.ndarray, edge_directi
     return Scene("edge", (Box(tuple(half), tuple(centre), tuple(map(tuple, rotation))),))
 
 
+MAX_FACES_ENV = "PIPELINE_MAX_MESH_FACES"
+MAX_FACES = 174_762     # pybullet's most (524 288 indices); a 2-million-triangle scene ran > 400 s
+
+
 def load_mesh(path: str | Path) -> TriangleMesh:
-    """A cleaned scan mesh (OBJ/PLY/STL, vertices in metres) as a static obstacle."""
+    """A cleaned scan mesh (OBJ/PLY/STL, vertices in metres, at most :data:`MAX_FACES` triangles
+    unless ``PIPELINE_MAX_MESH_FACES`` says otherwise) as a static obstacle."""
     import trimesh
 
     path = Path(path)
@@ -69,6 +75,11 @@ def load_mesh(path: str | Path) -> TriangleMesh:
     vertices, faces = np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
     if len(faces) == 0 or not np.all(np.isfinite(vertices)):
         raise UserError(f"{path}: mesh has no triangles or non-finite vertices")
+    refuse_over(f"{path}: triangles", len(faces), MAX_FACES_ENV, MAX_FACES,
+                "simplify it (`pipeline build-meshes`, meshes.simplify.target_edge_mm)")
+    corners = vertices[faces]
+    if not np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]).any():
+        raise UserError(f"{path}: every triangle of the mesh has zero area (no surface to touch)")
     if np.ptp(vertices, axis=0).max() > 50:
         raise UserError(f"{path}: mesh spans {np.ptp(vertices, axis=0).max():.0f} units; "
                         "meshes must be in metres (build them with `pipeline build-meshes`)")
