@@ -136,10 +136,3 @@ def is_locked(folder: Path) -> bool:
         return True
     probe.release()
     return False
-    with open(path) as handle:
-        try:
-            fcntl.flock(handle, fcntl.LOCK_SH | fcntl.LOCK_NB)
-        except BlockingIOError:
-            return True
-        fcntl.flock(handle, fcntl.LOCK_UN)
-    return False
