@@ -136,6 +136,7 @@ class BulletWhisker:
         self.free_dofs = np.arange(3, self.n_dof)
         self.stiffness = np.concatenate([np.zeros(3), layout.stiffness * U.TORQUE])
         self.damping = np.concatenate([np.zeros(3), layout.damping * U.TORQUE])
+        self._minus_stiffness, self._free_damping = -self.stiffness[3:], self.damping[3:]
         self.rest_driven = np.asarray(model.rest_joint_angles, float)
         self.rates = np.asarray(model.joint_rates, float)
         self.link_com = chain.link_com_m * U.LENGTH
@@ -190,16 +191,18 @@ class BulletWhisker:
         import pybullet as p
 
         c = self.client
-        q, v = np.array([s[:2] for s in p.getJointStates(self.body, self.dofs, physicsClientId=c)]).T
-        q_list, v_list = q.tolist(), v.tolist()
-        if self._lhs_inverse is None or np.abs(q[3:] - self._factorised_at).max() > MASS_REFRESH_RAD:
+        states = p.getJointStates(self.body, self.dofs, physicsClientId=c)
+        q_list, v_list = [s[0] for s in states], [s[1] for s in states]
+        q, v = np.array(q_list), np.array(v_list)
+        q_free = q[3:]
+        if self._lhs_inverse is None or np.abs(q_free - self._factorised_at).max() > MASS_REFRESH_RAD:
             self._factorise(q_list, h)
         generalised = self._apply_loads(loads, q_list) if loads else 0.0   # Bullet adds Jᵀ·F itself
         accel = np.zeros(self.n_dof)
         accel[:3] = ((q_target - q[:3]) / h - v[:3]) / h
         driven_only = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, accel.tolist(),
                                                           physicsClientId=c)) - generalised   # M_·D·a_D + b − Jᵀ·F
-        accel[3:] = self._lhs_inverse @ (-self.stiffness[3:] * q[3:] - self.damping[3:] * v[3:] - driven_only[3:])
+        accel[3:] = self._lhs_inverse @ (self._minus_stiffness * q_free - self._free_damping * v[3:] - driven_only[3:])
         normal_forces = np.zeros(len(contacts))
         if contacts:
             normal_forces, contact_generalised = self._contact_forces(contacts, q_list, v, accel, h,
@@ -253,9 +256,10 @@ class BulletWhisker:
         """(M_FF + h·C + h²·K)⁻¹ at joint angles q (F: the free joints)."""
         import pybullet as p
 
-        mass = np.array(p.calculateMassMatrix(self.body, q, physicsClientId=self.client))
+        rows = p.calculateMassMatrix(self.body, q, physicsClientId=self.client)[3:]
+        mass_free = np.array([row[3:] for row in rows])      # converting only M_FF: half the cost
         self._factorised_at = np.array(q[3:])
-        self._lhs_inverse = np.linalg.inv(mass[3:, 3:] + np.diag(h * self.damping[3:] + h * h * self.stiffness[3:]))
+        self._lhs_inverse = np.linalg.inv(mass_free + np.diag(h * self.damping[3:] + h * h * self.stiffness[3:]))
 
     def link_state(self, velocities: bool) -> LinkState:
         """The whisker links' centres of mass, frames and velocities (world frame, SI)."""
