@@ -137,6 +137,7 @@ class BulletWhisker:
         self.stiffness = np.concatenate([np.zeros(3), layout.stiffness * U.TORQUE])
         self.damping = np.concatenate([np.zeros(3), layout.damping * U.TORQUE])
         self._minus_stiffness, self._free_damping = -self.stiffness[3:], self.damping[3:]
+        self._free_zeros = [0.0] * (self.n_dof - 3)
         self.rest_driven = np.asarray(model.rest_joint_angles, float)
         self.rates = np.asarray(model.joint_rates, float)
         self.link_com = chain.link_com_m * U.LENGTH
@@ -193,25 +194,29 @@ class BulletWhisker:
         c = self.client
         states = p.getJointStates(self.body, self.dofs, physicsClientId=c)
         q_list, v_list = [s[0] for s in states], [s[1] for s in states]
-        q, v = np.array(q_list), np.array(v_list)
+        q, v = np.array((q_list, v_list))
         q_free = q[3:]
         if self._lhs_inverse is None or np.abs(q_free - self._factorised_at).max() > MASS_REFRESH_RAD:
             self._factorise(q_list, h)
         generalised = self._apply_loads(loads, q_list) if loads else 0.0   # Bullet adds Jᵀ·F itself
-        accel = np.zeros(self.n_dof)
-        accel[:3] = ((q_target - q[:3]) / h - v[:3]) / h
-        driven_only = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, accel.tolist(),
-                                                          physicsClientId=c)) - generalised   # M_·D·a_D + b − Jᵀ·F
-        accel[3:] = self._lhs_inverse @ (self._minus_stiffness * q_free - self._free_damping * v[3:] - driven_only[3:])
+        accel_driven = (((q_target - q[:3]) / h - v[:3]) / h).tolist()
+        driven_only = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, accel_driven + self._free_zeros,
+                                                          physicsClientId=c))   # M_·D·a_D + b
+        if loads:
+            driven_only -= generalised                                           # ... − Jᵀ·F
+        accel_free = self._lhs_inverse @ (self._minus_stiffness * q_free - self._free_damping * v[3:] - driven_only[3:])
         normal_forces = np.zeros(len(contacts))
         if contacts:
+            accel = np.concatenate([accel_driven, accel_free])
             normal_forces, contact_generalised = self._contact_forces(contacts, q_list, v, accel, h,
                                                                       friction, iterations)
             generalised = generalised + contact_generalised
-        torque = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, accel.tolist(),
-                                                     physicsClientId=c)) - generalised
-        p.setJointMotorControlArray(self.body, self.dofs, p.TORQUE_CONTROL, forces=torque.tolist(),
-                                    physicsClientId=c)
+            accel_free = accel[3:]
+        torque = p.calculateInverseDynamics(self.body, q_list, v_list, accel_driven + accel_free.tolist(),
+                                            physicsClientId=c)
+        if loads or contacts:                          # (x − 0.0 is x: skipped without them)
+            torque = (np.array(torque) - generalised).tolist()
+        p.setJointMotorControlArray(self.body, self.dofs, p.TORQUE_CONTROL, forces=torque, physicsClientId=c)
         return normal_forces
 
     def _contact_forces(self, contacts, q: list[float], v: np.ndarray, accel: np.ndarray, h: float,
