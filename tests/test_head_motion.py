@@ -169,3 +169,24 @@ def test_a_head_table_moves_relative_to_the_starting_pose(tmp_path):
     assert np.allclose(end.rotation, start.rotation @ Pose.anatomical(yaw_rad=np.radians(20)).rotation, atol=1e-12)
     with pytest.raises(UserError):
         load_head_table(tmp_path / "missing.csv")
+
+
+def test_default_head_motion_ranges_are_the_shipped_quantiles_of_tracked_rats():
+    """Speed from the median to the 95th percentile, yaw rate within ± the 95th percentile of
+    Wallach et al. 2020's freely moving rats (pipeline/data/behaviour, docs/closed_loop.md)."""
+    import csv
+    from importlib.resources import files
+
+    from pipeline.config.simulate import HeadMotionConfig
+
+    text = files("pipeline").joinpath("data/behaviour/wallach2020_head_motion.csv").read_text()
+    rows = {float(r["quantile_pct"]): r for r in csv.DictReader(line for line in text.splitlines()
+                                                                 if not line.startswith("#"))}
+    defaults = HeadMotionConfig()
+    assert defaults.speed_mm_s.low == pytest.approx(float(rows[50]["speed_mm_s"]), abs=0.5)
+    assert defaults.speed_mm_s.high == pytest.approx(float(rows[95]["speed_mm_s"]), abs=0.5)
+    assert defaults.yaw_rate_deg_s.high == pytest.approx(float(rows[95]["yaw_rate_abs_deg_s"]), abs=0.5)
+    assert defaults.yaw_rate_deg_s.low == -defaults.yaw_rate_deg_s.high
+    lengths_per_s = np.array([float(r["speed_eye_nose_lengths_per_s"]) for r in rows.values()])
+    mm_s = np.array([float(r["speed_mm_s"]) for r in rows.values()])
+    assert np.allclose(mm_s, lengths_per_s * mm_s[-1] / lengths_per_s[-1], atol=0.1)   # one scale

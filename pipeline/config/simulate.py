@@ -150,8 +150,8 @@ class HeadMotionConfig(StrictModel):
     """
 
     kind: Literal["none", "approach", "table"] = "none"
-    speed_mm_s: Annotated[Range, within(0.0, 1000.0)] = Range(low=20.0, high=120.0)
-    yaw_rate_deg_s: Annotated[Range, within(-1000.0, 1000.0)] = Range(low=-90.0, high=90.0)
+    speed_mm_s: Annotated[Range, within(0.0, 1000.0)] = Range(low=17.0, high=89.0)
+    yaw_rate_deg_s: Annotated[Range, within(-1000.0, 1000.0)] = Range(low=-100.0, high=100.0)
     table: Path | None = Field(None, description="kind 'table': CSV of the head's pose relative to its start")
 
     @model_validator(mode="after")

@@ -6,16 +6,10 @@ scenes, placed in the head frame: straight ahead, rostral) while turning about i
 at a drawn yaw rate: a constant body twist (:meth:`~pipeline.model.head_motion.HeadMotion.steady`).
 ``table``: the head's pose relative to its starting pose, from a CSV.
 
-Ranges. Rats move their heads continuously while whisking and turn toward what they touch:
-whisking asymmetries anticipate head turns (Towal & Hartmann 2006, J. Neurosci. 26:8838), head
-velocity varies quasi-periodically at the whisking frequency while rats explore a wall (Hobbs,
-Towal & Hartmann 2016, Front. Behav. Neurosci. 9:356), contact modulates whisking and orienting
-(Mitchinson et al. 2007, Proc. R. Soc. B 274:1035; Grant et al. 2009, J. Neurophysiol.
-101:862), and rats move slowly near surfaces in unfamiliar places and faster in familiar ones
-(Arkley et al. 2014, Curr. Biol. 24:1507). The default ranges (20–120 mm/s, ±90 °/s) are
-slow exploratory approach speeds and turning rates chosen for that regime; they are not quoted
-from these papers (no tabulated values were at hand), so check them against the papers' figures
-before fitting anything to them.
+Ranges. The defaults of :class:`~pipeline.config.simulate.HeadMotionConfig` are quantiles of
+head speed and yaw rate of tracked freely moving rats (Wallach et al. 2020, PLoS Biol.
+18:e3000571), shipped in ``pipeline/data/behaviour/wallach2020_head_motion.csv``: speed from the
+median to the 95th percentile, yaw rate within ± the 95th percentile (docs/closed_loop.md).
 """
 
 from __future__ import annotations
