@@ -455,16 +455,18 @@ class MujocoWorld(World):
 
         obstacle = part.obstacle
         piece = mujoco.MjSpec()
-        body = piece.worldbody.add_body(name="body",
-                                       pos=np.asarray(obstacle.position_m, float) * U.LENGTH,
-                                       quat=quat_wxyz(obstacle.rotation))
-        if part.velocity_mm_s.any():
-            body.explicitinertial = True
-            body.mass, body.inertia = OBSTACLE_MASS_MG, [OBSTACLE_MASS_MG] * 3
-            for axis, label in zip((_X, _Y, _Z), "xyz"):
-                body.add_joint(name=label, type=mujoco.mjtJoint.mjJNT_SLIDE,
-                               axis=obstacle.rotation.T @ np.asarray(axis),
-                               armature=KINEMATIC_ARMATURE * OBSTACLE_MASS_MG)
+        place = dict(pos=np.asarray(obstacle.position_m, float) * U.LENGTH, quat=quat_wxyz(obstacle.rotation))
+        if not part.velocity_mm_s.any():
+            SHAPES[type(obstacle)](self, piece, piece.worldbody.add_frame(**place), part)
+            spec.attach(piece, prefix=f"obstacle{part.index}/", frame=spec.worldbody.add_frame())
+            return
+        body = piece.worldbody.add_body(name="body", **place)
+        body.explicitinertial = True
+        body.mass, body.inertia = OBSTACLE_MASS_MG, [OBSTACLE_MASS_MG] * 3
+        for axis, label in zip((_X, _Y, _Z), "xyz"):
+            body.add_joint(name=label, type=mujoco.mjtJoint.mjJNT_SLIDE,
+                           axis=obstacle.rotation.T @ np.asarray(axis),
+                           armature=KINEMATIC_ARMATURE * OBSTACLE_MASS_MG)
         SHAPES[type(obstacle)](self, piece, body, part)
         spec.worldbody.add_frame().attach_body(body, f"obstacle{part.index}/", "")
 
