@@ -355,6 +355,7 @@ class MujocoWorld(World):
         spec = mujoco.MjSpec()
         spec.modelname = "whiskers"
         spec.memory = ARENA_BYTES
+        spec.compiler.usethread = False     # one core per worker: threads add CPU, not speed
         option = spec.option
         option.timestep = self.dt_s
         option.integrator = mujoco.mjtIntegrator.mjINT_DISCRETE
@@ -448,13 +449,17 @@ class MujocoWorld(World):
         self._contact_options(geom)
 
     def _add_obstacle(self, spec, part: _Part) -> None:
-        """A static obstacle on a body without joints, a moving one on three kinematic slides.
-        Built in a spec of its own and attached: adding thousands of prisms to the spec that
-        already holds the whiskers costs about twice as much per element."""
+        """A static obstacle's geoms on the world body (MuJoCo's broadphase then skips them:
+        it pairs the world body with every body that may collide and leaves the prisms to the
+        midphase's static BVH, instead of going over every geom of a static body each step), a
+        moving one on a body on three kinematic slides. Built in a spec of its own and
+        attached: adding thousands of prisms to the spec that already holds the whiskers costs
+        about twice as much per element."""
         import mujoco
 
         obstacle = part.obstacle
         piece = mujoco.MjSpec()
+        self._obstacle_geom(piece.default.geom)            # every geom of the piece starts from it
         place = dict(pos=np.asarray(obstacle.position_m, float) * U.LENGTH, quat=quat_wxyz(obstacle.rotation))
         if not part.velocity_mm_s.any():
             SHAPES[type(obstacle)](self, piece, piece.worldbody.add_frame(**place), part)
@@ -476,22 +481,21 @@ class MujocoWorld(World):
         for f, prism in enumerate(part.prisms):
             name = f"f{f}"
             spec.add_mesh(name=name, uservert=prism.ravel())
-            self._obstacle_geom(body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name))
+            body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name)
 
     def _add_cylinder(self, spec, body, part: _Part) -> None:
         import mujoco
 
         peg = part.obstacle
-        self._obstacle_geom(body.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER,
-                                          size=[peg.radius_m * U.LENGTH, 0.5 * peg.length_m * U.LENGTH, 0]))
+        body.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[peg.radius_m * U.LENGTH, 0.5 * peg.length_m * U.LENGTH, 0])
 
     def _add_box(self, spec, body, part: _Part) -> None:
         import mujoco
 
-        self._obstacle_geom(body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX,
-                                          size=np.asarray(part.obstacle.half_extents_m, float) * U.LENGTH))
+        body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=np.asarray(part.obstacle.half_extents_m, float) * U.LENGTH)
 
     def _obstacle_geom(self, geom) -> None:
+        """An obstacle's collision settings on ``geom`` (a geom or a default)."""
         geom.contype, geom.conaffinity = 0, OBSTACLE_CONAFFINITY
         self._contact_options(geom)
 
