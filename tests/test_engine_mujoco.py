@@ -270,3 +270,20 @@ def test_whisker_tips_barely_sink_into_a_closed_surface(engine_name):
     sunk = (inside > 1e-4).any(axis=2)
     assert sunk.sum() < 0.15 * in_contact.sum()
     assert inside.max() < 6e-4
+
+
+@pytest.mark.parametrize("moving", [False, True], ids=["static", "moving"])
+def test_static_obstacles_lie_on_the_world_body(moving):
+    """A static obstacle's geoms are the world body's (MuJoCo's broadphase then leaves them to the
+    midphase instead of going over each of them every step); a moving one has a body on slides."""
+    from pipeline.engines.mujoco import OBSTACLE_CONAFFINITY
+    from pipeline.scenes import passive_peg
+
+    scene = passive_peg(lateral_m=0.012, start_y_m=0.005) if moving else active_pegs(lateral_m=0.025, y_m=-0.012)
+    config = _config("mujoco")
+    with create_engine(config, build_array(model_rat().select("RC1"), config.material)) as engine:
+        engine.run(scene, Pose(), sinusoidal_whisk(duration_s=0.004), 0.004)
+        model = engine.worlds[0][1].model
+    obstacle = (model.geom_contype == 0) & (model.geom_conaffinity == OBSTACLE_CONAFFINITY)
+    assert obstacle.any()
+    assert np.all((model.geom_bodyid[obstacle] == 0) != moving)

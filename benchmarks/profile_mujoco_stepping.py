@@ -1,0 +1,124 @@
+"""Where a MuJoCo dataset trial's CPU goes: the cheap path, compiling, cropping, stepping the
+whiskers that can touch (MuJoCo's own stages and the Python around the step).
+
+Run: .venv/bin/python benchmarks/profile_mujoco_stepping.py [--trials 8]
+
+The trials are those of benchmarks/profile_dataset_trial.py (configs/simulate.yaml, trial 0
+builds the engine and is left out). Per trial (mean): CPU of the trial, of the cheap path
+(pipeline/engines/free_path.py), of building the full worlds' models (the spec, MuJoCo's
+compile), of cropping the scan (pipeline/engines/swept_crop.py), of the full worlds' stepping
+split into ``mj_step`` and the Python of the loop (recording, contact flags). Within the full
+worlds' steps, MuJoCo's stage timers (``MjData.timer``, wall-clock: shares only) and per step
+with contacts the contacts, constraint rows and PGS sweeps summed over the constraint islands.
+The instrumentation (a process-time clock around each ``mj_step``) adds ≈ 1 µs per step.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from pipeline.config.loader import load_config
+from pipeline.config.simulate import SimulateConfig
+from pipeline.engines import free_path, swept_crop
+from pipeline.engines import mujoco as engine
+from pipeline.runner.scenes import scene_catalogue
+from pipeline.runner.simulate import _layout
+from pipeline.runner.trial import RunSpec, Simulator
+
+REPO = Path(__file__).resolve().parents[1]
+STAGES = ("COL_BROAD", "COL_NARROW", "CONSTRAINT", "POS_INERTIA", "POS_KINEMATICS", "POS_MAKE", "POS_PROJECT",
+          "VELOCITY")
+
+cpu: collections.Counter = collections.Counter()      # seconds, by part
+stages: collections.Counter = collections.Counter()   # MuJoCo timer seconds of the full worlds, by stage
+per_step: dict[str, list] = collections.defaultdict(list)
+worlds: list[tuple[int, int, int]] = []               # per full world run: members, geoms, colliding links
+
+
+def timed(owner, name: str, label: str) -> None:
+    """Add the process time of ``owner.name`` to ``cpu[label]``."""
+    function = getattr(owner, name)
+
+    def wrapper(*args, **kwargs):
+        start = time.process_time()
+        try:
+            return function(*args, **kwargs)
+        finally:
+            cpu[label] += time.process_time() - start
+
+    setattr(owner, name, wrapper)
+
+
+def instrument() -> None:
+    timed(free_path.FreePath, "clear", "cheap path")
+    timed(engine.MujocoWorld, "_build", "model: spec and compile")
+    timed(mujoco.MjSpec, "compile", "model: MuJoCo compile")
+    timed(engine.MujocoWorld, "_reach", "crop: faces near the paths")
+    timed(swept_crop.SweptCrop, "escaped", "crop: escape check")
+    step, simulate = mujoco.mj_step, engine.MujocoWorld._simulate
+    full = {"on": False}
+
+    def counted_step(m, d):
+        start = time.process_time()
+        step(m, d)
+        if full["on"]:
+            cpu["stepping: mj_step"] += time.process_time() - start
+            if d.ncon:
+                per_step["contacts"].append(d.ncon)
+                per_step["constraint rows"].append(d.nefc)
+                per_step["PGS sweeps"].append(int(d.solver_niter[:max(d.nisland, 1)].sum()))
+
+    def full_simulate(self, setup):
+        full["on"] = self.config.free_whiskers != "engine"          # the cheap path's engine: "engine"
+        start = time.process_time()
+        try:
+            return simulate(self, setup)
+        finally:
+            if full["on"]:
+                cpu["stepping: total"] += time.process_time() - start
+                for stage in STAGES:
+                    stages[stage] += self.data.timer[int(getattr(mujoco.mjtTimer, f"mjTIMER_{stage}"))].duration
+                stages["STEP"] += self.data.timer[int(mujoco.mjtTimer.mjTIMER_STEP)].duration
+                worlds.append((len(self.members), self.model.ngeom,
+                               int((self.model.geom_contype[self.whisker_geoms] > 0).sum())))
+            full["on"] = False
+
+    mujoco.mj_step = counted_step
+    engine.MujocoWorld._simulate = full_simulate
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--trials", type=int, default=8)
+    args = parser.parse_args()
+    config, _ = load_config(SimulateConfig, REPO / "configs" / "simulate.yaml", env_prefix="PIPELINE_SIMULATE_", overrides={
+        "model": {"engine": {"name": "mujoco"}}, "scenes": {"folder": str(REPO / "outputs" / "meshes")}})
+    simulator = Simulator(RunSpec(config, scene_catalogue(config.scenes), _layout(config)))
+    simulator.run(0)
+    instrument()
+    start = time.process_time()
+    statuses = [simulator.run(index).record.status for index in range(1, args.trials + 1)]
+    total = (time.process_time() - start) / args.trials
+    print(f"{args.trials} trials, statuses {set(statuses)}: {total:.3f} CPU-s per trial")
+    cpu["stepping: Python around the step"] = cpu["stepping: total"] - cpu["stepping: mj_step"]
+    for label, seconds in sorted(cpu.items()):
+        print(f"  {label:34s} {seconds / args.trials:6.3f} s")
+    print("full worlds, MuJoCo's stages (share of mj_step's timer):",
+          ", ".join(f"{stage} {stages[stage] / stages['STEP']:.0%}" for stage in STAGES))
+    members, geoms, links = np.array(worlds).T
+    print(f"full worlds: {len(worlds)} runs, whiskers {members.min()}–{members.max()}, geoms {geoms.min()}–"
+          f"{geoms.max()}, colliding links {links.min()}–{links.max()}")
+    for label, values in per_step.items():
+        values = np.array(values)
+        print(f"per step with contacts ({values.size} steps), {label}: median {np.median(values):.0f}, "
+              f"P90 {np.percentile(values, 90):.0f}, max {values.max()}, total {values.sum()}")
+
+
+if __name__ == "__main__":
+    main()
