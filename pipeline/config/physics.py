@@ -38,7 +38,7 @@ class FollicleConfig(StrictModel):
 # the preset's values fill every material field the config does not set itself.
 MATERIAL_PRESETS = {
     # the paper's two trimmed, motor-driven whiskers (α, B1; Table 1): E and θ_ζ of eq. 3 fitted on
-    # the continuum chain at N = 20 (pipeline.analysis.material_fit: E = 7.91 GPa, θ_ζ = 0.134,
+    # the continuum chain at N = 20 (pipeline.diagnosis.material_fit: E = 7.91 GPa, θ_ζ = 0.134,
     # MSA 0.072), and the stiff follicle used with them
     "trimmed": {"youngs_modulus_gpa": 7.91, "damping_ratio": 0.134, "damping_model": "paper",
                 "link_density": "integrated", "base_segment": True,
