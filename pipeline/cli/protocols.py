@@ -15,7 +15,8 @@ from pipeline.cli.options import (CONFIG, ENGINE, JSON, MODEL_FILE, MORPHOLOGY, 
                                   follicle_override, model_config, morphology as morphology_option,
                                   writable_out)
 from pipeline.cli.output import busy, print_summary
-from pipeline.config.physics import EngineName, PresetName
+from pipeline.config.material import PresetName
+from pipeline.config.physics import EngineName
 from pipeline.console import print_json
 from pipeline.errors import UserError
 

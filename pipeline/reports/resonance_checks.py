@@ -14,7 +14,8 @@ from typing import Callable
 
 import numpy as np
 
-from pipeline.config.physics import ModelConfig, with_preset
+from pipeline.config.material import with_preset
+from pipeline.config.physics import ModelConfig
 from pipeline.diagnosis.material_fit import fit_material, paper_table_1, simulate_all, with_material
 from pipeline.model.extensions import model_parts
 from pipeline.model.physics import build_physics
