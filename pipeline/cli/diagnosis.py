@@ -11,10 +11,14 @@ from pipeline import console
 from pipeline.cli.app import app
 from pipeline.cli.options import CONFIG, JSON, PRESET, absolute_path, model_config, writable_out
 from pipeline.cli.output import busy, print_summary
-from pipeline.config.physics import EngineName, PresetName
+from pipeline.config.material import PresetName
+from pipeline.config.physics import EngineName
 from pipeline.console import print_json
 from pipeline.diagnosis.choices import FitMethod, ObjectiveName
 from pipeline.errors import UserError
+
+SAVE_MODEL = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md).")
+REPLACE_SAVED_MODEL = typer.Option(False, "--force", help="Replace an existing --save-model file.")
 
 
 @app.command()
@@ -32,8 +36,8 @@ def calibrate(
     engine: Optional[EngineName] = typer.Option(None, "--engine", show_default=False,
                                                 help="Check and refine the fit on this engine. \\[default: none]"),
     config: Optional[Path] = CONFIG,
-    save_model: Optional[Path] = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md)."),
-    force: bool = typer.Option(False, "--force", help="Replace an existing --save-model file."),
+    save_model: Optional[Path] = SAVE_MODEL,
+    force: bool = REPLACE_SAVED_MODEL,
     preset: Optional[PresetName] = PRESET,
     json_output: bool = JSON,
 ) -> None:
@@ -73,8 +77,8 @@ def diagnose(
                                                 help="Check and refine the result on this engine. \\[default: none]"),
     candidates: Optional[str] = typer.Option(None, "--candidates", help="Only these extensions (comma-separated)."),
     config: Optional[Path] = CONFIG,
-    save_model: Optional[Path] = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md)."),
-    force: bool = typer.Option(False, "--force", help="Replace an existing --save-model file."),
+    save_model: Optional[Path] = SAVE_MODEL,
+    force: bool = REPLACE_SAVED_MODEL,
     preset: Optional[PresetName] = PRESET,
     json_output: bool = JSON,
 ) -> None:
