@@ -19,7 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from pipeline.config.physics import MaterialConfig, with_preset
+from pipeline.config.material import MaterialConfig, with_preset
 from pipeline.diagnosis.joint import calibrate_sets, held_out_errors
 from pipeline.diagnosis.parameters import ModelSpec
 from pipeline.measurements.library import HELD_OUT, load_library, material_table

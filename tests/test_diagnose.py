@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from pipeline.config.physics import MaterialConfig, with_preset
+from pipeline.config.material import MaterialConfig, with_preset
 from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial, damped_modes
 from pipeline.diagnosis.linear import linearise
 from pipeline.errors import UserError

@@ -5,7 +5,8 @@ import pytest
 
 from beam_reference import chain_tip_deflection
 from conftest import REPO
-from pipeline.config.physics import EngineConfig, FollicleConfig, MaterialConfig, ModelConfig
+from pipeline.config.material import FollicleConfig, MaterialConfig
+from pipeline.config.physics import EngineConfig, ModelConfig
 from pipeline.engines import create_engine
 from pipeline.errors import UserError
 from pipeline.model.array import build_array, single_whisker

@@ -742,9 +742,9 @@ def test_a_sigterm_swallowed_by_a_finalizer_is_delivered_again_without_a_traceba
     Python would swallow it and print a traceback. The CLI's hook delivers it again instead."""
     script = """
 import sys, time, weakref
-from pipeline import cli
-cli._TERMINATED_BY.append("SIGTERM")
-sys.unraisablehook = cli._redeliver_swallowed_interrupt
+from pipeline.cli import termination
+termination.TERMINATED_BY.append("SIGTERM")
+sys.unraisablehook = termination.redeliver_swallowed_interrupt
 class Thing: pass
 def interrupted(_):
     raise KeyboardInterrupt

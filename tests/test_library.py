@@ -2,7 +2,7 @@
 
 import pytest
 
-from pipeline.config.physics import MATERIAL_PRESETS, MaterialConfig
+from pipeline.config.material import MATERIAL_PRESETS, MaterialConfig
 from pipeline.errors import UserError
 from pipeline.measurements.library import HELD_OUT, library_paths, load_library, material_table, split_held_out
 from pipeline.measurements.table import combine, load_table

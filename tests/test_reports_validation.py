@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline.analysis.material_fit import PAPER_TABLE_1
+from pipeline.diagnosis.material_fit import paper_table_1
 from pipeline.config.physics import ModelConfig
 from pipeline.model.physics import build_physics
 from pipeline.model.morphology import model_rat
@@ -178,12 +178,12 @@ def test_quick_validate_command(tmp_path):
     data = json.loads((out / "validation.json").read_text())
     assert data["quick"] is True and data["engine"] == "bullet" and set(data["sections"]) == names | {"contact_statics"}
     checks = {c["name"]: c for c in data["checks"]}
-    for m in PAPER_TABLE_1:                                   # Table 1: measured and ours side by side
-        f1 = checks[f"{m.name}_f1_hz"]
-        assert f1["published"] == m.f1_hz and f1["published_sd"] == m.f1_sd_hz
-        assert f1["also_published"]["paper_simulation"] == P.TABLE_1_SIMULATED[m.name]["f1_hz"].value
-        assert f1["simulated"] == pytest.approx(m.f1_hz, rel=0.01) and f1["agrees"]
-        assert checks[f"{m.name}_log_decrement"]["published"] == m.log_decrement
+    for m in paper_table_1():                                 # Table 1: measured and ours side by side
+        f1 = checks[f"{m.whisker}_f1_hz"]
+        assert f1["published"] == m.frequencies_hz[0] and f1["published_sd"] == m.frequency_sd_hz[0]
+        assert f1["also_published"]["paper_simulation"] == P.TABLE_1_SIMULATED[m.whisker]["f1_hz"].value
+        assert f1["simulated"] == pytest.approx(m.frequencies_hz[0], rel=0.01) and f1["agrees"]
+        assert checks[f"{m.whisker}_log_decrement"]["published"] == m.log_decrement
     assert checks["front_speed_column1_m_s"]["published"] == 5.5
     assert checks["front_speed_column1_m_s"]["also_published"] == {"analytic_m_s": 5.6, "measured_m_s": 5.02}
     assert 1.0 < checks["front_speed_column1_m_s"]["simulated"] < 20.0

@@ -98,11 +98,11 @@ def test_scene_catalogue(tmp_path):
 
 
 def test_resume_refuses_another_config(tmp_path):
-    from pipeline.runner.simulate import _target
+    from pipeline.datasets.runs import run_folder
 
     config = SimulateConfig.model_validate({"dataset": {"root": str(tmp_path)}, "trials": 4})
-    folder, label, indices = _target(config, resume=False, shard=None)
+    folder, label, indices = run_folder(config, resume=False, shard=None)
     (folder / "config.yaml").write_text(yaml.safe_dump(config.model_dump(mode="json")))
-    assert _target(config, resume=True, shard=None)[0] == folder
+    assert run_folder(config, resume=True, shard=None)[0] == folder
     with pytest.raises(UserError, match=r"started with another config: trials \(5 now, 4 when started\)"):
-        _target(config.model_copy(update={"trials": 5}), resume=True, shard=None)
+        run_folder(config.model_copy(update={"trials": 5}), resume=True, shard=None)

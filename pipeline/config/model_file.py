@@ -18,7 +18,7 @@ from pydantic import BaseModel, Field, ValidationError
 
 from pipeline.config.loader import describe_error
 from pipeline.config.yaml_text import load_yaml
-from pipeline.config.physics import MaterialConfig, StrictModel
+from pipeline.config.material import MaterialConfig, StrictModel
 from pipeline.errors import UserError
 from pipeline.provenance import text_sha256
 from pipeline.storage import write_text_durably

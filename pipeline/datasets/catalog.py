@@ -16,7 +16,7 @@ from pipeline.datasets.versions import SHARDS_DIR, dataset_names, is_complete, i
 from pipeline.errors import UserError
 
 
-# Figures of the finished run, kept in its manifest (see pipeline.runner.simulate.summarize).
+# Figures of the finished run, kept in its manifest (see pipeline.datasets.runs.totals).
 RUN_FIGURES = ("cpu_seconds_per_trial", "physics_share_of_cpu", "whiskers_in_contact_per_trial",
                "pose_acceptance_rate", "pose_rejections", "failures")
 

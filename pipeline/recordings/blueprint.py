@@ -9,6 +9,7 @@ from pipeline.model.outputs import TrialOutput
 
 SHOWN_WHISKERS = 3
 PLAYBACK_SPEED = 0.1
+TIMELINE = "sim_time"             # the recordings' time axis (simulated seconds)
 
 
 def loaded_whiskers(output: TrialOutput, count: int = SHOWN_WHISKERS) -> list[str]:
@@ -21,8 +22,6 @@ def loaded_whiskers(output: TrialOutput, count: int = SHOWN_WHISKERS) -> list[st
 
 def make_blueprint(output: TrialOutput):
     import rerun.blueprint as rrb
-
-    from pipeline.recordings.writer import TIMELINE
 
     shown = loaded_whiskers(output)
     rows = [rrb.Horizontal(

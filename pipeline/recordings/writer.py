@@ -29,7 +29,7 @@ import numpy as np
 
 from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS, TrialOutput
 from pipeline.model.rotations import quat_xyzw
-from pipeline.recordings.blueprint import make_blueprint
+from pipeline.recordings.blueprint import TIMELINE, make_blueprint
 from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
 from pipeline.storage import require_free_space, sync_directory
 
@@ -40,7 +40,6 @@ APPLICATION_ID = "whisker-pipeline"
 CLOSE_TIMEOUT_S = 60.0                 # longest wait for rerun to flush or close a recording
 DISK_FULL_BELOW_BYTES = 256 * 1024     # free space kept beyond a recording's estimated size
 RECORDING_BYTES_PER_NODE_BYTE = 4      # a recording's size over its node positions' (float64): ~3 measured
-TIMELINE = "sim_time"
 
 WHISKER_COLOUR = (170, 190, 215, 255)
 CONTACT_COLOUR = (255, 140, 0, 255)

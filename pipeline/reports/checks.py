@@ -8,7 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from pipeline.config.physics import FollicleConfig, ModelConfig
+from pipeline.config.material import FollicleConfig
+from pipeline.config.physics import ModelConfig
 from pipeline.reports.document import jsonable, number
 from pipeline.reports.published import Published
 

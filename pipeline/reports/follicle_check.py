@@ -21,7 +21,8 @@ from typing import Callable
 
 import numpy as np
 
-from pipeline.config.physics import FollicleConfig, ModelConfig
+from pipeline.config.material import FollicleConfig
+from pipeline.config.physics import ModelConfig
 from pipeline.model.array import single_whisker
 from pipeline.model.extensions import CompliantFollicle, model_parts
 from pipeline.model.kinematics import Pose, still

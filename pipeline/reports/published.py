@@ -1,9 +1,9 @@
 """The published numbers the validation compares with (docs/model.md §5–6), each with its source.
 
 "the paper" is the WHISKiT Physics paper (Zweifel et al., ../shared/seed/whiskit_physics_paper.txt).
-The measured α and B1 resonances (f1, δ with standard deviations) live in
-:data:`pipeline.analysis.material_fit.PAPER_TABLE_1`, where the material fit uses them; this
-module adds the rest of Table 1 and the figures' numbers.
+The measured α and B1 resonances (f1, δ, ζ with standard deviations) are the measurement
+library's table ``paper_alpha_b1`` (:func:`pipeline.diagnosis.material_fit.paper_table_1`);
+this module adds the rest of Table 1 and the figures' numbers.
 """
 
 from __future__ import annotations
@@ -23,11 +23,6 @@ class Published:
 
 TABLE_1 = "the paper, Table 1"
 
-# Table 1, "Experiment" column: ζ (f1 and δ are in material_fit.PAPER_TABLE_1).
-TABLE_1_MEASURED_ZETA = {
-    "alpha": Published(0.05, 0.04, TABLE_1),
-    "B1": Published(0.04, 0.01, TABLE_1),
-}
 # Table 1, "Simulation" column: the paper's own model (θ_E = 5.0 GPa, θ_ζ = 0.33).
 TABLE_1_SIMULATED = {
     "alpha": {"f1_hz": Published(64.87, 1.12, TABLE_1), "log_decrement": Published(0.50, 0.4, TABLE_1),

@@ -14,8 +14,9 @@ from typing import Callable
 
 import numpy as np
 
-from pipeline.analysis.material_fit import PAPER_TABLE_1, with_material, fit_material, simulate_all
-from pipeline.config.physics import ModelConfig, with_preset
+from pipeline.config.material import with_preset
+from pipeline.config.physics import ModelConfig
+from pipeline.diagnosis.material_fit import fit_material, paper_table_1, simulate_all, with_material
 from pipeline.model.extensions import model_parts
 from pipeline.model.physics import build_physics
 from pipeline.model.morphology import load_morphology
@@ -44,35 +45,34 @@ def table_1(config: ModelConfig, refit: bool = False, progress: Callable[[str], 
     ``trimmed`` material preset (the paper's whiskers, not the untrimmed array's) and a rigid
     follicle."""
     bench = rigid(config.model_copy(update={"material": with_preset(config.material, "trimmed")}))
-    fit = None
+    fit, table = None, paper_table_1()
     if refit:
         progress("table 1: refitting E and ζ on the measured α and B1 resonances (about 100 s)")
-        fit = fit_material(PAPER_TABLE_1, bench)
+        fit = fit_material(table, bench)
         results = fit.results
         bench = with_material(bench, fit.youngs_modulus_gpa, fit.damping_ratio)
         config = config.model_copy(update={"material": bench.material.model_copy(
             update={"follicle": config.material.follicle})})
     else:
         progress("table 1: resonance protocol on the α and B1 whiskers")
-        results = simulate_all(PAPER_TABLE_1, bench)
+        results = simulate_all(table, bench)
     material = bench.material
     checks, whiskers = [], {}
-    for m in PAPER_TABLE_1:
-        r, sim, name = results[m.name], P.TABLE_1_SIMULATED[m.name], _NAMES[m.name]
-        zeta = P.TABLE_1_MEASURED_ZETA[m.name]
-        measured = {"f1_hz": P.Published(m.f1_hz, m.f1_sd_hz, P.TABLE_1),
+    for m in table:
+        r, sim, name = results[m.whisker], P.TABLE_1_SIMULATED[m.whisker], _NAMES[m.whisker]
+        measured = {"f1_hz": P.Published(m.frequencies_hz[0], m.frequency_sd_hz[0], P.TABLE_1),
                     "log_decrement": P.Published(m.log_decrement, m.log_decrement_sd, P.TABLE_1),
-                    "damping_ratio": zeta}
+                    "damping_ratio": P.Published(m.damping_ratio, m.damping_ratio_sd, P.TABLE_1)}
         for key, label, ours in (("f1_hz", f"{name} f1 (Hz)", r.f1_hz),
                                  ("log_decrement", f"{name} log decrement δ (paper's two peaks)", r.paper_log_decrement),
                                  ("damping_ratio", f"{name} damping ratio ζ (from that δ)", r.paper_damping_ratio)):
             pub = measured[key]
-            checks.append(check(f"{m.name}_{key}", label, pub, ours, _within_sd(pub.value, pub.sd, ours),
+            checks.append(check(f"{m.whisker}_{key}", label, pub, ours, _within_sd(pub.value, pub.sd, ours),
                                 "within 2 sd of the measured mean",
                                 also_published={"paper_simulation": sim[key].value,
                                                 "paper_simulation_sd": sim[key].sd}))
         g = m.geometry
-        whiskers[m.name] = {**r.as_dict(), "arc_length_mm": g.arc_length_m * 1e3,
+        whiskers[m.whisker] = {**r.as_dict(), "arc_length_mm": g.arc_length_m * 1e3,
                             "base_diameter_um": 2e6 * g.base_radius_m, "tip_diameter_um": 2e6 * g.tip_radius_m}
     e_range, z_range = P.YOUNGS_MODULUS_GPA.value, P.DAMPING_RATIO.value
     checks.append(check("youngs_modulus_gpa", "E (GPa)", P.YOUNGS_MODULUS_GPA, material.youngs_modulus_gpa,
@@ -85,7 +85,7 @@ def table_1(config: ModelConfig, refit: bool = False, progress: Callable[[str], 
                "youngs_modulus_gpa": material.youngs_modulus_gpa, "damping_ratio_parameter": material.damping_ratio,
                "damping_model": material.damping_model, "links": material.links,
                "engine": config.engine.name, "dt_s": config.engine.dt_s, "whiskers": whiskers}
-    series = {m.name: (results[m.name].time_s, results[m.name].tip_y_m) for m in PAPER_TABLE_1}
+    series = {m.whisker: (results[m.whisker].time_s, results[m.whisker].tip_y_m) for m in table}
     caption = (f"Table 1: the resonance protocol (Gaussian pulse, stop at 128 ms, 1 s at 1 kHz) on the "
                f"trimmed α and B1 whiskers of the paper's experiment 1, straight, rigidly clamped, "
                f"with the trimmed-whisker material (preset 'trimmed', {material.damping_model} damping); "

@@ -6,6 +6,7 @@ of the unfinished newest version, which must have been started with the same con
 time; each result is written as it arrives (``as_completed(..., with_results=True)``) and its
 future released once written, so a worker that dies only costs the trials it was running, which
 dask runs again; the writer never writes a trial twice. A finished version gets its manifest.
+The dataset's books (its folder, attributes, totals) are :mod:`pipeline.datasets.runs`.
 Workers of an existing scheduler must see the same paths (meshes, the version's recordings).
 """
 
@@ -20,63 +21,22 @@ from itertools import islice
 from pathlib import Path
 from typing import Any, Iterator
 
-import numpy as np
-import yaml
-
 from pipeline.config.simulate import SimulateConfig, load_simulate_config
 from pipeline.datasets.manifest import write_manifest
-from pipeline.datasets.outputs import folder_inside_root
-from pipeline.datasets.reader import DatasetFile, decode_attr
-from pipeline.datasets.schema import (CONFIG_FILE, DATA_FILE, FAILED, OK, PENDING, POSE_REJECTION_REASONS,
-                                      TrialRecord)
-from pipeline.datasets.versions import VersionLock, new_version, unfinished_version
-from pipeline.datasets.writer import DatasetWriter, Layout, model_file_record, provenance, whisker_table
+from pipeline.datasets.runs import open_run_file, remove_unstarted, run_folder, totals
+from pipeline.datasets.schema import DATA_FILE, FAILED, TrialRecord
+from pipeline.datasets.shards import Shard
+from pipeline.datasets.versions import VersionLock
+from pipeline.datasets.writer import DatasetWriter, Layout, whisker_table
 from pipeline.errors import RunAborted, UserError
-from pipeline.runner.scenes import SceneEntry, copy_meshes, scene_catalogue
-from pipeline.datasets.shards import Shard, plan_fields, run_id, shard_folder
 from pipeline.runner.progress import progress as run_progress, trials_per_hour
+from pipeline.runner.scenes import SceneEntry, copy_meshes, scene_catalogue
 from pipeline.runner.trial import RunSpec, TrialResult, load_whisk_table
 from pipeline.scenes.head_paths import load_head_table
-from pipeline.storage import is_disk_full, write_text_durably
+from pipeline.storage import is_disk_full
 
 RECORDINGS_DIR = "recordings"
 WAIT_POLL_S = 2.0          # how often a run waiting for trials checks that the cluster has workers
-
-
-def _first_difference(a: Any, b: Any, path: str = "") -> str | None:
-    if isinstance(a, dict) and isinstance(b, dict):
-        for key in sorted(set(a) | set(b)):
-            found = _first_difference(a.get(key), b.get(key), f"{path}.{key}" if path else key)
-            if found:
-                return found
-        return None
-    return None if a == b else f"{path} ({b!r} now, {a!r} when started)"
-
-
-def _stored_config(folder: Path) -> SimulateConfig:
-    path = folder / CONFIG_FILE
-    if not path.is_file():
-        raise UserError(f"{folder} has no {CONFIG_FILE}; it cannot be resumed")
-    return SimulateConfig.model_validate(yaml.safe_load(path.read_text()))
-
-
-def _target(config: SimulateConfig, resume: bool, shard: Shard | None) -> tuple[Path, str, range]:
-    """(folder, label, trial indices) this run writes."""
-    root, name = Path(config.dataset.root), config.dataset.name
-    folder_inside_root(root / name, root, "dataset folder")
-    if shard is not None:
-        folder = shard_folder(config, shard)
-        folder.mkdir(parents=True, exist_ok=True)
-        return folder, f"{name}/{shard.label}", shard.indices(config.trials)
-    if resume:
-        folder = unfinished_version(root, name)
-        difference = _first_difference(plan_fields(_stored_config(folder)), plan_fields(config))
-        if difference:
-            raise UserError(f"--resume: {folder} was started with another config: {difference}; "
-                            f"resume with the same config (its copy: {folder / CONFIG_FILE})")
-    else:
-        folder = new_version(root, name)
-    return folder, f"{name}/{folder.name}", range(config.trials)
 
 
 def _layout(config: SimulateConfig) -> Layout:
@@ -99,30 +59,6 @@ def _check(config: SimulateConfig, scenes: tuple[SceneEntry, ...], layout: Layou
     if any(s.is_mesh for s in scenes) and config.poses.min_whiskers_reaching > whiskers:
         raise UserError(f"poses.min_whiskers_reaching = {config.poses.min_whiskers_reaching} but only "
                         f"{whiskers} whisker(s) are simulated (model.whiskers = '{config.model.whiskers}')")
-
-
-def _open_writer(folder: Path, spec: RunSpec, shard: Shard | None, indices: range) -> DatasetWriter:
-    """The writer of ``folder``'s data file (created, or resumed if its scenes are unchanged);
-    ``spec.scenes`` are the scenes as stored (mesh paths relative to ``folder``)."""
-    config, scenes, label = spec.config, spec.scenes, spec.title
-    data = folder / DATA_FILE
-    if data.is_file():
-        writer = DatasetWriter.resume(data)
-        stored = [SceneEntry(**s) for s in decode_attr(writer.file.attrs["scenes"])]
-        # by name and content (files started before meshes were stored in the dataset name their source)
-        if [(s.name, s.sha256) for s in stored] != [(s.name, s.sha256) for s in scenes]:
-            writer.close()
-            raise UserError(f"the scenes changed since {label} was started (a mesh was rebuilt or "
-                            "removed); finish it with the same meshes or start a new version")
-        return writer
-    write_text_durably(folder / CONFIG_FILE, yaml.safe_dump(config.model_dump(mode="json"), sort_keys=False))
-    attrs = {"name": config.dataset.name, "label": label, "seed": config.seed,
-             "scenes": [vars(s) for s in scenes], "trial_range": [indices.start, indices.stop],
-             "shard": [shard.number, shard.count] if shard else [1, 1], "run_id": run_id(config),
-             "provenance": provenance(config.model_dump(mode="json"), engine=config.model.engine.name,
-                                      model_file=model_file_record(config.model),
-                                      config_file=config.config_file)}
-    return DatasetWriter.create(data, spec.layout, attrs)
 
 
 def _outcome(future) -> Any:
@@ -200,33 +136,6 @@ def _rounded(rate: float | None) -> float | None:
     return None if rate is None else round(rate, 1)
 
 
-def summarize(data_file: Path, indices: range) -> dict[str, Any]:
-    """Totals over the trials ``indices`` of a dataset file."""
-    with DatasetFile(data_file) as ds:
-        rows = ds.trials.iloc[indices.start:indices.stop]
-    table = {name: rows[name].to_numpy() for name in rows.columns.get_level_values(0).unique()}
-    status = table["status"]
-    ok, failed = status == OK, status == FAILED
-    sampled = table["pose_attempts"] > 0                # includes trials whose sampling gave up
-    accepted = table["pose_side"] != 0
-    cpu = table["cpu_seconds"][ok]
-    return {
-        "trials": len(status), "ok": int(ok.sum()), "failed": int(failed.sum()),
-        "pending": int((status == PENDING).sum()),
-        "cpu_seconds_per_trial": round(float(cpu.mean()), 3) if ok.any() else None,
-        "physics_share_of_cpu": round(float(table["physics_cpu_seconds"][ok].sum() / cpu.sum()), 3)
-        if ok.any() and cpu.sum() > 0 else None,
-        "whiskers_in_contact_per_trial": round(float(table["whiskers_in_contact"][ok].mean()), 2)
-        if ok.any() else None,
-        "pose_acceptance_rate": round(float(accepted.sum() / table["pose_attempts"][sampled].sum()), 4)
-        if sampled.any() else None,
-        "pose_rejections": dict(zip(POSE_REJECTION_REASONS,
-                                    table["pose_rejections"][ok | failed].sum(axis=0).tolist())),
-        "failures": [f"{i + indices.start}: {error}"
-                     for i, error in zip(np.flatnonzero(failed)[:5], table["error"][failed][:5])],
-    }
-
-
 @dataclass
 class _Tally:
     written: int = 0
@@ -275,17 +184,6 @@ def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _T
         client.unregister_worker_plugin(name)
 
 
-def _remove_unstarted(folder: Path) -> None:
-    """Remove a version folder this run created but wrote no trial into (a failed start)."""
-    import shutil
-
-    shutil.rmtree(folder, ignore_errors=True)
-    try:
-        folder.parent.rmdir()          # the dataset's folder too, if this was its first version
-    except OSError:
-        pass
-
-
 def run_spec(config: SimulateConfig) -> RunSpec:
     """What every trial of a run needs (scenes, dataset layout, whisk table), checked; without a
     recordings folder. ``Simulator(run_spec(config)).run(i)`` redoes trial i in this process."""
@@ -305,7 +203,7 @@ def simulate(config: SimulateConfig, *, resume: bool = False, shard: str | None 
         print(f"note: {config.config_file['note']}", file=sys.stderr)
     shard_spec = Shard.parse(shard) if shard else None
     spec = run_spec(config)
-    folder, label, indices = _target(config, resume, shard_spec)
+    folder, label, indices = run_folder(config, resume, shard_spec)
     recordings = folder / RECORDINGS_DIR
     sources = spec.scenes
     spec = replace(spec, scenes=tuple(s.in_dataset() for s in sources), recordings=str(recordings.resolve()),
@@ -314,7 +212,8 @@ def simulate(config: SimulateConfig, *, resume: bool = False, shard: str | None 
     again = "the same command plus --resume" + (" (shards always continue)" if shard_spec else "")
     with VersionLock(folder):
         try:
-            with _open_writer(folder, spec, shard_spec, indices) as writer:
+            with open_run_file(folder, config, spec.layout, [vars(s) for s in spec.scenes], label, shard_spec,
+                               indices) as writer:
                 copy_meshes(sources, folder)
                 spec = replace(spec, scenes=tuple(s.under(folder) for s in spec.scenes))
                 todo = [int(i) for i in writer.pending() if i in indices]
@@ -334,16 +233,16 @@ def simulate(config: SimulateConfig, *, resume: bool = False, shard: str | None 
                 lost = writer.reopen_lost()
         except BaseException:
             if not resume and shard_spec is None and tally.written == 0:
-                _remove_unstarted(folder)
+                remove_unstarted(folder)
             raise
         if lost.size:
             raise RunAborted(f"trials {', '.join(map(str, lost[:10]))} of {folder} were marked done but their "
                              f"data are not in {DATA_FILE}; they are pending again: run {again}")
         wall = time.perf_counter() - started
-        totals = summarize(folder / DATA_FILE, indices)
+        counts = totals(folder / DATA_FILE, indices)
         summary = {"dataset": str(folder), "recordings": str(recordings), "config_file": config.config_file,
-                   "complete": totals["pending"] == 0,
-                   **totals, "written_now": tally.written, "duplicates_skipped": tally.duplicates,
+                   "complete": counts["pending"] == 0,
+                   **counts, "written_now": tally.written, "duplicates_skipped": tally.duplicates,
                    "wall_seconds": round(wall, 1), "write_seconds": round(tally.write_seconds, 3),
                    "trials_per_hour_now": _rounded(trials_per_hour(tally.written, tally.last_written_at - started))}
         if summary["complete"] and shard_spec is None:

@@ -1,0 +1,5 @@
+"""``python -m pipeline``: the ``pipeline`` command line."""
+
+from pipeline.cli import main
+
+main()

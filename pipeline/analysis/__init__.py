@@ -1,1 +1,0 @@
-"""Fitting, comparison and reports: material calibration, validation, statistics."""

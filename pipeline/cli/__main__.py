@@ -1,0 +1,5 @@
+"""``python -m pipeline.cli``: the console entry point."""
+
+from pipeline.cli.boundary import main
+
+main()
