@@ -22,6 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.engines.linear.chain import LinearWhisker
+from pipeline.engines.linear.rotating import rotating_matrices
+from pipeline.model.base_motion import PAIRS
 
 GRAVITY_INPUTS = slice(12, 15)     # inputs u: Ω (0:3), ω (3:6), p(ω) (6:12), g_b (12:15)
 
@@ -98,26 +100,32 @@ def discretise(lin: LinearWhisker, h: float, columns: tuple[int, ...], forces: b
     return lin.cache[key]
 
 def respond(lin: LinearWhisker, motion, u: np.ndarray, h: float, m: int, q0: np.ndarray,
-            rate0: np.ndarray) -> np.ndarray:
+            rate0: np.ndarray, alpha: np.ndarray | None = None) -> np.ndarray:
     """[K, 2n] the state y at every m-th point of a grid of step ``h`` (s) with base ``motion``
     (:class:`.motion.BaseMotion`) and inputs ``u`` [(K − 1)·m + 1, 15] on it, from joint angles
-    ``q0`` (rad) and modal rates ``rate0`` (η̇, rad/s) at its first point."""
+    ``q0`` (rad) and modal rates ``rate0`` (η̇, rad/s) at its first point. With the base's
+    angular acceleration ``alpha`` [(K − 1)·m + 1, 3] (rad/s², base frame), the rotating base's
+    first-order loads (:mod:`.rotating`) are added per grid step (zero-order hold)."""
     mod = modal(lin)
     n = len(mod.omega)
     quadratic = lin.physics.drag_coefficient > 0
     active = np.abs(u).max(axis=0) > 0
     active[GRAVITY_INPUTS] &= lin.physics.gravity_m_s2 != 0
     columns = tuple(int(c) for c in np.flatnonzero(active))
-    phi, g0, g1, gf = discretise(lin, h, columns, quadratic)
+    explicit = quadratic or alpha is not None
+    phi, g0, g1, gf = discretise(lin, h, columns, explicit)
     u = u[:, list(columns)]
     g = mod.participation
     samples = (len(u) - 1) // m + 1
-    y = np.zeros(((samples - 1) * m + 1 if quadratic else samples, 2 * n))
+    y = np.zeros(((samples - 1) * m + 1 if explicit else samples, 2 * n))
     y[0] = np.concatenate([mod.omega * (mod.shapes.T @ lin.mass @ q0), rate0])
-    if quadratic:
-        drag = QuadraticDrag(lin, mod)
+    if explicit:
+        drag = QuadraticDrag(lin, mod) if quadratic else None
+        rotating = RotatingLoads(lin, mod, motion, alpha) if alpha is not None else None
         for j in range(len(y) - 1):
-            force = drag.modal_force(y[j, n:] - g @ motion.omega[j], motion.omega[j])
+            force = drag.modal_force(y[j, n:] - g @ motion.omega[j], motion.omega[j]) if quadratic else np.zeros(n)
+            if rotating is not None:
+                force = force + rotating.modal_force(j, y[j])
             y[j + 1] = phi @ y[j] + g0 @ u[j] + g1 @ u[j + 1] + gf @ force
         return y[::m]
     step, forcing = compose(phi, g0, g1, u, m, samples)
@@ -162,3 +170,25 @@ class QuadraticDrag:
         normal = np.einsum("pab,pb->pa", self.normal, velocity)
         force = -self.coefficient[:, None] * np.linalg.norm(normal, axis=1)[:, None] * normal
         return np.einsum("paj,pa->j", self.jac, force)
+
+
+class RotatingLoads:
+    """Modal force of the rotating base's first-order loads (:mod:`.rotating`) along a motion."""
+
+    def __init__(self, lin: LinearWhisker, mod: Modal, motion, alpha: np.ndarray):
+        if "rotating_modal" not in lin.cache:
+            shapes, n = mod.shapes, len(mod.omega)
+            lin.cache["rotating_modal"] = tuple((shapes.T @ matrices @ shapes).reshape(-1, n)     # [kn, n]
+                                                for matrices in rotating_matrices(lin))
+        self.stiffness, self.gyroscopic = lin.cache["rotating_modal"]
+        w = motion.omega
+        self.stiffness_weights = np.hstack([alpha, np.stack([w[:, a] * w[:, b] for a, b in PAIRS], axis=1)])
+        self.motion, self.mod = motion, mod
+
+    def modal_force(self, j: int, y: np.ndarray) -> np.ndarray:
+        """[n] −Φᵀ(K_rot·q + G·q̇) at grid point j and state y [2n]."""
+        mod, n = self.mod, len(self.mod.omega)
+        shift = y[:n] / mod.omega - mod.participation @ self.motion.integral[j]
+        rate = y[n:] - mod.participation @ self.motion.omega[j]
+        return -(self.stiffness_weights[j] @ (self.stiffness @ shift).reshape(-1, n)
+                 + self.motion.omega[j] @ (self.gyroscopic @ rate).reshape(-1, n))
