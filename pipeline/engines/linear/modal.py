@@ -99,13 +99,23 @@ def discretise(lin: LinearWhisker, h: float, columns: tuple[int, ...], forces: b
         lin.cache[key] = (phi, ga[:, :k] - gb[:, :k], gb[:, :k], ga[:, k:])
     return lin.cache[key]
 
+def slow_forcing(lin: LinearWhisker, phi: np.ndarray, h: float) -> np.ndarray:
+    """[2n, n] the state change per modal force held over a step h of the modes with ω·h ≤ 1 (the
+    trapezoid rule h/2·(Φ + I)·[0; I], second order in ω·h), zero for faster modes, whose response
+    to the slowly varying loads :func:`respond` adds this way is quasi-static and (ω_load/ω)² small."""
+    mod = modal(lin)
+    n = len(mod.omega)
+    return 0.5 * h * (phi[:, n:] + np.eye(2 * n)[:, n:]) * (mod.omega * h <= 1.0)[None, :]
+
+
 def respond(lin: LinearWhisker, motion, u: np.ndarray, h: float, m: int, q0: np.ndarray,
             rate0: np.ndarray, alpha: np.ndarray | None = None) -> np.ndarray:
     """[K, 2n] the state y at every m-th point of a grid of step ``h`` (s) with base ``motion``
     (:class:`.motion.BaseMotion`) and inputs ``u`` [(K − 1)·m + 1, 15] on it, from joint angles
     ``q0`` (rad) and modal rates ``rate0`` (η̇, rad/s) at its first point. With the base's
     angular acceleration ``alpha`` [(K − 1)·m + 1, 3] (rad/s², base frame), the rotating base's
-    first-order loads (:mod:`.rotating`) are added per grid step (zero-order hold)."""
+    first-order loads (:mod:`.rotating`) are added per grid step, held from its start (with
+    quadratic drag exactly, else on the slow modes, :func:`slow_forcing`)."""
     mod = modal(lin)
     n = len(mod.omega)
     quadratic = lin.physics.drag_coefficient > 0
@@ -113,20 +123,27 @@ def respond(lin: LinearWhisker, motion, u: np.ndarray, h: float, m: int, q0: np.
     active[GRAVITY_INPUTS] &= lin.physics.gravity_m_s2 != 0
     columns = tuple(int(c) for c in np.flatnonzero(active))
     explicit = quadratic or alpha is not None
-    phi, g0, g1, gf = discretise(lin, h, columns, explicit)
+    phi, g0, g1, gf = discretise(lin, h, columns, quadratic)
+    if alpha is not None and not quadratic:
+        gf = slow_forcing(lin, phi, h)
     u = u[:, list(columns)]
     g = mod.participation
     samples = (len(u) - 1) // m + 1
     y = np.zeros(((samples - 1) * m + 1 if explicit else samples, 2 * n))
     y[0] = np.concatenate([mod.omega * (mod.shapes.T @ lin.mass @ q0), rate0])
-    if explicit:
-        drag = QuadraticDrag(lin, mod) if quadratic else None
-        rotating = RotatingLoads(lin, mod, motion, alpha) if alpha is not None else None
+    rotating = RotatingLoads(lin, mod, motion, alpha) if alpha is not None else None
+    if quadratic:
+        drag = QuadraticDrag(lin, mod)
         for j in range(len(y) - 1):
-            force = drag.modal_force(y[j, n:] - g @ motion.omega[j], motion.omega[j]) if quadratic else np.zeros(n)
+            force = drag.modal_force(y[j, n:] - g @ motion.omega[j], motion.omega[j])
             if rotating is not None:
                 force = force + rotating.modal_force(j, y[j])
             y[j + 1] = phi @ y[j] + g0 @ u[j] + g1 @ u[j + 1] + gf @ force
+        return y[::m]
+    if rotating is not None:
+        held = u[:-1] @ g0.T + u[1:] @ g1.T
+        for j in range(len(y) - 1):
+            y[j + 1] = phi @ y[j] + held[j] + gf @ rotating.modal_force(j, y[j])
         return y[::m]
     step, forcing = compose(phi, g0, g1, u, m, samples)
     for k in range(samples - 1):
@@ -176,19 +193,18 @@ class RotatingLoads:
     """Modal force of the rotating base's first-order loads (:mod:`.rotating`) along a motion."""
 
     def __init__(self, lin: LinearWhisker, mod: Modal, motion, alpha: np.ndarray):
+        n = len(mod.omega)
         if "rotating_modal" not in lin.cache:
-            shapes, n = mod.shapes, len(mod.omega)
-            lin.cache["rotating_modal"] = tuple((shapes.T @ matrices @ shapes).reshape(-1, n)     # [kn, n]
-                                                for matrices in rotating_matrices(lin))
-        self.stiffness, self.gyroscopic = lin.cache["rotating_modal"]
-        w = motion.omega
-        self.stiffness_weights = np.hstack([alpha, np.stack([w[:, a] * w[:, b] for a, b in PAIRS], axis=1)])
-        self.motion, self.mod = motion, mod
+            stiffness, gyroscopic = (mod.shapes.T @ matrices @ mod.shapes for matrices in rotating_matrices(lin))
+            blocks = np.zeros((len(stiffness) + len(gyroscopic), n, 2 * n))       # acting on [η − gΩ, η̇ − gω]
+            blocks[:len(stiffness), :, :n], blocks[len(stiffness):, :, n:] = stiffness, gyroscopic
+            lin.cache["rotating_modal"] = blocks.reshape(-1, 2 * n)
+        self.blocks, self.n = lin.cache["rotating_modal"], n
+        w, g = motion.omega, mod.participation
+        self.weights = -np.hstack([alpha, np.stack([w[:, a] * w[:, b] for a, b in PAIRS], axis=1), w])  # [S, 12]
+        self.scale = np.concatenate([1.0 / mod.omega, np.ones(n)])
+        self.offsets = np.hstack([motion.integral @ g.T, w @ g.T])                                     # [S, 2n]
 
     def modal_force(self, j: int, y: np.ndarray) -> np.ndarray:
         """[n] −Φᵀ(K_rot·q + G·q̇) at grid point j and state y [2n]."""
-        mod, n = self.mod, len(self.mod.omega)
-        shift = y[:n] / mod.omega - mod.participation @ self.motion.integral[j]
-        rate = y[n:] - mod.participation @ self.motion.omega[j]
-        return -(self.stiffness_weights[j] @ (self.stiffness @ shift).reshape(-1, n)
-                 + self.motion.omega[j] @ (self.gyroscopic @ rate).reshape(-1, n))
+        return self.weights[j] @ (self.blocks @ (y * self.scale - self.offsets[j])).reshape(-1, self.n)

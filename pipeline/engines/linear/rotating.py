@@ -59,10 +59,10 @@ def rotating_matrices(lin: LinearWhisker) -> tuple[np.ndarray, np.ndarray]:
         jv = joint_jacobian(layout, com, links)                                  # [L, 3, n]
         m = chain.link_mass_kg
         per_unit = np.concatenate([skew(np.eye(3)), _pair_matrices()])         # [9, 3, 3]: α_b, p_k
-        direct = np.einsum("l,lai,kab,lbj->kij", m, jv, per_unit, jv)
+        direct = np.einsum("l,lai,kab,lbj->kij", m, jv, per_unit, jv, optimize=True)
         second = com_hessian(lin)
         rest_acceleration = np.einsum("kab,lb->kla", per_unit, com)             # [9, L, 3]
-        geometric = np.einsum("l,kla,lija->kij", m, rest_acceleration, second)
+        geometric = np.einsum("l,kla,lija->kij", m, rest_acceleration, second, optimize=True)
         stiffness = direct + geometric
         lin.cache["rotating"] = (stiffness, 2 * direct[:3])
     return lin.cache["rotating"]
