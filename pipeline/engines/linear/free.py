@@ -66,7 +66,9 @@ def free_response(whisker: WhiskerModel, lin: LinearWhisker, drive: ProtractionD
     motion = BaseMotion(rotation, omega, cumulative_trapezoid(omega, times, axis=0, initial=0.0))
     mod = modal(lin)
     n, g = len(mod.omega), mod.participation
-    q0, rate_q0 = BaseInertia.of(whisker.physics).quasi_steady(whisker, drive)
+    if "inertia" not in lin.cache:
+        lin.cache["inertia"] = BaseInertia.of(whisker.physics)
+    q0, rate_q0 = lin.cache["inertia"].quasi_steady(whisker, drive)
     rotating = np.abs(omega).max() > ROTATING_RATIO * mod.omega[0]
     y = respond(lin, motion, inputs(motion, np.zeros(3)), h, 1, q0, mod.shapes.T @ lin.mass @ rate_q0 + g @ omega[0],
                 alpha if rotating else None)
