@@ -1,16 +1,19 @@
 """Accuracy and cost of the cheap path for free whiskers (pipeline/engines/free_path.py).
 
-Run: .venv/bin/python benchmarks/bench_free_whiskers.py [--engine mujoco|bullet] [--cheap mujoco|bullet]
-[--frequencies 6 9 12]   (--cheap: the engine whose coarse path is compared; default --engine)
+Run: .venv/bin/python benchmarks/bench_free_whiskers.py [--engine mujoco|bullet] [--cheap mujoco|bullet|linear]
+[--frequencies 6 9 12] [--worst 5]   (--cheap: the engine whose coarse path is compared, or the linear
+chain's path, pipeline/engines/linear/free.py; default --engine)
 
 Every whisker of configs/simulate.yaml's array whisks freely (empty scene, 125 ms, the largest
 whisk of the dataset's range: 45° protraction, 20° retraction) at each frequency, once at the
-full step and once on the coarse path. Per whisker and base-wrench component (Fx, Fy, Fz, Mx,
+full step and once on the cheap path. Per whisker and base-wrench component (Fx, Fy, Fz, Mx,
 My, Mz) the error is the RMS difference over the RMS magnitude of the whisker's force (force
 components) or moment (moment components), as printed per frequency: the largest over the
 array, the whisker it is at, the median, the largest RMS difference over the component's own
 RMS, the largest node-position difference (what the cheap path's safety margin must cover) and
-the CPU seconds of both paths.
+the CPU seconds of both paths; then the ``--worst`` whiskers (largest error) with their first
+natural frequency (the linear chain's) over the whisk frequency and their bend (largest tip
+distance from the rigidly rotated rest shape over the arc length).
 """
 
 from __future__ import annotations
@@ -25,6 +28,9 @@ from pipeline.config.loader import load_config
 from pipeline.config.simulate import SimulateConfig
 from pipeline.engines import create_engine
 from pipeline.engines.free_path import FREE_DT_S, coarse_config
+from pipeline.engines.linear.chain import linearise
+from pipeline.engines.linear.free import MAX_BEND
+from pipeline.engines.linear.modal import modal
 from pipeline.model.kinematics import Pose, sinusoidal_whisk
 from pipeline.protocols.whisking import Whisking
 from pipeline.scenes.library import empty
@@ -43,6 +49,16 @@ def relative_errors(coarse: np.ndarray, full: np.ndarray) -> tuple[np.ndarray, n
     return error / np.repeat(magnitude, 3, axis=1), error / np.maximum(own, 1e-30)
 
 
+def bend(array, drive, output) -> np.ndarray:
+    """[W] largest distance of each whisker's tip from its rigidly rotated rest tip over its arc
+    length (the trial at the identity pose)."""
+    theta = drive(output.time_s)
+    tips = np.array([[w.rest_nodes_head(t)[-1] for t in theta] for w in array.whiskers])     # [W, T, 3]
+    lengths = np.array([w.chain.geometry.arc_length_m for w in array.whiskers])
+    moved = np.linalg.norm(output.node_positions_m[:, :, -1].astype(float).transpose(1, 0, 2) - tips, axis=2)
+    return moved.max(axis=1) / lengths
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--engine", default="mujoco")
@@ -51,15 +67,19 @@ def main() -> None:
                         f"(default: the engine's, {FREE_DT_S})")
     parser.add_argument("--frequencies", type=float, nargs="+", default=[6.0, 9.0, 12.0])
     parser.add_argument("--duration", type=float, default=0.125)
+    parser.add_argument("--worst", type=int, default=5, help="whiskers listed with their error and f1")
     args = parser.parse_args()
     config, _ = load_config(SimulateConfig, REPO / "configs" / "simulate.yaml", env_prefix="PIPELINE_SIMULATE_",
                             overrides={"model": {"engine": {"name": args.engine, "free_whiskers": "engine"}}})
     array = Whisking(config.model).array
     full_config = config.model
-    cheap_engine = full_config.engine.model_copy(update={"name": args.cheap or args.engine})
-    coarse_engine = coarse_config(cheap_engine, args.dt)
-    if coarse_engine is None:
-        parser.error(f"{cheap_engine.name} has no coarse path at its step {cheap_engine.dt_s:g} s: give --dt")
+    if args.cheap == "linear":
+        coarse_engine = full_config.engine.model_copy(update={"free_whiskers": "linear"})
+    else:
+        cheap_engine = full_config.engine.model_copy(update={"name": args.cheap or args.engine})
+        coarse_engine = coarse_config(cheap_engine, args.dt)
+        if coarse_engine is None:
+            parser.error(f"{cheap_engine.name} has no coarse path at its step {cheap_engine.dt_s:g} s: give --dt")
     coarse = full_config.model_copy(update={"engine": coarse_engine})
     print(f"{args.engine}: {len(array.whiskers)} whiskers, full step {full_config.engine.dt_s:g} s, "
           f"coarse path {coarse.engine.name} at {coarse.engine.dt_s:g} s (f1 tolerance {coarse.engine.f1_tolerance:g})")
@@ -79,6 +99,18 @@ def main() -> None:
               f"{COMPONENTS[worst[1]]}), median {100 * np.median(of_magnitude):.3f} %; of the component's own "
               f"RMS max {100 * of_component.max():.2f} %; nodes ≤ {1e3 * nodes:.3f} mm; "
               f"CPU full {cpu['full']:.2f} s, coarse {cpu['coarse']:.2f} s", flush=True)
+        bends = bend(array, drive, outputs["full"])
+        for k in np.argsort(-of_magnitude.max(axis=1))[:args.worst]:
+            f1 = modal(linearise(array.whiskers[k].physics)).omega[0] / (2 * np.pi)
+            print(f"    {array.whiskers[k].name}: {100 * of_magnitude[k].max():.2f} % "
+                  f"({COMPONENTS[of_magnitude[k].argmax()]}), f1/f = {f1 / frequency:.1f}, "
+                  f"bend {bends[k]:.3f}", flush=True)
+        little = bends <= MAX_BEND
+        node_difference = np.abs(outputs["coarse"].node_positions_m.astype(float) - outputs["full"].node_positions_m)
+        print(f"    bend ≤ {MAX_BEND} (the linear path's limit): {int(little.sum())} whiskers, largest error "
+              f"{100 * of_magnitude[little].max(initial=0):.2f} %, of the component's own RMS "
+              f"{100 * of_component[little].max(initial=0):.2f} %, nodes ≤ "
+              f"{1e3 * node_difference[:, little].max(initial=0):.3f} mm", flush=True)
     for engine in engines.values():
         engine.close()
 

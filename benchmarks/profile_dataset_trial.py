@@ -1,6 +1,7 @@
 """CPU per dataset trial as `pipeline simulate` runs it, in one process, with a profile.
 
 Run: .venv/bin/python benchmarks/profile_dataset_trial.py [--trials 6] [--engine mujoco] [--profile]
+[--free-whiskers engine|coarse|linear]
 
 The trials are those of configs/simulate.yaml (125 ms, all 60 whiskers, head poses sampled beside
 the built meshes; run `pipeline build-meshes` first): scene i mod 3, the same seeds as a dataset.
@@ -32,9 +33,11 @@ def main() -> None:
     parser.add_argument("--trials", type=int, default=6)
     parser.add_argument("--engine", default="mujoco")
     parser.add_argument("--profile", action="store_true")
+    parser.add_argument("--free-whiskers", default=None, help="engine | coarse | linear (default: configs/simulate.yaml's)")
     args = parser.parse_args()
+    free = {} if args.free_whiskers is None else {"free_whiskers": args.free_whiskers}
     config, _ = load_config(SimulateConfig, REPO / "configs" / "simulate.yaml", env_prefix="PIPELINE_SIMULATE_", overrides={
-        "model": {"engine": {"name": args.engine}}, "scenes": {"folder": str(REPO / "outputs" / "meshes")}})
+        "model": {"engine": {"name": args.engine}}, "scenes": {"folder": str(REPO / "outputs" / "meshes")}, **free})
     simulator = Simulator(RunSpec(config, scene_catalogue(config.scenes), _layout(config)))
     start = time.process_time()
     first = simulator.run(0)

@@ -7,8 +7,8 @@ import pytest
 from beam_reference import cantilever_frequencies
 from pipeline.config.physics import MaterialConfig
 from pipeline.diagnosis.discretisation import modulus_discretisation
-from pipeline.diagnosis.fastsim import damped_modes
-from pipeline.diagnosis.linear import linearise
+from pipeline.engines.linear.modal import damped_modes
+from pipeline.engines.linear.chain import linearise
 from pipeline.diagnosis.parameters import ModelSpec
 from pipeline.model.extensions import BaseSegment, CompliantFollicle, IntegratedDensity
 from pipeline.model.physics import build_physics

@@ -10,8 +10,9 @@ import pytest
 import yaml
 
 from pipeline.config.material import MaterialConfig, with_preset
-from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial, damped_modes
-from pipeline.diagnosis.linear import linearise
+from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial
+from pipeline.engines.linear.modal import damped_modes
+from pipeline.engines.linear.chain import linearise
 from pipeline.errors import UserError
 from pipeline.measurements import PAPER_ALPHA_B1, ReleaseDrive, RotationDrive, Trial, load_measurement
 from pipeline.model.extensions import make_extension

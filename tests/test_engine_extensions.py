@@ -9,7 +9,7 @@ import pytest
 from pipeline.config.physics import MaterialConfig
 from pipeline.diagnosis.engine import EngineSimulator
 from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial
-from pipeline.diagnosis.linear import linearise
+from pipeline.engines.linear.chain import linearise
 from pipeline.measurements import ReleaseDrive, Trial
 from pipeline.model.extensions import make_extension
 from pipeline.model.physics import build_physics

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from pipeline.config.physics import EngineConfig, MaterialConfig, ModelConfig
-from pipeline.diagnosis.linear import linearise
+from pipeline.engines.linear.chain import linearise
 from pipeline.engines import create_engine
 
 from pipeline.engines.stepping import first_frequency_hz

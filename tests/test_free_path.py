@@ -74,12 +74,13 @@ def _peg_at_clearance(nodes_m: np.ndarray, times_s: np.ndarray, clearance: float
     return scene(high)
 
 
-def test_a_whisker_within_the_margin_never_takes_the_cheap_path():
+@pytest.mark.parametrize("path", ["coarse", "linear"])
+def test_a_whisker_within_the_margin_never_takes_the_cheap_path(path):
     """Pegs placed just inside and just outside the cheap path's clearance from RC1's free path,
     and one across it: inside or across, RC1 runs on the full engine (across, it touches);
     outside, it takes the cheap path and the full engine confirms it touches nothing there."""
     drive = sinusoidal_whisk(12.0, 45.0, 20.0, DURATION_S)
-    with _engine("RC1", "coarse") as cheap:
+    with _engine("RC1", path) as cheap:
         free = cheap.run(empty(), POSE, drive, DURATION_S)
         padding = cheap.free_path.motion.padding_m[0]
     nodes, times = free.node_positions_m.astype(float)[:, 0], free.time_s
@@ -88,7 +89,7 @@ def test_a_whisker_within_the_margin_never_takes_the_cheap_path():
     for clearance, coarse_expected in ((needed - 5e-5, False), (needed + 5e-5, True), (-2 * PEG_RADIUS_M, False)):
         scene = _peg_at_clearance(nodes, times, clearance)
         # new engines: no free motion remembered from an earlier trial to reuse
-        with _engine("RC1", "coarse") as cheap, _engine("RC1", "engine") as full:
+        with _engine("RC1", path) as cheap, _engine("RC1", "engine") as full:
             took, reference = (e.run(scene, POSE, drive, DURATION_S) for e in (cheap, full))
         assert (took.metadata["coarse_free_whiskers"] == ["RC1"]) is coarse_expected, clearance
         if coarse_expected:
@@ -98,7 +99,7 @@ def test_a_whisker_within_the_margin_never_takes_the_cheap_path():
     assert reference.contact.any()                            # the peg across the path is touched
 
 
-@pytest.mark.parametrize("choice", ["coarse", "engine"])
+@pytest.mark.parametrize("choice", ["coarse", "engine", "linear"])
 def test_simulate_config_chooses_the_path_of_free_whiskers(choice):
     from pipeline.config.simulate import SimulateConfig
     from pipeline.runner.simulate import _layout

@@ -72,8 +72,8 @@ def save_hand_model(path: Path, data_file: Path, extensions=HIDDEN, e_gpa: float
 
 def linear_f1(config: ModelConfig) -> float:
     """The diagnosis' linear model's first in-plane (damped) frequency of the C2 whisker."""
-    from pipeline.diagnosis.fastsim import damped_modes
-    from pipeline.diagnosis.linear import linearise
+    from pipeline.engines.linear.modal import damped_modes
+    from pipeline.engines.linear.chain import linearise
     from pipeline.model.physics import build_physics
 
     material, extensions = model_parts(config)

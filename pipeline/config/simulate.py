@@ -273,8 +273,9 @@ class SimulateConfig(StrictModel):
     seed: int = Field(0, ge=0, le=2**63 - 1, description="dataset seed; trial i draws from (seed, i)")
     model: ModelConfig = ModelConfig()
     free_whiskers: FreeWhiskers = Field("coarse", description="whiskers that cannot touch anything in a trial: "
-                                        "'coarse' (cheap, pipeline/engines/free_path.py) or 'engine' (the full "
-                                        "step); overrides model.engine.free_whiskers")
+                                        "'coarse' (cheap, pipeline/engines/free_path.py), 'linear' (the linear "
+                                        "chain, pipeline/engines/linear/free.py) or 'engine' (the full step); "
+                                        "overrides model.engine.free_whiskers")
     scenes: ScenesConfig = ScenesConfig()
     poses: PoseSamplingConfig = PoseSamplingConfig()
     whisk: WhiskSamplingConfig = WhiskSamplingConfig()

@@ -46,7 +46,7 @@ def modal_summary(spec: ModelSpec, geometry) -> dict:
     """First in-plane mode of the fitted whisker: damped frequency (Hz) and damping ratio (both
     NaN, null in the JSON, when the fitted whisker is overdamped in-plane)."""
     from pipeline.diagnosis.in_plane import first_damped_in_plane
-    from pipeline.diagnosis.linear import linearise
+    from pipeline.engines.linear.chain import linearise
 
     f1, zeta1 = first_damped_in_plane(linearise(spec.physics(geometry)))
     return {"f1_hz": f1, "zeta1": zeta1}

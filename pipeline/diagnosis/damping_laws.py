@@ -20,9 +20,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from pipeline.diagnosis.fastsim import damped_modes, modal
+from pipeline.engines.linear.modal import damped_modes, modal
 from pipeline.diagnosis.in_plane import IN_PLANE_PREFIXES
-from pipeline.diagnosis.linear import LinearWhisker, linearise
+from pipeline.engines.linear.chain import LinearWhisker, linearise
 from pipeline.diagnosis.parameters import ModelSpec
 
 LAWS = ("eq3", "kelvin_voigt", "rayleigh", "modal")

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.diagnosis.in_plane import undamped_in_plane_hz
-from pipeline.diagnosis.linear import linearise
+from pipeline.engines.linear.chain import linearise
 from pipeline.diagnosis.parameters import ModelSpec
 from pipeline.model.whisker import WhiskerGeometry
 

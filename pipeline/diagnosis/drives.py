@@ -8,19 +8,11 @@ angular velocity is ω = Rx(φ)ᵀRy(θ)ᵀ(0, 0, ψ̇) + Rx(φ)ᵀ(0, θ̇, 0) 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from pipeline.model.rotations import rot_x, rot_y, rot_z
+from pipeline.engines.linear.motion import BaseMotion
 from pipeline.measurements.timeseries import ReleaseDrive, RotationDrive
-
-
-@dataclass(frozen=True)
-class BaseMotion:
-    rotation: np.ndarray   # [S, 3, 3] base frame → rest frame
-    omega: np.ndarray      # [S, 3] rad/s, base frame
-    integral: np.ndarray   # [S, 3] rad, Ω(t) − Ω(t0)
+from pipeline.model.rotations import rot_x, rot_y, rot_z
 
 
 def base_motion(drive: RotationDrive | ReleaseDrive, times: np.ndarray) -> BaseMotion:

@@ -6,7 +6,7 @@ bench whisker of :func:`pipeline.model.array.single_whisker` (whisker frame = he
 with the extended chain and follicle, built by :func:`pipeline.engines.create_engine`
 (``bullet`` or ``mujoco``). A trial starts where the fast simulator starts it: a release
 from its static deflection, any other trial sagged under gravity, passed to ``Engine.run``
-as initial joint angles (the coordinates of :mod:`pipeline.diagnosis.linear` are the
+as initial joint angles (the coordinates of :mod:`pipeline.engines.linear.chain` are the
 engines' free joints, in the same order).
 
 Every extension runs on both engines (twist as a third hinge per node, drag and gravity as
@@ -21,7 +21,7 @@ import numpy as np
 
 from pipeline.config.physics import EngineConfig, MaterialConfig, ModelConfig
 from pipeline.diagnosis.fastsim import PreparedTrial, release_state
-from pipeline.diagnosis.linear import linearise
+from pipeline.engines.linear.chain import linearise
 from pipeline.errors import UserError
 from pipeline.measurements.timeseries import ReleaseDrive
 from pipeline.model.physics import WhiskerPhysics

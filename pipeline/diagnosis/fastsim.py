@@ -1,110 +1,27 @@
-"""The fast simulator: the linearised 3D chain (:mod:`.linear`) integrated exactly.
+"""The fast simulator: the linearised 3D chain (:mod:`pipeline.engines.linear`) on a trial.
 
-In the undamped modes Φ (ΦᵀMΦ = I, ΦᵀKΦ = Λ = diag ω²) and with w = q + Φg·Ω, g = ΦᵀM_qb
-(which absorbs the base's angular acceleration, so an abrupt motor stop needs no impulse),
-the state y = [ω·η, η̇] of η = ΦᵀM·w obeys the linear system
-
-    ẏ = [[0, ω], [−ω, −C_m]]·y + [0; B·u(t)],   C_m = ΦᵀCΦ,
-    B·u = Λg·Ω + (C_m·g − ΦᵀD_d)·ω − ΦᵀH_cf·p(ω) + ΦᵀH_g·g_b,
-
-u = (Ω, ω, p(ω), g_b) as in :mod:`.linear`. Between samples u is taken as piecewise linear
-(first-order hold) on a grid of ``m`` substeps per output sample (more when the drive is
-sampled faster than the tracking), and the system is advanced with the exact matrix
-exponential of the augmented matrix [[A, B, 0], [0, 0, I/h], [0, 0, 0]]·h: no step-size
-error beyond the input interpolation, stable for any stiffness. Quadratic drag, the one
-nonlinear force, is added per substep as a constant (zero-order hold) generalised force.
-Positions come from q(t) = Φ(η − g·Ω) through the chain's exact forward kinematics, rotated
-by the base rotation R(t) into the rest frame.
+A trial's drive gives the base motion (:func:`~pipeline.diagnosis.drives.base_motion`) on a
+grid of ``m`` substeps per output sample (more when the drive is sampled faster than the
+tracking); the chain is integrated exactly on it (:mod:`pipeline.engines.linear.modal`) from
+rest (or the release deflection), and positions come from q(t) through the chain's exact
+forward kinematics, rotated by the base rotation R(t) into the rest frame.
 
 Cost: one whisker, 1 s at 1 kHz, ≈ 5–15 ms (vs ≈ 4 CPU-s for the Bullet engine).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from pipeline.diagnosis.drives import base_motion
-from pipeline.diagnosis.linear import LinearWhisker, linearise
+from pipeline.engines.linear.chain import LinearWhisker, linearise
+from pipeline.engines.linear.modal import joint_angles, modal, respond
+from pipeline.engines.linear.motion import inputs
 from pipeline.measurements.timeseries import ReleaseDrive, Trial
 from pipeline.model.base_motion import PAIRS
 
 MAX_SUBSTEPS = 10
 QUADRATIC_DRAG_SUBSTEPS = 4
-GRAVITY_INPUTS = slice(12, 15)     # inputs u: Ω (0:3), ω (3:6), p(ω) (6:12), g_b (12:15)
-
-
-@dataclass(frozen=True)
-class Modal:
-    shapes: np.ndarray         # [n, n] Φ, mass-normalised
-    omega: np.ndarray          # [n] undamped natural frequencies, rad/s
-    damping: np.ndarray        # [n, n] C_m
-    participation: np.ndarray  # [n, 3] g = ΦᵀM_qb
-    inputs: np.ndarray         # [n, 15] B (gravity columns per unit direction, times g)
-
-
-def modal(lin: LinearWhisker) -> Modal:
-    """Undamped modes and modal input matrices (cached on ``lin``)."""
-    if "modal" not in lin.cache:
-        from scipy.linalg import eigh
-
-        scale = 1.0 / np.sqrt(np.diag(lin.mass))           # unit diagonal: better conditioned
-        lam, vectors = eigh(scale[:, None] * lin.stiffness * scale, scale[:, None] * lin.mass * scale)
-        shapes = scale[:, None] * vectors
-        g = shapes.T @ lin.base_coupling
-        c_m = shapes.T @ lin.damping @ shapes
-        inputs = np.hstack([lam[:, None] * g, c_m @ g - shapes.T @ lin.drag_base,
-                            -shapes.T @ lin.centrifugal,
-                            lin.physics.gravity_m_s2 * (shapes.T @ lin.gravity)])
-        lin.cache["modal"] = Modal(shapes, np.sqrt(lam), c_m, g, inputs)
-    return lin.cache["modal"]
-
-
-def damped_modes(lin: LinearWhisker) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(damped frequency Hz, damping ratio, in-plane flag) of the oscillating modes, by frequency."""
-    mod = modal(lin)
-    n = len(mod.omega)
-    a = np.block([[np.zeros((n, n)), np.diag(mod.omega)], [-np.diag(mod.omega), -mod.damping]])
-    values, vectors = np.linalg.eig(a)
-    keep = values.imag > 1e-6 * np.abs(values)            # an overdamped pair is real up to round-off
-    values, vectors = values[keep], vectors[:, keep]
-    q = mod.shapes @ vectors[n:]                             # velocity shape in joint space
-    in_plane = np.zeros(len(lin.dofs.labels), bool)
-    in_plane[[i for i, s in enumerate(lin.dofs.labels) if s.startswith(("z", "follicle_z"))]] = True
-    share = (np.abs(q[in_plane]) ** 2).sum(axis=0) / (np.abs(q) ** 2).sum(axis=0)
-    order = np.argsort(values.imag)
-    zeta = -values.real / np.abs(values)
-    return values.imag[order] / (2 * np.pi), zeta[order], share[order] > 0.5
-
-
-def _state_matrix(mod: Modal) -> np.ndarray:
-    n = len(mod.omega)
-    return np.block([[np.zeros((n, n)), np.diag(mod.omega)], [-np.diag(mod.omega), -mod.damping]])
-
-
-def _discretise(lin: LinearWhisker, h: float, columns: tuple[int, ...], forces: bool):
-    """(Φ, G0, G1, G_F) of one step h: y' = Φy + G0·u0 + G1·u1 + G_F·F (F held over the step)."""
-    key = ("step", h, columns, forces)
-    if key not in lin.cache:
-        from scipy.linalg import expm
-
-        mod = modal(lin)
-        n = len(mod.omega)
-        b = np.zeros((2 * n, len(columns) + (n if forces else 0)))
-        b[n:, :len(columns)] = mod.inputs[:, list(columns)]
-        if forces:
-            b[n:, len(columns):] = np.eye(n)
-        nu = b.shape[1]
-        aug = np.zeros((2 * n + 2 * nu,) * 2)
-        aug[:2 * n, :2 * n] = _state_matrix(mod) * h
-        aug[:2 * n, 2 * n:2 * n + nu] = b * h
-        aug[2 * n:2 * n + nu, 2 * n + nu:] = np.eye(nu)
-        e = expm(aug)
-        phi, ga, gb = e[:2 * n, :2 * n], e[:2 * n, 2 * n:2 * n + nu], e[:2 * n, 2 * n + nu:]
-        k = len(columns)
-        lin.cache[key] = (phi, ga[:, :k] - gb[:, :k], gb[:, :k], ga[:, k:])
-    return lin.cache[key]
 
 
 class PreparedTrial:
@@ -130,10 +47,7 @@ class PreparedTrial:
             trial = self.trial
             fine = trial.time_s[0] + np.arange((trial.samples - 1) * m + 1) / (trial.sampling_rate_hz * m)
             motion = base_motion(trial.drive, fine)
-            w = motion.omega
-            pairs = np.stack([w[:, a] * w[:, b] for a, b in PAIRS], axis=1)
-            gravity = np.einsum("sba,b->sa", motion.rotation, self.direction)      # Rᵀ·d
-            self._grids[m] = (motion, np.hstack([motion.integral, w, pairs, gravity]))
+            self._grids[m] = (motion, inputs(motion, self.direction))
         return self._grids[m]
 
 
@@ -165,15 +79,8 @@ def simulate_trial(lin: LinearWhisker, prepared: PreparedTrial) -> np.ndarray:
     trial = prepared.trial
     mod = modal(lin)
     n = len(mod.omega)
-    quadratic = lin.physics.drag_coefficient > 0
-    m = prepared.substeps(quadratic)
+    m = prepared.substeps(lin.physics.drag_coefficient > 0)
     motion, u = prepared.grid(m)
-    active = np.abs(u).max(axis=0) > 0
-    active[GRAVITY_INPUTS] &= lin.physics.gravity_m_s2 != 0
-    columns = tuple(int(c) for c in np.flatnonzero(active))
-    phi, g0, g1, gf = _discretise(lin, 1.0 / (trial.sampling_rate_hz * m), columns, quadratic)
-    u = u[:, list(columns)]
-    g = mod.participation
     gravity_lab = lin.physics.gravity_m_s2 * prepared.direction
     if isinstance(trial.drive, ReleaseDrive):
         q0, rate0 = release_state(lin, trial.drive, gravity_lab), np.zeros(n)
@@ -181,55 +88,11 @@ def simulate_trial(lin: LinearWhisker, prepared: PreparedTrial) -> np.ndarray:
         w0 = motion.omega[0]
         static = lin.gravity @ (motion.rotation[0].T @ gravity_lab) - lin.drag_base @ w0 \
             - lin.centrifugal @ np.array([w0[a] * w0[b] for a, b in PAIRS])
-        q0, rate0 = static / np.diag(lin.stiffness), g @ w0
-    samples = trial.samples
-    y = np.zeros(((samples - 1) * m + 1 if quadratic else samples, 2 * n))
-    y[0] = np.concatenate([mod.omega * (mod.shapes.T @ lin.mass @ q0), rate0])
-    if quadratic:
-        drag = _QuadraticDrag(lin, mod)
-        for j in range(len(y) - 1):
-            force = drag.modal_force(y[j, n:] - g @ motion.omega[j], motion.omega[j])
-            y[j + 1] = phi @ y[j] + g0 @ u[j] + g1 @ u[j + 1] + gf @ force
-        y = y[::m]
-    else:
-        step, forcing = _compose(phi, g0, g1, u, m, samples)
-        for k in range(samples - 1):
-            y[k + 1] = step @ y[k] + forcing[k]
-    at = np.arange(samples) * m
-    q = (y[:, :n] / mod.omega - motion.integral[at] @ g.T) @ mod.shapes.T
-    body = lin.points(q, trial.arc_fraction)
+        q0, rate0 = static / np.diag(lin.stiffness), mod.participation @ w0
+    y = respond(lin, motion, u, 1.0 / (trial.sampling_rate_hz * m), m, q0, rate0)
+    at = np.arange(trial.samples) * m
+    body = lin.points(joint_angles(lin, y, motion.integral[at]), trial.arc_fraction)
     return np.einsum("tab,tkb->tka", motion.rotation[at], body)
-
-
-def _compose(phi, g0, g1, u, m, samples):
-    """One output step of m substeps: y_{k+1} = Φ^m·y_k + Σ_j P_j·u_{k,j}."""
-    if u.shape[1] == 0:
-        return np.linalg.matrix_power(phi, m), np.zeros((samples - 1, phi.shape[0]))
-    powers = [np.eye(len(phi))]
-    for _ in range(m):
-        powers.append(phi @ powers[-1])
-    weights = np.zeros((m + 1,) + g0.shape)
-    for j in range(m):
-        weights[j] += powers[m - 1 - j] @ g0
-        weights[j + 1] += powers[m - 1 - j] @ g1
-    windows = np.stack([u[j:j + (samples - 1) * m:m] for j in range(m + 1)], axis=1)  # [T-1, m+1, nu]
-    return powers[m], np.einsum("kju,jxu->kx", windows, weights)
-
-
-class _QuadraticDrag:
-    """Modal force of f = −½ρ_air·C_d·d·|v_n|·v_n on the links' quadrature points."""
-
-    def __init__(self, lin: LinearWhisker, mod: Modal):
-        points = lin.drag_points
-        self.jac = np.einsum("pai,ij->paj", points["jacobian"], mod.shapes)   # J·Φ
-        self.points, self.normal = points["points"], points["normal"]
-        self.coefficient = points["coefficient"]
-
-    def modal_force(self, modal_rate: np.ndarray, omega: np.ndarray) -> np.ndarray:
-        velocity = self.jac @ modal_rate + np.cross(omega, self.points)
-        normal = np.einsum("pab,pb->pa", self.normal, velocity)
-        force = -self.coefficient[:, None] * np.linalg.norm(normal, axis=1)[:, None] * normal
-        return np.einsum("paj,pa->j", self.jac, force)
 
 
 class FastSimulator:

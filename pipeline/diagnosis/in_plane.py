@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.diagnosis.fastsim import damped_modes, modal
-from pipeline.diagnosis.linear import LinearWhisker
+from pipeline.engines.linear.modal import damped_modes, modal
+from pipeline.engines.linear.chain import LinearWhisker
 
 IN_PLANE_PREFIXES = ("z", "follicle_z")
 

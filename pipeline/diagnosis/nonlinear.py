@@ -33,7 +33,7 @@ import numpy as np
 from pipeline.diagnosis.engine import EngineSimulator
 from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial
 from pipeline.diagnosis.fitting import Fit, fit
-from pipeline.diagnosis.linear import linearise
+from pipeline.engines.linear.chain import linearise
 from pipeline.diagnosis.objective import TrajectoryObjective
 from pipeline.diagnosis.parameters import ModelSpec, ParameterSpace
 from pipeline.measurements.timeseries import ReleaseDrive, TimeSeriesMeasurement

@@ -144,8 +144,8 @@ class TableObjective:
         free-decay measurement of the first mode) f1 and ζ1 are the linear chain's first damped
         in-plane mode, as are f2 and f3 for every record."""
         from pipeline.signals.resonance import analyse_tip
-        from pipeline.diagnosis.fastsim import damped_modes
-        from pipeline.diagnosis.linear import linearise
+        from pipeline.engines.linear.modal import damped_modes
+        from pipeline.engines.linear.chain import linearise
 
         out = []
         for record, prepared in zip(self.table.records, self.prepared):

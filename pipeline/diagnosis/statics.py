@@ -1,6 +1,6 @@
 """What E the quasi-static measurements imply, and whether the dynamic fit's E explains them.
 
-Model: the linear chain's statics (:func:`~pipeline.diagnosis.linear.linearise`: K q = Jᵀ F),
+Model: the linear chain's statics (:func:`~pipeline.engines.linear.chain.linearise`: K q = Jᵀ F),
 i.e. the same discretised whisker (joint springs, base segment, follicle) that the resonance
 fit uses, so the comparison is between one model's two readings. Not the large-deflection
 elastica (pipeline.references.elastica): the measured quantity is an initial slope (Solomon &
@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from pipeline.diagnosis.linear import linearise
+from pipeline.engines.linear.chain import linearise
 from pipeline.diagnosis.parameters import ModelSpec
 from pipeline.measurements.statics import StaticRecord
 from pipeline.model.whisker import WhiskerGeometry

@@ -146,7 +146,7 @@ def _drive(spec: TrialSpec, config: SynthConfig, duration: float, truth_lin, dir
 def synthesise(config: SynthConfig) -> TimeSeriesMeasurement:
     """Simulate every trial of ``config`` with the true model and degrade it as a tracker would."""
     from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial
-    from pipeline.diagnosis.linear import linearise
+    from pipeline.engines.linear.chain import linearise
 
     rng = np.random.default_rng(config.seed)
     geometry = config.whisker.geometry()

@@ -35,6 +35,7 @@ import numpy as np
 
 from pipeline.config.physics import EngineConfig
 from pipeline.engines.common import CLEARANCE_MARGIN_M, FreeMotion
+from pipeline.engines.linear.free import LinearFreePath
 from pipeline.model.array import ArrayModel
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.scenes.library import empty
@@ -74,8 +75,11 @@ class FreePath:
         self.motion = FreeMotion(array.whiskers, margin_m=CLEARANCE_MARGIN_M + FREE_PATH_MARGIN_M)
 
     @classmethod
-    def of(cls, make_engine, array: ArrayModel, config: EngineConfig) -> "FreePath | None":
-        """The coarse path if ``config`` asks for it and a coarser step exists, else None."""
+    def of(cls, make_engine, array: ArrayModel, config: EngineConfig) -> "FreePath | LinearFreePath | None":
+        """The path ``config.free_whiskers`` asks for: the linear chain's, or the coarse one if a
+        coarser step exists; else None."""
+        if config.free_whiskers == "linear":
+            return LinearFreePath(array, config.output_rate_hz)
         coarse = coarse_config(config) if config.free_whiskers == "coarse" else None
         return cls(make_engine, array, coarse) if coarse is not None else None
 

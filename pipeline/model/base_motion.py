@@ -113,14 +113,16 @@ def product_rates(omega: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     return np.array([alpha[a] * omega[b] + omega[a] * alpha[b] for a, b in PAIRS])
 
 
-def angular_rate(whisker, theta: float) -> np.ndarray:
-    """[3] A(θ): the whisker frame's body angular velocity per unit protraction rate (whisker frame)."""
-    yaw, pitch, roll = whisker.rest_joint_angles + whisker.joint_rates * theta
+def angular_rate(whisker, theta) -> np.ndarray:
+    """[3] A(θ) for a protraction θ (rad), or [S, 3] for θ [S]: the whisker frame's body angular
+    velocity per unit protraction rate (whisker frame)."""
+    yaw, pitch, roll = whisker.rest_joint_angles[:, None] + whisker.joint_rates[:, None] * np.atleast_1d(theta)
     r = whisker.joint_rates
-    rx_t, ry_t = rot_x(roll).T, rot_y(pitch).T
+    rx_t, ry_t = np.swapaxes(rot_x(roll), 1, 2), np.swapaxes(rot_y(pitch), 1, 2)
     joint_frame = rx_t @ ry_t @ np.array([0.0, 0.0, r[0]]) + rx_t @ np.array([0.0, r[1], 0.0]) \
         + np.array([r[2], 0.0, 0.0])
-    return whisker.frame_offset.T @ joint_frame
+    rate = joint_frame @ whisker.frame_offset
+    return rate if np.ndim(theta) else rate[0]
 
 
 def angular_motion(whisker, theta: float, rate: float, acceleration: float,

@@ -15,7 +15,7 @@ left::
 β_j = α_j − α_{j−1} the rest bend at node j. So the follicle's local axes are the whisker
 frame's z and y, and a bending joint's local axes are its link's z, y, x. ``axis_m`` is the
 axis at rest in the whisker frame, ``pivot_m`` the node it turns about; both engines and the
-linearised chain of :mod:`pipeline.diagnosis.linear` are built from this table.
+linearised chain of :mod:`pipeline.engines.linear.chain` are built from this table.
 """
 
 from __future__ import annotations

@@ -52,7 +52,7 @@ def release(config: ModelConfig, geometry: WhiskerGeometry) -> dict:
     """Tip displacement from rest (m, [T, 3]) and base wrench ([T, 6]) for AFTER_RELEASE_S
     after the release from the probe's deflection, time from the release; the static state."""
     from pipeline.diagnosis.fastsim import release_state
-    from pipeline.diagnosis.linear import linearise
+    from pipeline.engines.linear.chain import linearise
     from pipeline.engines import create_engine
     from pipeline.measurements.timeseries import ReleaseDrive
     from pipeline.model.physics import build_physics

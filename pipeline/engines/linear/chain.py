@@ -105,7 +105,7 @@ def linearise(physics: WhiskerPhysics) -> LinearWhisker:
     drag_q = c_lin * np.einsum("p,pai,pab,pbj->ij", weight, jp, normal, jp)
     drag_base = -c_lin * np.einsum("p,pai,pab,pbc->ic", weight, jp, normal, skew(points))
     damping = np.diag(dofs.damping) + drag_q
-    drag_points = {"points": points, "jacobian": jp, "normal": normal,
+    drag_points = {"points": points, "jacobian": jp, "normal": normal, "weight": weight,
                    "coefficient": 0.5 * AIR_DENSITY_KG_M3 * physics.drag_coefficient * diameter * weight}
     return LinearWhisker(physics, dofs, inertial.mass, np.diag(dofs.stiffness), damping, inertial.coupling,
                          inertial.centrifugal, gravity, drag_base, drag_points)

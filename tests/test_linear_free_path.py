@@ -1,0 +1,76 @@
+"""The linear chain as the free-whisker path (pipeline/engines/linear/free.py): its base wrench
+and node paths match the full engine's on whiskers that bend little, a whisker that bends more
+keeps the engine, and the chain's wrench is Newton–Euler of its own motion."""
+
+import numpy as np
+import pytest
+
+from pipeline.config.physics import EngineConfig, ModelConfig
+from pipeline.engines import create_engine
+from pipeline.engines.linear.chain import linearise
+from pipeline.engines.linear.free import LINEAR_PATH_MARGIN_M, MAX_BEND, bend, free_response, whisker_frames
+from pipeline.model.array import build_array
+from pipeline.model.kinematics import Pose, sinusoidal_whisk
+from pipeline.model.morphology import model_rat
+from pipeline.scenes import empty
+
+DURATION_S = 0.06
+POSE = Pose((0.001, -0.002, 0.0005), (0.3, 0.1, -0.05))
+
+
+def _engine(whiskers: str, free_whiskers: str):
+    config = ModelConfig(engine=EngineConfig(name="mujoco", free_whiskers=free_whiskers))
+    return create_engine(config, build_array(model_rat().select(whiskers), config.material))
+
+
+def _relative_errors(cheap: np.ndarray, full: np.ndarray) -> np.ndarray:
+    """[W, 6] RMS difference over the RMS force (force components) or moment (moment components)."""
+    error = np.sqrt(((cheap - full) ** 2).mean(axis=0))
+    magnitude = [np.sqrt((full[..., part] ** 2).sum(-1).mean(0)) for part in (slice(0, 3), slice(3, 6))]
+    return error / np.repeat(np.stack(magnitude, axis=1), 3, axis=1)
+
+
+def test_linear_path_matches_the_engine_within_one_percent():
+    """A long whisker bending 5 % of its length (RA1 at 9 Hz, f₁/f ≈ 3.9: the rotating base's
+    loads matter), a middle one and a short one (RC2, RD6); benchmarks/bench_free_whiskers.py
+    measures the whole array."""
+    drive = sinusoidal_whisk(9.0, 45.0, 20.0, DURATION_S)
+    with _engine("RA1,RC2,RD6", "engine") as full, _engine("RA1,RC2,RD6", "linear") as cheap:
+        reference, linear = (e.run(empty(), POSE, drive, DURATION_S) for e in (full, cheap))
+    assert linear.metadata["coarse_free_whiskers"] == ["RA1", "RC2", "RD6"]
+    assert linear.metadata["whisker_steps"] == 0
+    errors = _relative_errors(linear.base_wrench.astype(float), reference.base_wrench.astype(float))
+    assert errors.max() < 0.01, errors
+    assert not linear.contact.any() and np.isnan(linear.point_of_contact).all()
+    assert np.abs(linear.node_positions_m - reference.node_positions_m).max() < 0.2 * LINEAR_PATH_MARGIN_M
+
+
+def test_a_whisker_that_bends_much_keeps_the_engine():
+    """RA0 at 12 Hz bends 0.34 of its length (the linear chain is 4.6 % off there): the engine runs it."""
+    drive = sinusoidal_whisk(12.0, 45.0, 20.0, DURATION_S)
+    with _engine("RA0,RD6", "linear") as cheap:
+        output = cheap.run(empty(), POSE, drive, DURATION_S)
+        assert not cheap.free_path.linear[0] and cheap.free_path.linear[1]
+    assert output.metadata["coarse_free_whiskers"] == ["RD6"]
+    whisker = build_array(model_rat().select("RA0"), ModelConfig().material).whiskers[0]
+    nodes = (output.node_positions_m[:, 0].astype(float) - POSE.position_m) @ POSE.rotation
+    assert bend(whisker, drive, output.time_s, nodes) > MAX_BEND
+
+
+@pytest.mark.parametrize("name", ["RA1", "RD6"])
+def test_the_wrench_is_newton_euler_of_the_chains_own_motion(name):
+    """The base force equals Σ m·a of the link centres of mass (second differences of the
+    chain's own node paths at 10 kHz), rotated into the whisker frame."""
+    whisker = build_array(model_rat().select(name), ModelConfig().material).whiskers[0]
+    chain, h = whisker.chain, 1e-4
+    drive = sinusoidal_whisk(9.0, 45.0, 20.0, DURATION_S)
+    samples = int(round(DURATION_S / h))
+    wrench, nodes = free_response(whisker, linearise(whisker.physics), drive.continued(DURATION_S, h), samples, h)
+    times = np.arange(1, samples + 1) * h
+    fraction = chain.link_com_m / chain.link_lengths_m
+    com = nodes[:, :-1] + (nodes[:, 1:] - nodes[:, :-1]) * fraction[None, :, None]
+    acceleration = (com[2:] - 2 * com[1:-1] + com[:-2]) / h ** 2
+    head = np.einsum("l,tla->ta", chain.link_mass_kg, acceleration)
+    force = np.einsum("tab,ta->tb", whisker_frames(whisker, drive(times[1:-1])), head)
+    error = np.sqrt(((wrench[1:-1, :3] - force) ** 2).mean(0)) / np.sqrt((force ** 2).sum(1).mean())
+    assert error.max() < 0.01, error
