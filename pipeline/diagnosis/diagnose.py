@@ -395,6 +395,9 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
         result.sd = with_modulus_discretisation(block_sandwich_sd(result, blocks, model_error / RESIDUAL_UNIT_M),
                                                 result, measurement.geometry)
     simulated = {"baseline": baseline_whole.simulate(baseline_all.spec), "cause": whole.simulate(final.spec)}
+    law = next((c for c in causes if c in DAMPING_LAWS), None)
+    if law:
+        notes.append(_law_note(law, final, measurement.geometry))
     return Diagnosis(
         baseline=baseline_all, baseline_heldout=e0, candidates=scores, cause=cause, final=final,
         gain_after=named.heldout_error if named else e0, noise_m=noise,
@@ -402,6 +405,17 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
         cause_analysis=analyse(measurement, simulated["cause"]),
         split={"train": train, "heldout": test}, notes=notes + final.notes, simulated=simulated,
         evidence=evidence, floor_m=FLOOR_FRACTION * evidence["amplitude_m"], causes=causes)
+
+
+def _law_note(law: str, final: Fit, geometry) -> str:
+    """The named damping law's first three in-plane modes (f, ζ) in the refitted model."""
+    from pipeline.diagnosis.damping_laws import in_plane_modes
+    from pipeline.diagnosis.linear import linearise
+
+    f, z = in_plane_modes(linearise(final.spec.physics(geometry)), 3)
+    modes = ", ".join(f"{fi:.1f} Hz ζ {zi:.3f}" for fi, zi in zip(f, z) if np.isfinite(fi))
+    return f"damping law {law} ({final.spec.material.damping_model} joints" + \
+        (" + mass-proportional α·M" if final.spec.extension("mass_damping") else "") + f"): in-plane modes {modes}"
 
 
 def _evidence(e0: float, noise: float, amplitude_m: float, r0: np.ndarray, scores: list[CandidateScore]) -> dict:
