@@ -2,11 +2,12 @@
 
 Run: .venv/bin/python benchmarks/bench_diagnose.py [--draws 108] [--seed0 1000] [--json out.json]
 
-Draw k has cause CAUSES[k mod 9] (none and the eight candidate extensions) and seed seed0 + k
+Draw k has cause CAUSES[k mod 11] (none, the eight candidate extensions, and the damping laws
+rayleigh and eq3) and seed seed0 + k
 (:mod:`pipeline.diagnosis.scenarios`: random geometry, material, noise 0.02–0.1 mm and
 magnitude). Prints the confusion table (true cause × named cause), the recall per cause,
 the recovery error of each cause's key parameter (relative for scale parameters, absolute
-for gradients and the length scale) and the held-out gain. ~10 s per draw on one core.
+for gradients and the length scale) and the held-out gain. ~10 s per draw on one core; rows saved after every draw with --json.
 """
 
 import argparse
@@ -22,7 +23,8 @@ from pipeline.diagnosis.synth import synthesise
 NAMED = CAUSES + ("unexplained",)
 
 
-def run(draws: int, seed0: int, progress=print) -> list[dict]:
+def run(draws: int, seed0: int, progress=print, save=None) -> list[dict]:
+    """Rows of draws 0..draws−1; ``save(rows)`` after each draw (a checkpoint) when given."""
     rows = []
     for k in range(draws):
         cause, seed = CAUSES[k % len(CAUSES)], seed0 + k
@@ -36,6 +38,8 @@ def run(draws: int, seed0: int, progress=print) -> list[dict]:
                      "cpu_s": time.process_time() - start})
         progress(f"{k + 1:4d}/{draws} {cause:>18} → {result.cause:<18} key error {error:+.3f} "
                  f"({rows[-1]['cpu_s']:.1f} s)")
+        if save:
+            save(rows)
     return rows
 
 
@@ -75,12 +79,13 @@ def main() -> None:
     parser.add_argument("--seed0", type=int, default=1000)
     parser.add_argument("--json", help="also write every draw's result to this file")
     args = parser.parse_args()
-    rows = run(args.draws, args.seed0)
-    print()
-    print(report(rows))
-    if args.json:
+    def save(rows):
         with open(args.json, "w") as handle:
             json.dump(rows, handle, indent=1, default=float)
+
+    rows = run(args.draws, args.seed0, save=save if args.json else None)
+    print()
+    print(report(rows))
 
 
 if __name__ == "__main__":

@@ -3,7 +3,13 @@ where to start them (scaled to the whisker at hand).
 
 Scales: k_w = E·I_base/S, the rotational stiffness of the whole whisker about its base, and
 J_w = Σ m·|c|², its moment of inertia about the base. A follicle with k_f ≈ k_w is as
-compliant as the whisker itself; ζ_f = c_f/(2√(k_f·J_w)) is the follicle's damping ratio.
+compliant as the whisker itself; ζ_f = c_f/(2√(k_f·J_w)) is the follicle's damping ratio;
+ω_w = √(k_w/J_w) is a rate of the whisker's first mode's order.
+
+Damping laws are candidates too (``law`` set): one changes the material's damping model
+(``eq3``: the paper's joint dampers; ``kelvin_voigt``: β·k_n), ``rayleigh`` adds the
+mass-proportional α·M of :class:`~pipeline.model.extensions.MassDamping` to the Kelvin–Voigt
+joints (C = α·M + β·K). A law candidate equal to the model's own damping model is not tried.
 """
 
 from __future__ import annotations
@@ -29,6 +35,11 @@ class WhiskerScales:
         com = chain.nodes_m[:-1] + np.stack([np.cos(a), np.sin(a), 0 * a], 1) * chain.link_com_m[:, None]
         return cls(ei / chain.geometry.arc_length_m, float(np.sum(chain.link_mass_kg * np.sum(com ** 2, 1))))
 
+    @property
+    def rate_per_s(self) -> float:
+        """ω_w = √(k_w/J_w) (rad/s)."""
+        return float(np.sqrt(self.stiffness_nm_per_rad / self.inertia_kg_m2))
+
     def follicle(self, stiffness_ratio: float, damping_ratio: float) -> dict[str, float]:
         """follicle parameters for k_f = ratio·k_w and a follicle damping ratio ζ_f."""
         k = stiffness_ratio * self.stiffness_nm_per_rad
@@ -42,13 +53,26 @@ class Candidate:
     ``absorbs``: the largest held-out gain √(e₀² − e_c²)/A the candidate made on effect-free
     draws of the independent truth, fitted as diagnose fits (continuum corrections included;
     benchmarks/calibrate_floor.py, seeds 9100–9123, rounded up; A the RMS deflection): how
-    much of the model's own error it can take for an effect (docs/measurements.md §9)."""
+    much of the model's own error it can take for an effect (docs/measurements.md §9).
+    ``law``: the damping model (``MaterialConfig.damping_model``) the candidate fits with, for a
+    damping-law candidate; ``None``: the model's own."""
 
     name: str
     params: tuple[str, ...]
     starts: Callable[[WhiskerScales], list[dict[str, float]]]
     absorbs: float
     refine: dict[str, float] = field(default_factory=dict)
+    law: str | None = None
+
+    def applies_to(self, material) -> bool:
+        """False for a damping-law candidate that is already the model's law."""
+        return self.law is None or self.name != DAMPING_MODEL_NAMES.get(material.damping_model)
+
+    def on(self, spec):
+        """``spec`` with this candidate's damping model (itself for an effect candidate)."""
+        if self.law is None or spec.material.damping_model == self.law:
+            return spec
+        return type(spec)(spec.material.model_copy(update={"damping_model": self.law}), spec.extensions)
 
 
 def _values(param: str, values) -> Callable[[WhiskerScales], list[dict[str, float]]]:
@@ -67,7 +91,14 @@ CANDIDATES: tuple[Candidate, ...] = (
     Candidate("drag", ("drag.linear",), _values("drag.linear", (3e-5, 3e-4)), 0.0064, {"drag.quadratic": 2.0}),
     Candidate("gravity", ("gravity.g",), _values("gravity.g", (5.0, 15.0)), 0.0062),
     Candidate("twist", ("twist.g_over_e",), _values("twist.g_over_e", (0.05, 0.3, 1.0)), 0.0002),
+    Candidate("rayleigh", ("mass_damping.alpha",),
+              lambda s: [{"mass_damping.alpha": 2 * z * s.rate_per_s} for z in (0.03, 0.1)], 0.0064,
+              law="kelvin_voigt"),
+    Candidate("eq3", (), lambda s: [{}], 0.0064, law="paper"),
+    Candidate("kelvin_voigt", (), lambda s: [{}], 0.0064, law="kelvin_voigt"),
 )
+DAMPING_MODEL_NAMES = {"paper": "eq3", "kelvin_voigt": "kelvin_voigt"}   # material damping model → candidate
+DAMPING_LAWS = tuple(c.name for c in CANDIDATES if c.law is not None)
 ABSORBS = {c.name: c.absorbs for c in CANDIDATES}
 CANDIDATE_NAMES = tuple(c.name for c in CANDIDATES)
 

@@ -132,7 +132,7 @@ def _with_damping_laws(data: dict, lines: list[str], material) -> None:
                      f"f within 15 % {'yes' if c1['f_within_15pct'] else 'no'}, ζ1 in 0.11-0.17 "
                      f"{'yes' if c1['zeta1_in_range'] else 'no'}")
     tie = f" (tied on held-out error with {', '.join(evidence['tied'][1:])})" if len(evidence["tied"]) > 1 else ""
-    engines = "" if evidence["engines_have_it"] else "; the engines have only eq. 3 and Kelvin–Voigt joint dampers"
+    engines = "" if evidence["engines_have_it"] else "; the engines have eq. 3, Kelvin–Voigt and Rayleigh only"
     lines.append(f"    the evidence picks: {evidence['picked']}{tie}{engines}")
 
 

@@ -18,7 +18,8 @@ linear in it), two passes. Then
 The law picked: the lowest held-out error among the laws consistent with the multi-mode
 evidence (all laws when none is); ``tied`` lists the laws whose held-out error is within
 :data:`HELD_OUT_TIE` of it (first-mode data cannot separate laws that share ζ1: then the pick is
-the first of them in :data:`~pipeline.diagnosis.damping_laws.LAWS` order, and the report says so).
+the first of them in :data:`~pipeline.diagnosis.damping_laws.LAWS` order, and the report says so),
+with the model an engine runs for C1 under it (:func:`c1_engine_model`).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.config.physics import MaterialConfig
-from pipeline.diagnosis.damping_laws import LAWS, in_plane_modes, with_law
+from pipeline.diagnosis.damping_laws import LAWS, in_plane_modes, rayleigh_spec, with_law
 from pipeline.diagnosis.parameters import ModelSpec
 from pipeline.measurements.library import load_library, split_held_out
 from pipeline.model.morphology import model_rat
@@ -39,6 +40,7 @@ EQ3_ZETA1_PER_THETA = 0.23                      # ζ1 ≈ 0.23·θ_ζ under eq. 
 PASSES = 2
 ZETA_TIE = 0.05          # relative: a ζ_n within 5 % of ζ1 does not exceed it (drag adds a little to each)
 HELD_OUT_TIE = 0.01      # relative: held-out errors closer than this do not separate two laws
+ENGINE_LAWS = ("eq3", "kelvin_voigt", "rayleigh")   # modal: the diagnosis' linear model only
 
 
 def c1_geometry() -> WhiskerGeometry:
@@ -100,4 +102,18 @@ def damping_law_evidence(material: MaterialConfig | None = None) -> dict:
     best = laws[picked]["held_out_error"]
     tied = [law for law in pool if laws[law]["held_out_error"] <= (1 + HELD_OUT_TIE) * best]
     return {"laws": laws, "picked": tied[0], "tied": tied, "consistent_with_multi_mode": consistent,
-            "engines_have_it": tied[0] in ("eq3", "kelvin_voigt")}
+            "engines_have_it": tied[0] in ENGINE_LAWS, "c1_engine_model": c1_engine_model(laws[tied[0]], tied[0], material)}
+
+
+def c1_engine_model(row: dict, law: str, material: MaterialConfig) -> dict | None:
+    """The model an engine runs for C1 under ``law`` with ``row``'s fitted E and parameter
+    (``resonance --modes 3``): material fields and extensions; None for a law the engines lack."""
+    if law not in ENGINE_LAWS:
+        return None
+    spec = ModelSpec(material).with_values({"E": row["E_pa"], "zeta": row["parameter"]})
+    if law == "rayleigh":
+        spec = rayleigh_spec(spec, c1_geometry())
+    values = spec.values()
+    return {"youngs_modulus_gpa": values["E"] / 1e9, "damping_ratio": values["zeta"],
+            "damping_model": "paper" if law == "eq3" else "kelvin_voigt",
+            "extensions": {"mass_damping": {"alpha": values["mass_damping.alpha"]}} if law == "rayleigh" else {}}

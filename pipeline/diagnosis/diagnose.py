@@ -17,7 +17,9 @@ Time series (positions of tracked points):
    training residuals. The ``LEADERS`` candidates with the lowest held-out error among those
    with ΔBIC < −``BIC_MIN``, and the one with the lowest ΔBIC, continue their fits (a short
    fit can stop short of a strong effect, letting a surrogate win), with the candidate's
-   ``refine`` parameters added (drag: the quadratic C_d). The lowest ΔBIC joins because a
+   ``refine`` parameters added (drag: the quadratic C_d). Damping laws are candidates like
+   the others (:mod:`.candidates`: ``rayleigh``, ``eq3``, ``kelvin_voigt``, each fitted from
+   the baseline's values with its own damping model), so a law is named on the same evidence. The lowest ΔBIC joins because a
    first fit without its refine parameter can fit the training trials and still miss the
    held-out ones: linear drag fitted to one pulse mispredicts a faster one when the drag is
    quadratic.
@@ -49,7 +51,8 @@ Time series (positions of tracked points):
    so far (:func:`family_z`: Bonferroni on the one-sided tail of ``Z_MIN``, which the first
    round's candidates set), so trying more candidates does not lower the bar. Data scored
    with the nonlinear correction stop after the first round (a note says so). ``causes``
-   lists the causes in the order named; the model refitted in step 6 holds all of them.
+   lists the causes in the order named; the model refitted in step 6 holds all of them. Once a
+   damping law is named no other law is tried (the laws exclude each other).
 6. The named model (or the baseline) is refitted on all trials for its parameters; their
    SDs are block-sandwich SDs over 50 ms stretches plus a model-error term of RMS
    ``SD_MODEL_FRACTION``·A (:func:`~.fitting.block_sandwich_sd`), calibrated so that ±1 SD
@@ -75,7 +78,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pipeline.config.physics import MaterialConfig
-from pipeline.diagnosis.candidates import ABSORBS, CANDIDATES, Candidate, WhiskerScales
+from pipeline.diagnosis.candidates import ABSORBS, CANDIDATES, DAMPING_LAWS, Candidate, WhiskerScales
 from pipeline.diagnosis.deflection import amplitude, bend
 from pipeline.diagnosis.discretisation import with_modulus_discretisation
 from pipeline.diagnosis.fitting import Fit, best_start, block_sandwich_sd, fit, matched_start
@@ -207,7 +210,7 @@ def _candidates(session: _Session, baseline: Fit, chosen: list[Candidate]) -> li
     scales = WhiskerScales.of(baseline.spec.physics(session.measurement.geometry))
     scores = []
     for c in chosen:
-        start = best_start(session.train, session.train_features, baseline.spec, c.starts(scales))
+        start = best_start(session.train, session.train_features, c.on(baseline.spec), c.starts(scales))
         scores.append(_fit_candidate(session, baseline, c.name, start, baseline.names + c.params,
                                      CANDIDATE_ITERATIONS))
     for lead in _leaders(scores):
@@ -324,7 +327,7 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
     if unknown:
         raise UserError(f"unknown candidate(s) {', '.join(sorted(unknown))} "
                         f"(known: {', '.join(c.name for c in CANDIDATES)})")
-    chosen = [c for c in CANDIDATES if candidates is None or c.name in candidates]
+    chosen = [c for c in CANDIDATES if (candidates is None or c.name in candidates) and c.applies_to(material)]
     train, test = split_trials(measurement)
     notes = []
     if not test:
@@ -370,7 +373,7 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
         notes.append("the data need the nonlinear correction: only one cause is looked for")
     tried, rounds = len(scores), []
     while named and not simulators and len(causes) < MAX_CAUSES:
-        rest = [c for c in chosen if c.name not in causes]
+        rest = [c for c in chosen if c.name not in causes and not (c.law and set(causes) & set(DAMPING_LAWS))]
         found, round_evidence = _next_cause(session, named, rest, noise, evidence["amplitude_m"],
                                             family_z(tried + len(rest), len(scores)))
         tried += len(rest)
@@ -392,6 +395,9 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
         result.sd = with_modulus_discretisation(block_sandwich_sd(result, blocks, model_error / RESIDUAL_UNIT_M),
                                                 result, measurement.geometry)
     simulated = {"baseline": baseline_whole.simulate(baseline_all.spec), "cause": whole.simulate(final.spec)}
+    law = next((c for c in causes if c in DAMPING_LAWS), None)
+    if law:
+        notes.append(_law_note(law, final, measurement.geometry))
     return Diagnosis(
         baseline=baseline_all, baseline_heldout=e0, candidates=scores, cause=cause, final=final,
         gain_after=named.heldout_error if named else e0, noise_m=noise,
@@ -399,6 +405,17 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
         cause_analysis=analyse(measurement, simulated["cause"]),
         split={"train": train, "heldout": test}, notes=notes + final.notes, simulated=simulated,
         evidence=evidence, floor_m=FLOOR_FRACTION * evidence["amplitude_m"], causes=causes)
+
+
+def _law_note(law: str, final: Fit, geometry) -> str:
+    """The named damping law's first three in-plane modes (f, ζ) in the refitted model."""
+    from pipeline.diagnosis.damping_laws import in_plane_modes
+    from pipeline.engines.linear.chain import linearise
+
+    f, z = in_plane_modes(linearise(final.spec.physics(geometry)), 3)
+    modes = ", ".join(f"{fi:.1f} Hz ζ {zi:.3f}" for fi, zi in zip(f, z) if np.isfinite(fi))
+    return f"damping law {law} ({final.spec.material.damping_model} joints" + \
+        (" + mass-proportional α·M" if final.spec.extension("mass_damping") else "") + f"): in-plane modes {modes}"
 
 
 def _evidence(e0: float, noise: float, amplitude_m: float, r0: np.ndarray, scores: list[CandidateScore]) -> dict:

@@ -5,7 +5,10 @@ A draw picks the geometry (arc length 20–45 mm, base diameter after Belli et a
 ±10 %, tip/base diameter 0.15–0.35, dimensionless curvature A·S 0.15–0.5), the material
 (E 3–9 GPa, θ_ζ 0.08–0.3, eq. 3 damping at N = 20 like the fitting model), the tracking noise
 (0.02–0.1 mm, up to 5 % lost point-frames) and the effect's magnitude from the ranges in
-``MAGNITUDES``; the drives are fixed: two in-plane and two out-of-plane releases at
+:func:`_effect`; a damping-law draw changes the law instead: ``rayleigh`` gives a share
+0.5–0.9 of the first in-plane mode's ζ to α·M (α = 2·share·ζ·ω1, the Kelvin–Voigt joints keep
+the rest), ``eq3`` the paper's joint dampers with θ_ζ = ζ/0.23 (about the same first-mode
+damping, ζ growing less with the mode); the drives are fixed: two in-plane and two out-of-plane releases at
 different contact points, two in-plane pulses (paper eq. 5 with an abrupt stop).
 """
 
@@ -16,17 +19,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.diagnosis.candidates import CANDIDATE_NAMES, WhiskerScales
+from pipeline.diagnosis.damping_evidence import EQ3_ZETA1_PER_THETA
 from pipeline.diagnosis.diagnose import CONTINUUM
 from pipeline.diagnosis.synth import SynthConfig
 
-CAUSES = ("none",) + CANDIDATE_NAMES
+CAUSES = ("none",) + tuple(c for c in CANDIDATE_NAMES if c != "kelvin_voigt")   # the draws' law is KV
 # the parameter each cause is judged on, and the recovery tolerance (relative if rel else absolute)
 KEY_PARAMETER = {"none": ("E", 0.05, True), "follicle": ("follicle.k_f", 0.25, True),
                  "stiffness_gradient": ("stiffness_gradient.gamma", 0.25, False),
                  "damping_gradient": ("damping_gradient.gamma", 1.0, False),
                  "density": ("density.gradient", 0.3, False), "length": ("length.scale", 0.02, False),
                  "drag": ("drag.linear", 0.3, True), "gravity": ("gravity.g", 0.1, True),
-                 "twist": ("twist.g_over_e", 0.3, True)}
+                 "twist": ("twist.g_over_e", 0.3, True), "rayleigh": ("mass_damping.alpha", 0.3, True),
+                 "eq3": ("E", 0.05, True)}
 
 
 @dataclass(frozen=True)
@@ -57,7 +62,7 @@ def _effect(cause: str, rng: np.random.Generator, scales: WhiskerScales) -> dict
             "drag": lambda: {"drag.linear": 10 ** rng.uniform(-4, np.log10(4e-4))},
             "gravity": lambda: {"gravity.g": 9.81},
             "twist": lambda: {"twist.g_over_e": 10 ** rng.uniform(-1, np.log10(0.5))},
-            "none": lambda: {}}[cause]()
+            "none": lambda: {}, "eq3": lambda: {}}[cause]()
 
 
 def draw(cause: str, seed: int, duration_s: float = 0.25) -> Scenario:
@@ -69,6 +74,9 @@ def draw(cause: str, seed: int, duration_s: float = 0.25) -> Scenario:
                "tip_diameter_um": base * rng.uniform(0.15, 0.35),
                "curvature_per_mm": rng.uniform(0.15, 0.5) / length}
     material = {"youngs_modulus_gpa": rng.uniform(3, 9), "damping_ratio": rng.uniform(0.08, 0.3)}
+    if cause == "eq3":
+        material = {**material, "damping_model": "paper",
+                    "damping_ratio": material["damping_ratio"] / EQ3_ZETA1_PER_THETA}
     deflection = 0.05 * length
     trials = [{"name": "release_y_a", "release": {"contact_fraction": 0.7, "deflection_mm": [0, deflection, 0]}},
               {"name": "release_y_b", "release": {"contact_fraction": 0.5, "deflection_mm": [0, -0.6 * deflection, 0]}},
@@ -82,8 +90,14 @@ def draw(cause: str, seed: int, duration_s: float = 0.25) -> Scenario:
     config = SynthConfig.model_validate(base_config)
     from pipeline.diagnosis.synth import true_spec
 
-    scales = WhiskerScales.of(true_spec(config).physics(config.whisker.geometry()))
-    effect = _effect(cause, rng, scales)
+    physics = true_spec(config).physics(config.whisker.geometry())
+    if cause == "rayleigh":
+        share = rng.uniform(0.5, 0.9)
+        material["damping_ratio"] *= 1 - share
+        effect = {"mass_damping.alpha": 2 * share * material["damping_ratio"] / (1 - share)
+                  * 2 * np.pi * physics.planar_modes()[0][0]}
+    else:
+        effect = _effect(cause, rng, WhiskerScales.of(physics))
     extensions: dict[str, dict[str, float]] = {e.name: {} for e in CONTINUUM}   # the model diagnose fits
     for name, value in effect.items():
         ext, field = name.split(".")

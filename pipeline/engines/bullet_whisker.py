@@ -84,6 +84,7 @@ class BulletWhisker:
         yaw = links.add(-1, p.JOINT_REVOLUTE, (0, 0, 1), **drive_body)
         pitch = links.add(yaw, p.JOINT_REVOLUTE, (0, 1, 0), **drive_body)
         roll = links.add(pitch, p.JOINT_REVOLUTE, (1, 0, 0), **drive_body)
+        self.base_link = roll                                  # the driven base frame (follicle)
         layout = model.layout
         parent, rotation = roll, model.frame_offset
         self.follicle_axes = [_AXIS_INDEX[j.local_axis] for j in layout.at_node(0)]
@@ -266,17 +267,23 @@ class BulletWhisker:
         self._factorised_at = np.array(q[3:])
         self._lhs_inverse = np.linalg.inv(mass_free + np.diag(h * self.damping[3:] + h * h * self.stiffness[3:]))
 
-    def link_state(self, velocities: bool) -> LinkState:
-        """The whisker links' centres of mass, frames and velocities (world frame, SI)."""
+    def link_state(self, velocities: bool, base: bool = False) -> LinkState:
+        """The whisker links' centres of mass, frames and velocities (world frame, SI); with
+        ``base`` also the driven base frame's origin and motion (its centre of mass is its origin)."""
         import pybullet as p
 
         states = p.getLinkStates(self.body, self.whisker_links, computeLinkVelocity=int(velocities),
                                  computeForwardKinematics=True, physicsClientId=self.client)
         frames = np.array([matrix_from_xyzw(s[1]) for s in states])
         zeros = np.zeros((len(states), 3))
+        motion = None
+        if base:
+            b = p.getLinkState(self.body, self.base_link, computeLinkVelocity=1, computeForwardKinematics=True,
+                               physicsClientId=self.client)
+            motion = (np.array(b[0]) / U.LENGTH, np.array(b[6]) / U.LENGTH, np.array(b[7]))
         return LinkState(np.array([s[0] for s in states]) / U.LENGTH, frames,
                          np.array([s[6] for s in states]) / U.LENGTH if velocities else zeros,
-                         np.array([s[7] for s in states]) if velocities else zeros)
+                         np.array([s[7] for s in states]) if velocities else zeros, motion)
 
     def _apply_loads(self, loads, q: list[float]) -> np.ndarray:
         """Apply the loads' per-link forces to Bullet's bodies for the next step; returns their
@@ -285,7 +292,7 @@ class BulletWhisker:
         whose deflection is then independent of the step size."""
         import pybullet as p
 
-        state = self.link_state(any(load.needs_velocity for load in loads))
+        state = self.link_state(any(load.needs_velocity for load in loads), any(load.needs_base for load in loads))
         force, torque = total_link_forces(loads, self.model.chain, state)
         force, torque = force * U.FORCE, torque * U.TORQUE
         zeros = [0.0] * self.n_dof

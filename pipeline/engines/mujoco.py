@@ -848,10 +848,20 @@ class MujocoWorld(World):
                 velocity = (d.cvel[bodies, 3:] + np.cross(omega, arm)) / U.LENGTH
             else:
                 omega = velocity = np.zeros_like(com)
-            state = LinkState(com, d.ximat[bodies].reshape(-1, 3, 3), velocity, omega)
+            state = LinkState(com, d.ximat[bodies].reshape(-1, 3, 3), velocity, omega,
+                              self._base_motion(k) if any(load.needs_base for load in loads[k]) else None)
             force, torque = total_link_forces(loads[k], self.whiskers[self.members[k]].chain, state)
             d.xfrc_applied[bodies, :3] = force * U.FORCE
             d.xfrc_applied[bodies, 3:] = torque * U.TORQUE
+
+    def _base_motion(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Member ``k``'s driven base frame (the follicle body): origin (m), its velocity (m/s) and
+        angular velocity (rad/s), world frame (after ``mj_comVel``)."""
+        m, d = self.model, self.data
+        body = m.body_parentid[self.link_bodies[k][0]]
+        omega = d.cvel[body, :3]
+        velocity = d.cvel[body, 3:] + np.cross(omega, d.xpos[body] - d.subtree_com[m.body_rootid[body]])
+        return d.xpos[body] / U.LENGTH, velocity / U.LENGTH, omega.copy()
 
     def _record(self, result: WorldResult, sample: int, contact: np.ndarray, point_of_contact: np.ndarray,
                 time_s: float) -> None:

@@ -9,7 +9,7 @@ by :func:`pipeline.model.physics.build_physics`:
 3. ``chain(WhiskerChain) -> WhiskerChain``           masses and stiffnesses (before damping)
 4. ``damping(WhiskerChain) -> WhiskerChain``         joint damping (after the damping model)
 5. ``physics(WhiskerPhysics) -> WhiskerPhysics``     effects that are not joint springs:
-                                                     follicle, twist, drag, gravity
+                                                     follicle, twist, drag, gravity, mass damping
 
 Hooks 1–4 produce an ordinary :class:`~pipeline.model.whisker.WhiskerChain`; hook 5 fills
 :class:`~pipeline.model.physics.WhiskerPhysics`, whose joints (:mod:`pipeline.model.joints`)
@@ -248,6 +248,25 @@ class Twist(Extension):
 
 
 @dataclass(frozen=True)
+class MassDamping(Extension):
+    """Mass-proportional damping of the whisker's motion relative to its driven base: a force
+    −α·m_l·v_l and a torque −α·I_l·ω_l on every link (v_l, ω_l relative to the base frame;
+    :class:`~pipeline.model.loads.MassDampingLoad`), the generalised force −α·M·q̇. With the
+    Kelvin–Voigt joint dampers β·k_n it makes Rayleigh damping C = α·M + β·K, whose mode n
+    has ζ_n = α/(2ω_n) + β·ω_n/2: a damping ratio that need not grow with the mode's frequency.
+    ``alpha`` in 1/s."""
+
+    name: ClassVar[str] = "mass_damping"
+    PARAMETERS: ClassVar[tuple[Parameter, ...]] = (
+        Parameter("alpha", "1/s", 1.0, 1e-3, 1e5, True, "mass-proportional damping rate"),
+    )
+    alpha: float = 1.0
+
+    def physics(self, physics: WhiskerPhysics) -> WhiskerPhysics:
+        return replace(physics, mass_damping_per_s=self.alpha)
+
+
+@dataclass(frozen=True)
 class BaseSegment(Extension):
     """The bending compliance of the base half-link, as a spring at the base point. Eq. 2's
     joints each stand for the arc of one link around their node, [s_n − l/2, s_n + l/2],
@@ -308,7 +327,8 @@ class IntegratedDensity(Extension):
 
 EXTENSIONS: dict[str, type[Extension]] = {
     cls.name: cls for cls in (CompliantFollicle, StiffnessGradient, DampingGradient, DensityChange,
-                              ArcLength, AirDrag, Gravity, Twist, BaseSegment, IntegratedDensity)
+                              ArcLength, AirDrag, Gravity, Twist, MassDamping, BaseSegment,
+                              IntegratedDensity)
 }
 
 

@@ -23,19 +23,25 @@ class LinkState:
     """Where one whisker's N links are and how they move (world frame, SI).
 
     ``com_m`` [N, 3] centres of mass, ``frames`` [N, 3, 3] link orientations (x along the link),
-    ``velocity_m_s`` [N, 3] velocities of the centres of mass, ``angular_velocity_rad_s`` [N, 3].
+    ``velocity_m_s`` [N, 3] velocities of the centres of mass, ``angular_velocity_rad_s`` [N, 3];
+    ``base``: where the driven base frame (the follicle after the drive) is and how it moves,
+    (origin [3] m, velocity of the origin [3] m/s, angular velocity [3] rad/s), filled by the
+    engines for loads that ``need_base``.
     """
 
     com_m: np.ndarray
     frames: np.ndarray
     velocity_m_s: np.ndarray
     angular_velocity_rad_s: np.ndarray
+    base: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
 
 class Load:
     """Base class: a load gives per-link forces and torques for a link state."""
 
     needs_velocity: ClassVar[bool] = False
+    #: True when the load needs the motion of the driven base frame (:attr:`LinkState.base`)
+    needs_base: ClassVar[bool] = False
     #: True when the load depends on the head's pose in the world (then a whisker's motion
     #: relative to the head is not the same at every pose)
     depends_on_pose: ClassVar[bool] = True
@@ -89,6 +95,32 @@ class DragLoad(Load):
         weight = 0.5 * _GL_W[None, :, None] * lengths[:, None, None]
         force = np.sum(weight * per_length, axis=1)
         torque = np.sum(weight * np.cross(arm, per_length), axis=1)
+        return force, torque
+
+
+@dataclass(frozen=True)
+class MassDampingLoad(Load):
+    """Mass-proportional damping of the motion relative to the driven base frame, the α·M half of
+    Rayleigh damping C = α·M + β·K:
+
+        f_l = −α·m_l·(v_l − v_b − ω_b × (c_l − x_b)),   τ_l = −α·I_l·(ω_l − ω_b),
+
+    m_l, I_l (world frame) the link's mass and inertia about its centre of mass c_l, x_b, v_b,
+    ω_b the base frame's origin, velocity and angular velocity. Their generalised force on the
+    spring joints is −α·M·q̇ (M the chain's joint-space mass matrix), so a mode of frequency
+    ω_n gets the damping ratio α/(2ω_n) from it. ``rate_per_s`` α in 1/s."""
+
+    rate_per_s: float
+    needs_velocity: ClassVar[bool] = True
+    needs_base: ClassVar[bool] = True
+    depends_on_pose: ClassVar[bool] = False
+
+    def link_forces(self, chain, state: LinkState):
+        origin, velocity, omega = state.base
+        relative = state.velocity_m_s - velocity - np.cross(omega, state.com_m - origin)
+        force = -self.rate_per_s * chain.link_mass_kg[:, None] * relative
+        local = np.einsum("lji,lj->li", state.frames, state.angular_velocity_rad_s - omega)   # link axes
+        torque = -self.rate_per_s * np.einsum("lij,lj->li", state.frames, chain.link_inertia_kg_m2 * local)
         return force, torque
 
 

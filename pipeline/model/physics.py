@@ -17,7 +17,7 @@ from pipeline.config.physics import MaterialConfig
 from pipeline.model.damping import damping_model
 from pipeline.model.extensions import BaseSegment, CompliantFollicle, Extension, Gravity
 from pipeline.model.joints import JointLayout, joint_layout
-from pipeline.model.loads import DragLoad, GravityLoad
+from pipeline.model.loads import DragLoad, GravityLoad, MassDampingLoad
 from pipeline.model.whisker import WhiskerChain, WhiskerGeometry, build_chain, planar_mass_matrix, planar_modes
 
 
@@ -33,6 +33,8 @@ class WhiskerPhysics:
     f = −c_lin·v_n − ½·ρ_air·C_d·d·|v_n|·v_n (N/m).
     ``gravity_m_s2``: acceleration of gravity along the experiment's gravity direction
     (world −z in the engines).
+    ``mass_damping_per_s``: α of mass-proportional damping on the motion relative to the base
+    (:class:`~pipeline.model.loads.MassDampingLoad`; with Kelvin–Voigt joints: Rayleigh damping).
     """
 
     chain: WhiskerChain
@@ -42,6 +44,7 @@ class WhiskerPhysics:
     drag_linear_ns_per_m2: float = 0.0
     drag_coefficient: float = 0.0
     gravity_m_s2: float = 0.0
+    mass_damping_per_s: float = 0.0
 
     @cached_property
     def layout(self) -> JointLayout:
@@ -71,12 +74,15 @@ class WhiskerPhysics:
         return planar_modes(self.chain, self.planar_stiffness_nm_per_rad)
 
     def loads(self) -> tuple:
-        """The per-link loads of this whisker (gravity along world −z, air drag)."""
+        """The per-link loads of this whisker (gravity along world −z, air drag, mass-proportional
+        damping)."""
         loads = []
         if self.gravity_m_s2:
             loads.append(GravityLoad(self.gravity_m_s2))
         if self.drag_linear_ns_per_m2 or self.drag_coefficient:
             loads.append(DragLoad(self.drag_linear_ns_per_m2, self.drag_coefficient))
+        if self.mass_damping_per_s:
+            loads.append(MassDampingLoad(self.mass_damping_per_s))
         return tuple(loads)
 
 

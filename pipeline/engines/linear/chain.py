@@ -8,9 +8,10 @@ and the forward kinematics of :meth:`LinearWhisker.points` is exact for given q.
 Equations of motion in the base frame, which rotates with body angular velocity ω(t) and
 acceleration α = ω̇ about the pinned base point, linearised in q (not in the base motion):
 
-    M q̈ + (C_j + C_d) q̇ + K q = −M_qb·α − H_cf·p(ω) − D_d·ω + H_g·g_b(t) + Q_quad
+    M q̈ + (C_j + α_m·M + C_d) q̇ + K q = −M_qb·α − H_cf·p(ω) − D_d·ω + H_g·g_b(t) + Q_quad
 
-M, K, C_j: mass, joint stiffness and joint damping matrices at rest; M_qb: inertial coupling
+M, K, C_j: mass, joint stiffness and joint damping matrices at rest; α_m: mass-proportional
+damping of the motion relative to the base (:class:`~pipeline.model.loads.MassDampingLoad`); M_qb: inertial coupling
 of the chain to a base rotation; H_cf·p(ω): centrifugal and gyroscopic loads of the rest
 shape (p the six products ω_a·ω_b); C_d, D_d: linear air drag on the normal velocity
 (J_v·q̇ + ω × x); H_g·g_b: gravity g_b = g·R(t)ᵀ·d in the base frame; Q_quad: quadratic drag.
@@ -41,7 +42,7 @@ class LinearWhisker:
     dofs: JointLayout
     mass: np.ndarray            # [n, n] M
     stiffness: np.ndarray       # [n, n] K
-    damping: np.ndarray         # [n, n] C_j + C_d
+    damping: np.ndarray         # [n, n] C_j + α_m·M + C_d
     base_coupling: np.ndarray   # [n, 3] M_qb
     centrifugal: np.ndarray     # [n, 6] H_cf
     gravity: np.ndarray         # [n, 3] H_g (per unit g_b)
@@ -104,7 +105,7 @@ def linearise(physics: WhiskerPhysics) -> LinearWhisker:
     c_lin = physics.drag_linear_ns_per_m2
     drag_q = c_lin * np.einsum("p,pai,pab,pbj->ij", weight, jp, normal, jp)
     drag_base = -c_lin * np.einsum("p,pai,pab,pbc->ic", weight, jp, normal, skew(points))
-    damping = np.diag(dofs.damping) + drag_q
+    damping = np.diag(dofs.damping) + physics.mass_damping_per_s * inertial.mass + drag_q
     drag_points = {"points": points, "jacobian": jp, "normal": normal, "weight": weight,
                    "coefficient": 0.5 * AIR_DENSITY_KG_M3 * physics.drag_coefficient * diameter * weight}
     return LinearWhisker(physics, dofs, inertial.mass, np.diag(dofs.stiffness), damping, inertial.coupling,
