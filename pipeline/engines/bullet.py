@@ -76,7 +76,7 @@ import numpy as np
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, TrialSetup, World, WorldResult
-from pipeline.engines.bullet_contact import find_contacts
+from pipeline.engines.bullet_contact import OneSidedMesh, find_contacts
 from pipeline.engines.bullet_whisker import IDENTITY_QUAT, BulletWhisker, quat
 from pipeline.engines.common import ContactFlags, implausible, jam_message, node_arc_fractions
 from pipeline.errors import UserError
@@ -88,6 +88,7 @@ __all__ = ["BulletEngine"]
 
 PARKED_MM = 1e6          # obstacles of other scenes and jammed whiskers wait this far away
 MESH_MARGIN_MM = 0.3     # contact skin of triangle meshes (0.1 mm let links through; see above)
+IMPLICIT_MESHES = True
 WHISKER_GROUP, MESH_GROUP = 1, 2   # Bullet's own contact: whisker links with meshes only
 
 
@@ -97,6 +98,7 @@ class _Obstacle:
     start_mm: np.ndarray
     velocity_mm_s: np.ndarray
     mesh: bool               # contact by Bullet's solver (module docstring, Triangle meshes)
+    one_sided: OneSidedMesh | None = None     # a mesh under the implicit contact
 
 
 def _cylinder_shape(client: int, peg: Cylinder) -> int:
@@ -118,7 +120,7 @@ def _mesh_shape(client: int, mesh: TriangleMesh) -> int:
     then reaches out to the scanned surface)."""
     import pybullet as p
 
-    inner = mesh.vertices_m * U.LENGTH - MESH_MARGIN_MM * mesh.vertex_normals
+    inner = mesh.vertices_m * U.LENGTH - (0.0 if IMPLICIT_MESHES else MESH_MARGIN_MM) * mesh.vertex_normals
     try:
         return p.createCollisionShape(p.GEOM_MESH, physicsClientId=client, vertices=inner.tolist(),
                                       indices=mesh.faces.astype(int).ravel().tolist())
@@ -206,7 +208,7 @@ class BulletWorld(World):
         self.bodies = [BulletWhisker(self.client, w) for w in whiskers]
         for w in self.bodies:
             self._contact_group(w.body, w.whisker_links, WHISKER_GROUP, MESH_GROUP, config.contact_friction)
-        self._links = {w.body: w.local_link for w in self.bodies}
+        self._links = {w.body: (w.local_link, w.capsule_radii) for w in self.bodies}
         self._owner = {w.body: k for k, w in enumerate(self.bodies)}
         self._scenes: dict[str, list[_Obstacle]] = {}
         self._scene_key: str | None = None
@@ -240,13 +242,19 @@ class BulletWorld(World):
                 start = np.asarray(obstacle.position_m, float) * U.LENGTH
                 body = p.createMultiBody(0.0, shape, -1, (start + PARKED_MM).tolist(), quat(obstacle.rotation),
                                          physicsClientId=self.client)
-                mesh = isinstance(obstacle, TriangleMesh)
+                mesh = isinstance(obstacle, TriangleMesh) and not IMPLICIT_MESHES
                 if mesh:
                     p.changeDynamics(body, -1, collisionMargin=MESH_MARGIN_MM, physicsClientId=self.client)
                 self._contact_group(body, [-1], MESH_GROUP if mesh else 0, WHISKER_GROUP if mesh else 0, 1.0)
-                built.append(_Obstacle(body, start, np.asarray(obstacle.velocity_m_s, float) * U.LENGTH, mesh))
+                built.append(_Obstacle(body, start, np.asarray(obstacle.velocity_m_s, float) * U.LENGTH, mesh,
+                                       OneSidedMesh(obstacle) if isinstance(obstacle, TriangleMesh) else None))
             self._scenes[scene.key] = built
         self._scene_key = scene.key
+
+    def _contact_obstacles(self, t: float) -> list[tuple]:
+        """The obstacles of the implicit contact at time t, as :func:`find_contacts` takes them."""
+        return [(o.body, o.velocity_mm_s, o.one_sided, o.start_mm + o.velocity_mm_s * t)
+                for o in self.obstacles if not o.mesh]
 
     def _place_obstacles(self, t: float, far: bool = False) -> None:
         import pybullet as p
@@ -329,12 +337,13 @@ class BulletWorld(World):
         running = list(np.flatnonzero(active))
         n_steps = setup.samples * self.steps_per_sample
         plan = BulletPlan(setup, n_steps, h, n_w)
-        obstacles = [(o.body, o.velocity_mm_s) for o in self.obstacles if not o.mesh]
+        obstacles = self._contact_obstacles(0.0)
         loads, head = setup.loads, setup.head
         yield plan
         for step in range(n_steps):
             if moving:                                   # contacts with where obstacles will be
                 self._place_obstacles((step + 1) * h)
+                obstacles = self._contact_obstacles((step + 1) * h)
             twist = None
             if head is not None and (step == 0 or plan.moves(step)):     # ... and where the head will be
                 self._place_head(running, plan.head_position_m[step], plan.head_rotation[step])

@@ -36,6 +36,7 @@ import numpy as np
 
 CONTACT_REACH_MM = 0.25      # speculative contact distance (a tip moves ≲ 0.15 mm per step)
 PENETRATION_ERP = 0.2        # fraction of a penetration removed per step
+ONE_SIDED_DEPTH_MM = 0.25   # a capsule axis farther behind a mesh face than this does not touch it
 MERGE_MM = 0.1               # a link's points closer than this to a deeper one are dropped
 TOLERANCE = 1e-6             # Gauss–Seidel stops when no force changes by more than this × the largest
 
@@ -51,40 +52,91 @@ class ContactPoint:
     surface_velocity: np.ndarray   # [3] mm/s, the obstacle's (friction acts on the relative sliding)
 
 
-def find_contacts(client: int, obstacles, whisker_bodies: dict[int, object]) -> dict[int, list[ContactPoint]]:
+class OneSidedMesh:
+    """A triangle mesh as the surface of the solid behind it (faces wound outward): which face a
+    point of it lies on, and that face's outward normal (Open3D's closest-point query, mm)."""
+
+    def __init__(self, mesh):
+        self.surface = mesh.surface                 # metres, built once per mesh
+
+    def outward_normals(self, points_mm: np.ndarray) -> np.ndarray:
+        """[P, 3] outward unit normal of the face nearest each of ``points_mm`` [P, 3] (mesh frame)."""
+        return self.surface.face_normals(points_mm / 1e3)
+
+
+def one_sided(points_mm: np.ndarray, normals: np.ndarray, gaps_mm: np.ndarray, radii_mm: np.ndarray,
+              on_mesh_mm: np.ndarray, outward: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Bullet's closest points of capsules (``points_mm`` on the capsule, ``normals`` toward it,
+    ``gaps_mm``, capsule ``radii_mm``) against faces of a mesh (``on_mesh_mm`` the point on the
+    face, ``outward`` its normal), read as contacts with the solid behind the faces: (kept [P]
+    bool, points, normals, gaps).
+
+    A capsule apart from the face with its axis point c = point + r·normal in front of the
+    face's plane keeps Bullet's reading (the nearest face, edge or vertex). One that overlaps
+    the face, or whose axis point lies behind its plane by s ≤ :data:`ONE_SIDED_DEPTH_MM`,
+    touches the face's plane: normal the outward one, gap = c's height above the plane − r,
+    point c − r·outward. Bullet's own normal there is a penetration direction between the
+    capsule and one triangle of no thickness: sideways out across the triangle's edge, or
+    inward once the axis has crossed, pushing the link on through; with the faces around a
+    link then pushing it from opposite sides the step's problem has no bounded solution (the
+    jam). An axis point farther behind is behind the scanned surface: no contact."""
+    axis = points_mm + radii_mm[:, None] * normals
+    height = np.einsum("ij,ij->i", axis - on_mesh_mm, outward)
+    on_plane = (gaps_mm < 0.0) | (height < 0.0)
+    kept = height >= -ONE_SIDED_DEPTH_MM
+    normals = np.where(on_plane[:, None], outward, normals)
+    gaps = np.where(on_plane, height - radii_mm, gaps_mm)
+    points = np.where(on_plane[:, None], axis - radii_mm[:, None] * outward, points_mm)
+    return kept, points, normals, gaps
+
+
+def find_contacts(client: int, obstacles, whisker_bodies: dict[int, tuple[dict, np.ndarray]]
+                  ) -> dict[int, list[ContactPoint]]:
     """Contact points within :data:`CONTACT_REACH_MM` of the obstacles, per whisker body id.
 
-    ``obstacles``: (body id, velocity [3] mm/s) of each; ``whisker_bodies``: body id → the
-    whisker's ``local_link`` map (Bullet link → 0-based link).
+    ``obstacles``: (body id, velocity [3] mm/s, :class:`OneSidedMesh` or None, offset [3] mm of
+    the mesh frame) of each; ``whisker_bodies``: body id → (the whisker's ``local_link`` map,
+    Bullet link → 0-based link; its links' capsule radii [N] mm).
     A broadphase query per obstacle selects the candidate whiskers (cheap; the whiskers' boxes
-    there are a step old, hence twice the reach), then ``getClosestPoints`` gives the points.
-    A mesh gives one per triangle near a link: a link's points within :data:`MERGE_MM` of a
-    deeper one are dropped (near-copies that only slow the solve down), and so are points whose
-    normal opposes a deeper one's of the same link and obstacle (a link between two faces of a
-    sheet thinner than the reach, or of a fold in a scan: pushed from both sides, the step's
-    problem has no bounded solution and the whisker jams; the deeper side pushes it out)."""
+    there are a step old, hence twice the reach), then ``getClosestPoints`` gives the points
+    (on a mesh read by :func:`one_sided`). A mesh gives one per triangle near a link: a link's
+    points within :data:`MERGE_MM` of a deeper one are dropped (near-copies that only slow the
+    solve down), and so are points whose normal opposes a deeper one's of the same link and
+    obstacle (a link between two faces of a sheet thinner than the reach, or of a fold in a
+    scan: pushed from both sides, the step's problem has no bounded solution and the whisker
+    jams; the deeper side pushes it out)."""
     import pybullet as p
 
     found: dict[int, list[ContactPoint]] = {}
-    for obstacle, velocity in obstacles:
+    for obstacle, velocity, mesh, offset in obstacles:
         low, high = p.getAABB(obstacle, -1, physicsClientId=client)
         low = [v - 2 * CONTACT_REACH_MM for v in low]
         high = [v + 2 * CONTACT_REACH_MM for v in high]
         near = {body for body, _ in (p.getOverlappingObjects(low, high, physicsClientId=client) or ())
                 if body in whisker_bodies}
         for body in near:
-            links = whisker_bodies[body]
-            kept: list[ContactPoint] = found.setdefault(body, [])
-            points = p.getClosestPoints(obstacle, body, CONTACT_REACH_MM, physicsClientId=client)
-            first = len(kept)                     # this obstacle's points start here
-            for point in sorted(points, key=lambda point: point[8]):            # deepest first
-                link, where = links.get(point[4]), np.array(point[6])
-                normal = -np.array(point[7])      # on B (the whisker), toward A (the obstacle)
-                if link is None or any(other.link == link and (np.sum((other.point_mm - where) ** 2) < MERGE_MM ** 2
-                                                               or other.normal @ normal < 0.0)
-                                       for other in kept[first:]):
+            links, radii = whisker_bodies[body]
+            points = [point for point in p.getClosestPoints(obstacle, body, CONTACT_REACH_MM, physicsClientId=client)
+                      if point[4] in links]
+            if not points:
+                continue
+            link_of = np.array([links[point[4]] for point in points])
+            where = np.array([point[6] for point in points])
+            normals = -np.array([point[7] for point in points])   # on B (the whisker), toward A (the obstacle)
+            gaps = np.array([point[8] for point in points])
+            kept = np.ones(len(points), bool)
+            if mesh is not None:
+                on_mesh = np.array([point[5] for point in points])
+                kept, where, normals, gaps = one_sided(where, normals, gaps, radii[link_of], on_mesh,
+                                                       mesh.outward_normals(on_mesh - offset))
+            candidates: list[ContactPoint] = []
+            for i in np.argsort(gaps, kind="stable"):                       # deepest first
+                if not kept[i] or any(other.link == link_of[i]
+                                      and (np.sum((other.point_mm - where[i]) ** 2) < MERGE_MM ** 2
+                                           or other.normal @ normals[i] < 0.0) for other in candidates):
                     continue
-                kept.append(ContactPoint(link, where, normal, float(point[8]), velocity))
+                candidates.append(ContactPoint(int(link_of[i]), where[i], normals[i], float(gaps[i]), velocity))
+            found.setdefault(body, []).extend(candidates)
     return {body: points for body, points in found.items() if points}
 
 

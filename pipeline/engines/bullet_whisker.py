@@ -146,6 +146,7 @@ class BulletWhisker:
         self.link_lengths = (chain.link_lengths_m * U.LENGTH).tolist()
         self.tip_offset = self.link_lengths[-1]
         self.local_link = {link: i for i, link in enumerate(self.whisker_links)}
+        self.capsule_radii = 0.5 * (chain.node_radii_m[:-1] + chain.node_radii_m[1:]) * U.LENGTH
         # dofs moving whisker link i: those of its joint and before (a serial chain)
         self.ancestor_dofs = np.searchsorted(self.dofs, self.whisker_links, side="right")
         self._lhs_inverse, self._factorised_at = None, None
