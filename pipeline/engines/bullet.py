@@ -208,7 +208,7 @@ class BulletWorld(World):
         self.bodies = [BulletWhisker(self.client, w) for w in whiskers]
         for w in self.bodies:
             self._contact_group(w.body, w.whisker_links, WHISKER_GROUP, MESH_GROUP, config.contact_friction)
-        self._links = {w.body: (w.local_link, w.capsule_radii) for w in self.bodies}
+        self._links = {w.body: w for w in self.bodies}
         self._owner = {w.body: k for k, w in enumerate(self.bodies)}
         self._scenes: dict[str, list[_Obstacle]] = {}
         self._scene_key: str | None = None
