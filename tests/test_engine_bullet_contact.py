@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from pipeline.config.physics import EngineConfig, ModelConfig
-from pipeline.engines.bullet_contact import contact_frame, solve_forces
+from pipeline.engines.bullet_contact import ONE_SIDED_DEPTH_MM, OneSidedMesh, contact_frame, one_sided, solve_forces
 from pipeline.model.kinematics import Pose
 from pipeline.protocols.peg_sweep import bend_angles_deg, friction_ratio, penetration_m, run_peg_sweep
 from pipeline.protocols.whisking import run_trial
@@ -113,3 +113,19 @@ def test_a_folded_sheet_under_a_turned_head_does_not_jam_and_reads_as_under_a_st
     assert turned_head.contact.any(axis=(0, 2)).all()
     scale = np.abs(straight.base_wrench[..., 3:]).max()
     assert np.abs(turned_head.base_wrench[..., 3:] - straight.base_wrench[..., 3:]).max() < 0.01 * scale
+
+
+def test_a_mesh_is_read_one_sided():
+    """A 1 mm square sheet in z = 0, faces toward +z: an axis point in front touches the face
+    (or, past the sheet's edge, the edge); one that has crossed the face is pushed back out
+    along +z with the whole crossing as its depth; one deeper than the reach is behind it."""
+    sheet = TriangleMesh(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]) * 1e-3,
+                         np.array([[0, 1, 2], [0, 2, 3]]), "unit-sheet")
+    axis = np.array([[0.2, 0.2, 0.1], [0.2, 0.2, -0.1], [1.2, 0.5, 0.1], [0.5, 0.5, -ONE_SIDED_DEPTH_MM - 0.1]])
+    radius = np.full(4, 0.05)
+    kept, points, normals, gaps = one_sided(axis, radius, OneSidedMesh(sheet), np.zeros(3))
+    assert kept.tolist() == [True, True, True, False]
+    assert np.allclose(normals[:2], [0, 0, 1], atol=1e-6) and np.allclose(gaps[:2], [0.05, -0.15], atol=1e-5)
+    assert np.allclose(points[1], [0.2, 0.2, -0.15], atol=1e-5)               # the capsule's deepest point
+    assert np.allclose(normals[2], np.array([0.2, 0, 0.1]) / np.hypot(0.2, 0.1), atol=1e-5)
+    assert gaps[2] == pytest.approx(np.hypot(0.2, 0.1) - 0.05, abs=1e-5)
