@@ -51,9 +51,9 @@ def test_step_per_whisker_follows_its_first_mode():
 
 
 def test_a_tip_on_a_rough_sheet_no_longer_jams_at_the_coarse_step():
-    """The RD3 tip that once jammed in this sheet at one coarse step stays physical without
-    re-simulation since the changes of issue 24 (the continuum chain, the drive's steady start;
-    meshes keep Bullet's own contact with its skin). Re-simulating a jammed whisker alone is
+    """The RD3 tip that once jammed in this sheet at one coarse step (Bullet's contact solver saw
+    no joint springs; issue 24) stays physical without re-simulation: contact is solved in the
+    implicit step on meshes too (pipeline.engines.bullet_contact). Re-simulating a jammed whisker alone is
     tested from a bent start (test_engine_release)."""
     scene = Scene("bumpy-sheet", (beside_right_array(bumpy_sheet(), 0.023),))   # clear at the start
     coarse = with_engine(f1_tolerance=0.0, jam_refinements=0)       # one 0.1 ms step, no second chance

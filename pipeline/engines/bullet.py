@@ -42,26 +42,20 @@ Contact jams. A whisker whose base moment leaves the plausible range (a contact 
 be resolved, e.g. a bent start held against a surface) is parked out of the way (the rest of
 its world goes on); the template simulates it again alone with half the step.
 
-Triangle meshes (scans) keep Bullet's own contact solver. The implicit contact above, tried on
-them, jammed most dataset trials of configs/simulate.yaml on the shipped scans (9 of the first
-12): a tip that crosses a face of no thickness within a step gets the far side's normal, or
-lies between two faces of a thin sheet or fold, and the step's problem then has no bounded
-solution. Bullet's solver (inertia only, not the springs: the peg errors above) with a contact
-skin does finish them: a mesh gets a collision margin of :data:`MESH_MARGIN_MM` — a skin Bullet
-detects contacts in, wide enough to catch a link before it crosses — with its vertices moved
-inward by the same distance along their normals, so that the skin's outer side is the scanned
-surface (sphere: ≤ 0.5 mm, tips only; ``benchmarks/bench_penetration.py``). Its friction is
-μ as configured: Bullet multiplies the two bodies' coefficients, and a mesh has 1. That
-solver's error on a meshed peg (``bench_contact_statics.py --facets``): base moment 3–15 % low
-whatever the facet count, the whisker 0.1–0.25 mm into the skin (docs/model.md §2).
+Triangle meshes (scans) are the scanned surface itself, read as the surface of the solid
+behind their outward-wound faces (:func:`~pipeline.engines.bullet_contact.one_sided`): a link's
+contact is its axis points' distance to the nearest face, edge or vertex, and a link whose
+axis has crossed a face (which has no thickness) is pushed back out along that face's
+normal. Bullet's own solver on meshes (before issue 24's round 3) saw the links' inertia but
+not the joint springs: base moments 3–15 % low on a meshed peg, 23 % on a wall, the whisker
+0.1 mm in (docs/model.md §2).
 
 Obstacle shapes cannot be freed in pybullet (``removeBody`` on a static mesh body fails and
 ``removeCollisionShape`` refuses shapes in use), so each world keeps the bodies of every scene
 it has seen and parks those of other scenes far away: memory grows with the number of distinct
 scenes, not of trials.
 
-Point of contact: each touching link's contact points (on the whisker's surface; on a mesh,
-midway between the surfaces after the step) projected onto the link's axis between its nodes
+Point of contact: each touching link's contact points (on the whisker's surface) projected onto the link's axis between its nodes
 (:class:`~pipeline.engines.common.ContactFlags`).
 
 Internal units mm–mg–s (:mod:`pipeline.engines.units`); outputs are converted to SI.
@@ -76,7 +70,7 @@ import numpy as np
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, TrialSetup, World, WorldResult
-from pipeline.engines.bullet_contact import find_contacts
+from pipeline.engines.bullet_contact import OneSidedMesh, find_contacts
 from pipeline.engines.bullet_whisker import IDENTITY_QUAT, BulletWhisker, quat
 from pipeline.engines.common import ContactFlags, implausible, jam_message, node_arc_fractions
 from pipeline.errors import UserError
@@ -87,8 +81,6 @@ from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
 __all__ = ["BulletEngine"]
 
 PARKED_MM = 1e6          # obstacles of other scenes and jammed whiskers wait this far away
-MESH_MARGIN_MM = 0.3     # contact skin of triangle meshes (0.1 mm let links through; see above)
-WHISKER_GROUP, MESH_GROUP = 1, 2   # Bullet's own contact: whisker links with meshes only
 
 
 @dataclass
@@ -96,7 +88,7 @@ class _Obstacle:
     body: int
     start_mm: np.ndarray
     velocity_mm_s: np.ndarray
-    mesh: bool               # contact by Bullet's solver (module docstring, Triangle meshes)
+    mesh: OneSidedMesh | None       # a triangle mesh's faces (module docstring)
 
 
 def _cylinder_shape(client: int, peg: Cylinder) -> int:
@@ -114,16 +106,14 @@ def _box_shape(client: int, box: Box) -> int:
 
 
 def _mesh_shape(client: int, mesh: TriangleMesh) -> int:
-    """A concave mesh moved :data:`MESH_MARGIN_MM` inward along its normals (its contact skin
-    then reaches out to the scanned surface)."""
     import pybullet as p
 
-    inner = mesh.vertices_m * U.LENGTH - MESH_MARGIN_MM * mesh.vertex_normals
+    vertices = mesh.vertices_m * U.LENGTH
     try:
-        return p.createCollisionShape(p.GEOM_MESH, physicsClientId=client, vertices=inner.tolist(),
+        return p.createCollisionShape(p.GEOM_MESH, physicsClientId=client, vertices=vertices.tolist(),
                                       indices=mesh.faces.astype(int).ravel().tolist())
     except (p.error, SystemError) as exc:   # beyond 131 072 vertices or 524 288 indices
-        raise UserError(f"{mesh.source}: pybullet cannot take this mesh ({len(inner)} vertices, "
+        raise UserError(f"{mesh.source}: pybullet cannot take this mesh ({len(vertices)} vertices, "
                         f"{len(mesh.faces)} triangles): {' '.join(str(exc).split())}") from None
 
 
@@ -200,27 +190,23 @@ class BulletWorld(World):
         super().__init__(whiskers, config, dt_s)
         self.client = p.connect(p.DIRECT)
         p.setPhysicsEngineParameter(fixedTimeStep=dt_s, numSubSteps=0, deterministicOverlappingPairs=1,
-                                    numSolverIterations=config.solver_iterations,
                                     physicsClientId=self.client)
         p.setGravity(0, 0, 0, physicsClientId=self.client)
         self.bodies = [BulletWhisker(self.client, w) for w in whiskers]
         for w in self.bodies:
-            self._contact_group(w.body, w.whisker_links, WHISKER_GROUP, MESH_GROUP, config.contact_friction)
-        self._links = {w.body: w.local_link for w in self.bodies}
-        self._owner = {w.body: k for k, w in enumerate(self.bodies)}
+            self._without_bullet_contact(w.body, w.whisker_links)
+        self._links = {w.body: w for w in self.bodies}
         self._scenes: dict[str, list[_Obstacle]] = {}
         self._scene_key: str | None = None
 
     # -- scene ---------------------------------------------------------------------------
-    def _contact_group(self, body: int, links, group: int, mask: int, friction: float) -> None:
-        """Which pairs Bullet's own solver sees (collision group and mask; 0: none, the contact is
-        found and solved in the implicit step, :mod:`pipeline.engines.bullet_contact`) and, for
-        those, no bounce and a friction coefficient (Bullet uses the product of the two bodies')."""
+    def _without_bullet_contact(self, body: int, links) -> None:
+        """Bullet's solver never sees a contact (collision masks 0): contacts are found and solved
+        in the implicit step (:mod:`pipeline.engines.bullet_contact`)."""
         import pybullet as p
 
         for link in links:
-            p.setCollisionFilterGroupMask(body, link, group, mask, physicsClientId=self.client)
-            p.changeDynamics(body, link, restitution=0.0, lateralFriction=friction, physicsClientId=self.client)
+            p.setCollisionFilterGroupMask(body, link, 0, 0, physicsClientId=self.client)
 
     @property
     def obstacles(self) -> list[_Obstacle]:
@@ -240,13 +226,15 @@ class BulletWorld(World):
                 start = np.asarray(obstacle.position_m, float) * U.LENGTH
                 body = p.createMultiBody(0.0, shape, -1, (start + PARKED_MM).tolist(), quat(obstacle.rotation),
                                          physicsClientId=self.client)
-                mesh = isinstance(obstacle, TriangleMesh)
-                if mesh:
-                    p.changeDynamics(body, -1, collisionMargin=MESH_MARGIN_MM, physicsClientId=self.client)
-                self._contact_group(body, [-1], MESH_GROUP if mesh else 0, WHISKER_GROUP if mesh else 0, 1.0)
-                built.append(_Obstacle(body, start, np.asarray(obstacle.velocity_m_s, float) * U.LENGTH, mesh))
+                self._without_bullet_contact(body, [-1])
+                built.append(_Obstacle(body, start, np.asarray(obstacle.velocity_m_s, float) * U.LENGTH,
+                                       OneSidedMesh(obstacle) if isinstance(obstacle, TriangleMesh) else None))
             self._scenes[scene.key] = built
         self._scene_key = scene.key
+
+    def _contact_obstacles(self, t: float) -> list[tuple]:
+        """The obstacles of the implicit contact at time t, as :func:`find_contacts` takes them."""
+        return [(o.body, o.velocity_mm_s, o.mesh, o.start_mm + o.velocity_mm_s * t) for o in self.obstacles]
 
     def _place_obstacles(self, t: float, far: bool = False) -> None:
         import pybullet as p
@@ -329,12 +317,13 @@ class BulletWorld(World):
         running = list(np.flatnonzero(active))
         n_steps = setup.samples * self.steps_per_sample
         plan = BulletPlan(setup, n_steps, h, n_w)
-        obstacles = [(o.body, o.velocity_mm_s) for o in self.obstacles if not o.mesh]
+        obstacles = self._contact_obstacles(0.0)
         loads, head = setup.loads, setup.head
         yield plan
         for step in range(n_steps):
             if moving:                                   # contacts with where obstacles will be
                 self._place_obstacles((step + 1) * h)
+                obstacles = self._contact_obstacles((step + 1) * h)
             twist = None
             if head is not None and (step == 0 or plan.moves(step)):     # ... and where the head will be
                 self._place_head(running, plan.head_position_m[step], plan.head_rotation[step])
@@ -351,7 +340,6 @@ class BulletWorld(World):
                                                   config.contact_friction, config.solver_iterations)
                 self._flag_contacts(k, points, normal, flags, result.touched)
             p.stepSimulation(physicsClientId=c)
-            self._collect_mesh_contacts(flags, result.touched)
             if setup.hold_on_contact:
                 for k in np.flatnonzero(flags.touching.any(axis=1)):
                     if held[k] is None:
@@ -380,30 +368,6 @@ class BulletWorld(World):
             segments = np.array([self.bodies[k].link_nodes(point.link) for point in pressed])
             flags.add(k * flags.touching.shape[1] + np.array([point.link for point in pressed]),
                       np.array([point.point_mm for point in pressed]), segments[:, 0], segments[:, 1])
-
-    def _collect_mesh_contacts(self, flags: ContactFlags, touched: np.ndarray) -> None:
-        """Add this step's whisker–mesh contacts of Bullet's solver to ``flags``: a link touches
-        when it penetrates or the solver pushed on it, at the point midway between the surfaces;
-        ``touched`` [w] marks whiskers with any contact point at all."""
-        import pybullet as p
-
-        links, points, segments = [], [], []
-        for obstacle in self.obstacles:
-            if not obstacle.mesh:
-                continue
-            for point in p.getContactPoints(bodyA=obstacle.body, physicsClientId=self.client):
-                k = self._owner.get(point[2])
-                if k is None:
-                    continue
-                touched[k] = True
-                link = self.bodies[k].local_link.get(point[4])
-                if link is not None and (point[8] <= 0.0 or point[9] > 0.0):
-                    links.append(k * flags.touching.shape[1] + link)
-                    points.append([0.5 * (a + b) for a, b in zip(point[5], point[6])])
-                    segments.append(self.bodies[k].link_nodes(link))
-        if links:
-            segments = np.array(segments)
-            flags.add(np.array(links), np.array(points), segments[:, 0], segments[:, 1])
 
     def close(self) -> None:
         import pybullet as p

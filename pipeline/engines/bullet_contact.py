@@ -36,6 +36,7 @@ import numpy as np
 
 CONTACT_REACH_MM = 0.25      # speculative contact distance (a tip moves ≲ 0.15 mm per step)
 PENETRATION_ERP = 0.2        # fraction of a penetration removed per step
+ONE_SIDED_DEPTH_MM = 0.25   # a capsule axis farther behind a mesh face than this does not touch it
 MERGE_MM = 0.1               # a link's points closer than this to a deeper one are dropped
 TOLERANCE = 1e-6             # Gauss–Seidel stops when no force changes by more than this × the largest
 
@@ -51,40 +52,96 @@ class ContactPoint:
     surface_velocity: np.ndarray   # [3] mm/s, the obstacle's (friction acts on the relative sliding)
 
 
-def find_contacts(client: int, obstacles, whisker_bodies: dict[int, object]) -> dict[int, list[ContactPoint]]:
+class OneSidedMesh:
+    """A triangle mesh as the surface of the solid behind it (faces wound outward): the point of
+    the surface nearest to given points and the outward normal of its face (Open3D's
+    closest-point query; mm, the mesh's frame)."""
+
+    def __init__(self, mesh):
+        self.surface = mesh.surface                 # metres, built once per mesh
+
+    def nearest(self, points_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """([P, 3] nearest surface point, [P, 3] its face's outward unit normal) of ``points_mm``."""
+        nearest_m, normals = self.surface.closest_points(points_mm / 1e3)
+        return nearest_m * 1e3, normals
+
+
+def one_sided(axis_mm: np.ndarray, radii_mm: np.ndarray, mesh: OneSidedMesh,
+              offset_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Contacts of capsule axis points ``axis_mm`` [P, 3] (capsule ``radii_mm`` [P]) with the
+    solid behind a mesh's faces (the mesh at ``offset_mm``): (kept [P] bool, points on the
+    capsules, normals toward them, gaps).
+
+    The contact is the axis point c's distance d to the nearest point q of the surface: in
+    front of q's face, normal (c − q)/d (a face's own normal, or an edge's or vertex's
+    direction) and gap d − r; behind it (the axis has crossed the surface), the face's outward
+    normal and gap −(d + r), or no contact beyond :data:`ONE_SIDED_DEPTH_MM` (behind the
+    scanned surface, where nothing is). Bullet's own reading of a capsule against one triangle
+    of no thickness, once they overlap, is a penetration direction: sideways across the
+    triangle's edge, or inward once the axis has crossed, pushing the link on through; with the
+    faces around a link pushing it from opposite sides the step's problem had no bounded
+    solution (the jam)."""
+    nearest, outward = mesh.nearest(axis_mm - offset_mm)
+    away = axis_mm - offset_mm - nearest
+    distance = np.sqrt(np.einsum("ij,ij->i", away, away))
+    behind = np.einsum("ij,ij->i", away, outward) < 0.0
+    along = np.where((distance > 1e-9)[:, None], away / np.maximum(distance, 1e-9)[:, None], outward)
+    normals = np.where(behind[:, None], outward, along)
+    gaps = np.where(behind, -distance, distance) - radii_mm
+    kept = (gaps <= CONTACT_REACH_MM) & (~behind | (distance <= ONE_SIDED_DEPTH_MM))
+    return kept, axis_mm - radii_mm[:, None] * normals, normals, gaps
+
+
+def find_contacts(client: int, obstacles, whisker_bodies: dict) -> dict[int, list[ContactPoint]]:
     """Contact points within :data:`CONTACT_REACH_MM` of the obstacles, per whisker body id.
 
-    ``obstacles``: (body id, velocity [3] mm/s) of each; ``whisker_bodies``: body id → the
-    whisker's ``local_link`` map (Bullet link → 0-based link).
+    ``obstacles``: (body id, velocity [3] mm/s, :class:`OneSidedMesh` or None, offset [3] mm of
+    the mesh frame) of each; ``whisker_bodies``: body id → its
+    :class:`~pipeline.engines.bullet_whisker.BulletWhisker`.
     A broadphase query per obstacle selects the candidate whiskers (cheap; the whiskers' boxes
     there are a step old, hence twice the reach), then ``getClosestPoints`` gives the points.
-    A mesh gives one per triangle near a link: a link's points within :data:`MERGE_MM` of a
-    deeper one are dropped (near-copies that only slow the solve down), and so are points whose
-    normal opposes a deeper one's of the same link and obstacle (a link between two faces of a
-    sheet thinner than the reach, or of a fold in a scan: pushed from both sides, the step's
-    problem has no bounded solution and the whisker jams; the deeper side pushes it out)."""
+    On a mesh they only name the links near it: the contacts are those of :func:`one_sided` at
+    the capsule axis points Bullet found and at both nodes of each such link (the deepest
+    point of a link that crosses a face is an end, where Bullet's witness point is not).
+    A mesh gives one point per triangle near a link: a link's points within :data:`MERGE_MM`
+    of a deeper one are dropped (near-copies that only slow the solve down), and so are points
+    whose normal opposes a deeper one's of the same link and obstacle (a link between two
+    faces of a sheet thinner than the reach: pushed from both sides, the step's problem has no
+    bounded solution; the deeper side pushes it out)."""
     import pybullet as p
 
     found: dict[int, list[ContactPoint]] = {}
-    for obstacle, velocity in obstacles:
+    for obstacle, velocity, mesh, offset in obstacles:
         low, high = p.getAABB(obstacle, -1, physicsClientId=client)
         low = [v - 2 * CONTACT_REACH_MM for v in low]
         high = [v + 2 * CONTACT_REACH_MM for v in high]
         near = {body for body, _ in (p.getOverlappingObjects(low, high, physicsClientId=client) or ())
                 if body in whisker_bodies}
         for body in near:
-            links = whisker_bodies[body]
-            kept: list[ContactPoint] = found.setdefault(body, [])
-            points = p.getClosestPoints(obstacle, body, CONTACT_REACH_MM, physicsClientId=client)
-            first = len(kept)                     # this obstacle's points start here
-            for point in sorted(points, key=lambda point: point[8]):            # deepest first
-                link, where = links.get(point[4]), np.array(point[6])
-                normal = -np.array(point[7])      # on B (the whisker), toward A (the obstacle)
-                if link is None or any(other.link == link and (np.sum((other.point_mm - where) ** 2) < MERGE_MM ** 2
-                                                               or other.normal @ normal < 0.0)
-                                       for other in kept[first:]):
+            whisker = whisker_bodies[body]
+            points = [point for point in p.getClosestPoints(obstacle, body, CONTACT_REACH_MM, physicsClientId=client)
+                      if point[4] in whisker.local_link]
+            if not points:
+                continue
+            link_of = np.array([whisker.local_link[point[4]] for point in points])
+            where = np.array([point[6] for point in points])
+            normals = -np.array([point[7] for point in points])   # on B (the whisker), toward A (the obstacle)
+            gaps = np.array([point[8] for point in points])
+            kept = np.ones(len(points), bool)
+            if mesh is not None:
+                touched = np.unique(link_of)
+                axis = np.concatenate([where + whisker.capsule_radii[link_of, None] * normals,
+                                       np.array([whisker.link_nodes(i) for i in touched]).reshape(-1, 3)])
+                link_of = np.concatenate([link_of, np.repeat(touched, 2)])
+                kept, where, normals, gaps = one_sided(axis, whisker.capsule_radii[link_of], mesh, offset)
+            candidates: list[ContactPoint] = []
+            for i in np.argsort(gaps, kind="stable"):                       # deepest first
+                if not kept[i] or any(other.link == link_of[i]
+                                      and (np.sum((other.point_mm - where[i]) ** 2) < MERGE_MM ** 2
+                                           or other.normal @ normals[i] < 0.0) for other in candidates):
                     continue
-                kept.append(ContactPoint(link, where, normal, float(point[8]), velocity))
+                candidates.append(ContactPoint(int(link_of[i]), where[i], normals[i], float(gaps[i]), velocity))
+            found.setdefault(body, []).extend(candidates)
     return {body: points for body, points in found.items() if points}
 
 

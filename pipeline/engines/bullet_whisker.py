@@ -147,6 +147,7 @@ class BulletWhisker:
         self.link_lengths = (chain.link_lengths_m * U.LENGTH).tolist()
         self.tip_offset = self.link_lengths[-1]
         self.local_link = {link: i for i, link in enumerate(self.whisker_links)}
+        self.capsule_radii = 0.5 * (chain.node_radii_m[:-1] + chain.node_radii_m[1:]) * U.LENGTH
         # dofs moving whisker link i: those of its joint and before (a serial chain)
         self.ancestor_dofs = np.searchsorted(self.dofs, self.whisker_links, side="right")
         self._lhs_inverse, self._factorised_at = None, None
@@ -232,12 +233,10 @@ class BulletWhisker:
         import pybullet as p
 
         c = self.client
-        zeros = [0.0] * self.n_dof
         farthest = self.whisker_links[max(contact.link for contact in contacts)]
         origin = np.asarray(p.getLinkState(self.body, farthest, computeForwardKinematics=True,
                                            physicsClientId=c)[4])
-        linear, angular = (np.asarray(part) for part in p.calculateJacobian(
-            self.body, farthest, [0.0, 0.0, 0.0], q, zeros, zeros, physicsClientId=c))
+        linear, angular = self.jacobian(farthest, [0.0, 0.0, 0.0], q)
         frames = np.concatenate([contact_frame(contact.normal, friction > 0) for contact in contacts])
         per_point = len(frames) // len(contacts)                     # rows n (, t1, t2) per point
         arms = np.repeat([contact.point_mm for contact in contacts], per_point, axis=0) - origin
@@ -257,6 +256,17 @@ class BulletWhisker:
             p.applyExternalForce(self.body, self.whisker_links[contact.link], force.tolist(),
                                  contact.point_mm.tolist(), p.WORLD_FRAME, physicsClientId=c)
         return forces[0::per_point], jacobian.T @ forces
+
+    def jacobian(self, link: int, point: list[float], q: list[float]) -> tuple[np.ndarray, np.ndarray]:
+        """Linear and angular Jacobian [3, n_dof] of ``point`` (link frame, mm) of Bullet ``link``
+        at joint angles q, world frame: pybullet's are in the base's frame (a rotated head
+        pose otherwise turns every contact and load by the head's rotation)."""
+        import pybullet as p
+
+        zeros = [0.0] * self.n_dof
+        linear, angular = p.calculateJacobian(self.body, link, point, q, zeros, zeros, physicsClientId=self.client)
+        base = matrix_from_xyzw(p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)[1])
+        return base @ np.asarray(linear), base @ np.asarray(angular)
 
     def _factorise(self, q: list[float], h: float) -> None:
         """(M_FF + h·C + h²·K)⁻¹ at joint angles q (F: the free joints)."""
@@ -295,13 +305,11 @@ class BulletWhisker:
         state = self.link_state(any(load.needs_velocity for load in loads), any(load.needs_base for load in loads))
         force, torque = total_link_forces(loads, self.model.chain, state)
         force, torque = force * U.FORCE, torque * U.TORQUE
-        zeros = [0.0] * self.n_dof
         generalised = np.zeros(self.n_dof)
         for i in np.flatnonzero(np.any(force != 0, axis=1) | np.any(torque != 0, axis=1)):
             link = self.whisker_links[i]
-            linear, angular = p.calculateJacobian(self.body, link, [self.link_com[i], 0.0, 0.0], q,
-                                                  zeros, zeros, physicsClientId=self.client)
-            generalised += np.asarray(linear).T @ force[i] + np.asarray(angular).T @ torque[i]
+            linear, angular = self.jacobian(link, [self.link_com[i], 0.0, 0.0], q)
+            generalised += linear.T @ force[i] + angular.T @ torque[i]
             p.applyExternalForce(self.body, link, force[i].tolist(), (state.com_m[i] * U.LENGTH).tolist(),
                                  p.WORLD_FRAME, physicsClientId=self.client)
             p.applyExternalTorque(self.body, link, torque[i].tolist(), p.WORLD_FRAME,

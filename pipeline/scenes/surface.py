@@ -28,6 +28,13 @@ class SurfaceQueries:
         query = self._o3d.core.Tensor(np.asarray(points, np.float32).reshape(-1, 3))
         return self.scene.compute_distance(query, nthreads=1).numpy().astype(float)
 
+    def closest_points(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """[n, 3] the surface's point nearest each point and [n, 3] its face's unit normal (by the
+        winding)."""
+        query = self._o3d.core.Tensor(np.asarray(points, np.float32).reshape(-1, 3))
+        found = self.scene.compute_closest_points(query, nthreads=1)
+        return found["points"].numpy().astype(float), found["primitive_normals"].numpy().astype(float)
+
     def cast(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """First hit of rays o + t·d: t in units of |d| (inf if none) and the face normals."""
         rays = np.hstack([np.reshape(origins, (-1, 3)), np.reshape(directions, (-1, 3))])
