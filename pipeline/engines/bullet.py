@@ -163,8 +163,9 @@ class BulletPlan:
 
     def interval(self, sample: int, spp: int) -> tuple[slice, np.ndarray, np.ndarray]:
         """(rows, their protractions' times, their head frames' times) that the generator steps
-        through before it records ``sample``."""
-        rows = slice(sample * spp, (sample + 1) * spp)
+        through before it records ``sample`` (at the start of the step after the interval: one
+        step's plan beyond the sample's time)."""
+        rows = slice(0 if sample == 0 else sample * spp + 1, (sample + 1) * spp + 1)
         return rows, self.ends[rows], self.ends[rows]
 
     def set_protraction(self, steps: slice, theta_rad: np.ndarray) -> None:
@@ -327,7 +328,8 @@ class BulletWorld(World):
         held: list[np.ndarray | None] = [None] * n_w      # drive stopped at contact
         moving = any(o.velocity_mm_s.any() for o in self.obstacles)
         running = list(np.flatnonzero(active))
-        n_steps = setup.samples * self.steps_per_sample
+        spp = self.steps_per_sample
+        n_steps = setup.samples * spp + 1                # + the step whose start is the last sample
         plan = BulletPlan(setup, n_steps, h, n_w)
         obstacles = [(o.body, o.velocity_mm_s) for o in self.obstacles if not o.mesh]
         loads, head = setup.loads, setup.head
@@ -343,30 +345,35 @@ class BulletWorld(World):
             contacts = find_contacts(c, obstacles, self._links) if obstacles else {}
             if twist is not None and contacts:
                 contacts = relative_to_head(contacts, *twist)
+            sample, due = divmod(step, spp)
+            records = due == 0 and sample > 0            # sample − 1 is the state at this step's start
+            normal = {}
             for k in running:
                 w = self.bodies[k]
                 target = held[k] if held[k] is not None else w.rest_driven + w.rates * plan.theta[step, k]
-                points = contacts.get(w.body, ())
-                normal = w.apply_implicit_torques(target, h, loads[k], points,
-                                                  config.contact_friction, config.solver_iterations)
-                self._flag_contacts(k, points, normal, flags, result.touched)
+                normal[k] = w.apply_implicit_torques(target, h, loads[k], contacts.get(w.body, ()),
+                                                     config.contact_friction, config.solver_iterations, records)
+            if records:
+                for k in running:
+                    result.wrench[sample - 1, k] = self.bodies[k].base_wrench()
+                    result.nodes[sample - 1, k] = self.bodies[k].node_positions()
+                result.contact[sample - 1], result.point_of_contact[sample - 1] = flags.take()
+            for k in running:
+                self._flag_contacts(k, contacts.get(self.bodies[k].body, ()), normal[k], flags, result.touched)
+            if records:
+                for k in [running[i] for i in implausible(result.wrench[sample - 1, running])]:
+                    result.jammed[k] = jam_message(self.whiskers[k].name, result.wrench[sample - 1, k], step * h)
+                    self._park(k, drive)
+                    running.remove(k)
+                yield sample - 1
+            if step == n_steps - 1:
+                break
             p.stepSimulation(physicsClientId=c)
             self._collect_mesh_contacts(flags, result.touched)
             if setup.hold_on_contact:
                 for k in np.flatnonzero(flags.touching.any(axis=1)):
                     if held[k] is None:
                         held[k] = self.bodies[k].driven_angles()
-            if (step + 1) % self.steps_per_sample == 0:
-                sample = (step + 1) // self.steps_per_sample - 1
-                for k in running:
-                    result.wrench[sample, k] = self.bodies[k].base_wrench()
-                    result.nodes[sample, k] = self.bodies[k].node_positions()
-                result.contact[sample], result.point_of_contact[sample] = flags.take()
-                for k in [running[i] for i in implausible(result.wrench[sample, running])]:
-                    result.jammed[k] = jam_message(self.whiskers[k].name, result.wrench[sample, k], (step + 1) * h)
-                    self._park(k, drive)
-                    running.remove(k)
-                yield sample
 
     def _flag_contacts(self, k: int, points, normal_forces: np.ndarray, flags: ContactFlags,
                        touched: np.ndarray) -> None:

@@ -16,6 +16,7 @@ import numpy as np
 
 from pipeline.engines import units as U
 from pipeline.engines.bullet_contact import contact_frame, solve_forces
+from pipeline.engines.bullet_wrench import chain_wrench
 from pipeline.engines.common import start_rate
 from pipeline.model.array import WhiskerModel
 from pipeline.model.kinematics import ProtractionDrive
@@ -149,6 +150,13 @@ class BulletWhisker:
         # dofs moving whisker link i: those of its joint and before (a serial chain)
         self.ancestor_dofs = np.searchsorted(self.dofs, self.whisker_links, side="right")
         self._lhs_inverse, self._factorised_at = None, None
+        # Newton–Euler base wrench (:mod:`pipeline.engines.bullet_wrench`): the chain's links
+        revolute = np.array(links.columns["linkJointTypes"]) == p.JOINT_REVOLUTE
+        self._chain_links = list(range(len(links.inertia)))
+        self._local_axes = np.array(links.columns["linkJointAxis"], float) * revolute[:, None]
+        self._link_mass = chain.link_mass_kg * U.MASS
+        self._link_inertia = chain.link_inertia_kg_m2 * U.INERTIA
+        self._step_wrench = None
 
     # -- per trial -----------------------------------------------------------------------
     def reset(self, base_mm: np.ndarray, orientation: list[float], drive: ProtractionDrive, h: float,
@@ -175,9 +183,10 @@ class BulletWhisker:
                                                           physicsClientId=self.client)])
 
     def apply_implicit_torques(self, q_target: np.ndarray, h: float, loads=(), contacts=(),
-                               friction: float = 0.0, iterations: int = 50) -> np.ndarray:
+                               friction: float = 0.0, iterations: int = 50, record: bool = False) -> np.ndarray:
         """Joint torques of one linearly implicit step of size h (s) toward driven angles q_target;
-        returns the normal force (internal units) at each of ``contacts``.
+        returns the normal force (internal units) at each of ``contacts``. With ``record`` the
+        step's base wrench is computed for :meth:`base_wrench` (the step that ends a sample).
 
         ``loads`` (:mod:`pipeline.model.loads`) enter the implicit solve as the generalised force
         Jᵀ·F and are applied to Bullet's bodies too, so the step Bullet takes is the implicit one.
@@ -198,7 +207,8 @@ class BulletWhisker:
         q_free = q[3:]
         if self._lhs_inverse is None or np.abs(q_free - self._factorised_at).max() > MASS_REFRESH_RAD:
             self._factorise(q_list, h)
-        generalised = self._apply_loads(loads, q_list) if loads else 0.0   # Bullet adds Jᵀ·F itself
+        external = [np.zeros(3), np.zeros(3)]           # external force, its moment about the origin
+        generalised = self._apply_loads(loads, q_list, external) if loads else 0.0   # Bullet adds Jᵀ·F itself
         accel_driven = (((q_target - q[:3]) / h - v[:3]) / h).tolist()
         driven_only = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, accel_driven + self._free_zeros,
                                                           physicsClientId=c))   # M_·D·a_D + b
@@ -209,9 +219,11 @@ class BulletWhisker:
         if contacts:
             accel = np.concatenate([accel_driven, accel_free])
             normal_forces, contact_generalised = self._contact_forces(contacts, q_list, v, accel, h,
-                                                                      friction, iterations)
+                                                                      friction, iterations, external)
             generalised = generalised + contact_generalised
             accel_free = accel[3:]
+        if record:
+            self._record_wrench(q_list, v, np.concatenate([accel_driven, accel_free]), external)
         torque = p.calculateInverseDynamics(self.body, q_list, v_list, accel_driven + accel_free.tolist(),
                                             physicsClientId=c)
         if loads or contacts:                          # (x − 0.0 is x: skipped without them)
@@ -220,10 +232,11 @@ class BulletWhisker:
         return normal_forces
 
     def _contact_forces(self, contacts, q: list[float], v: np.ndarray, accel: np.ndarray, h: float,
-                        friction: float, iterations: int) -> tuple[np.ndarray, np.ndarray]:
+                        friction: float, iterations: int, external: list) -> tuple[np.ndarray, np.ndarray]:
         """Solve the contact forces of the step (:mod:`pipeline.engines.bullet_contact`), add
-        their free-joint response W·J_Fᵀ·f to ``accel`` (in place) and apply them to the links;
-        returns the normal forces [P] and their generalised force Jᵀ·f [n_dof].
+        their free-joint response W·J_Fᵀ·f to ``accel`` (in place), apply them to the links and
+        add them to ``external`` (force, moment about the origin); returns the normal forces [P]
+        and their generalised force Jᵀ·f [n_dof].
 
         One Jacobian per step, at the frame origin o of the farthest touched link: a point p on
         link l has the row d·J_lin + ((p − o) × d)·J_ang along d, with the columns of the joints
@@ -252,6 +265,9 @@ class BulletWhisker:
                               np.array([contact.gap_mm for contact in contacts]), h, friction, iterations)
         accel[3:] += response @ forces
         world = np.einsum("ij,i->ij", frames, forces).reshape(len(contacts), per_point, 3).sum(axis=1)
+        points = np.array([contact.point_mm for contact in contacts])
+        external[0] += world.sum(axis=0)
+        external[1] += np.cross(points, world).sum(axis=0)
         for contact, force in zip(contacts, world):
             p.applyExternalForce(self.body, self.whisker_links[contact.link], force.tolist(),
                                  contact.point_mm.tolist(), p.WORLD_FRAME, physicsClientId=c)
@@ -278,9 +294,10 @@ class BulletWhisker:
                          np.array([s[6] for s in states]) / U.LENGTH if velocities else zeros,
                          np.array([s[7] for s in states]) if velocities else zeros)
 
-    def _apply_loads(self, loads, q: list[float]) -> np.ndarray:
-        """Apply the loads' per-link forces to Bullet's bodies for the next step; returns their
-        generalised force Jᵀ·F [n_dof] (internal units). pybullet takes the Jacobian's point in
+    def _apply_loads(self, loads, q: list[float], external: list) -> np.ndarray:
+        """Apply the loads' per-link forces to Bullet's bodies for the next step and add them to
+        ``external`` (force, moment about the origin); returns their generalised force Jᵀ·F
+        [n_dof] (internal units). pybullet takes the Jacobian's point in
         the link frame (not the centre-of-mass frame): checked by the static tip load test,
         whose deflection is then independent of the step size."""
         import pybullet as p
@@ -288,6 +305,8 @@ class BulletWhisker:
         state = self.link_state(any(load.needs_velocity for load in loads))
         force, torque = total_link_forces(loads, self.model.chain, state)
         force, torque = force * U.FORCE, torque * U.TORQUE
+        external[0] += force.sum(axis=0)
+        external[1] += (np.cross(state.com_m * U.LENGTH, force) + torque).sum(axis=0)
         zeros = [0.0] * self.n_dof
         generalised = np.zeros(self.n_dof)
         for i in np.flatnonzero(np.any(force != 0, axis=1) | np.any(torque != 0, axis=1)):
@@ -301,8 +320,40 @@ class BulletWhisker:
                                   physicsClientId=self.client)
         return generalised
 
+    def _record_wrench(self, q: list[float], v: np.ndarray, accel: np.ndarray, external: list) -> None:
+        """The base wrench of the step about to be taken from joint angles q, rates v and
+        accelerations ``accel`` (internal units), by Newton–Euler
+        (:mod:`pipeline.engines.bullet_wrench`), in the whisker frame (SI)."""
+        import pybullet as p
+
+        states = p.getLinkStates(self.body, self._chain_links, computeForwardKinematics=True,
+                                 physicsClientId=self.client)
+        origins = np.array([s[4] for s in states])
+        rotations = np.array([matrix_from_xyzw(s[5]) for s in states])
+        rates, accelerations = np.zeros(len(states)), np.zeros(len(states))
+        rates[self.dofs], accelerations[self.dofs] = v, accel
+        com = np.array([states[link][0] for link in self.whisker_links])
+        world = chain_wrench(origins, rotations, self._local_axes, rates, accelerations,
+                             np.asarray(self.whisker_links), com, self._link_mass, self._link_inertia,
+                             self.sensor_joint, (external[0], external[1]))
+        rotation = rot_z(self.link1_angle) @ rotations[self.sensor_joint].T     # world → link 1 → whisker
+        for axis, angle in zip(reversed(self.follicle_axes), reversed(q[3:3 + len(self.follicle_axes)])):
+            rotation = axis_rotation(axis, angle) @ rotation
+        self._step_wrench = np.concatenate([rotation @ world[:3] / U.FORCE, rotation @ world[3:] / U.TORQUE])
+
     def base_wrench(self) -> np.ndarray:
-        """Follicle → whisker force (N) and moment about the base point (N·m), whisker frame."""
+        """Follicle → whisker force (N) and moment about the base point (N·m), whisker frame, in
+        the last step, recorded by :meth:`apply_implicit_torques`; the sensor's
+        (:meth:`sensor_wrench`) when Bullet's own contact solver (meshes) pushed on the whisker."""
+        import pybullet as p
+
+        if p.getContactPoints(bodyA=self.body, physicsClientId=self.client):
+            return self.sensor_wrench()
+        return self._step_wrench
+
+    def sensor_wrench(self) -> np.ndarray:
+        """The same from pybullet's force/torque sensor on the fixed joint to link 1 (it includes
+        the forces of Bullet's own contact solver, which the Newton–Euler wrench does not see)."""
         import pybullet as p
 
         reading = np.asarray(p.getJointState(self.body, self.sensor_joint, physicsClientId=self.client)[2])
