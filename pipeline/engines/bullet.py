@@ -38,6 +38,15 @@ Jacobian and the solve, ≈ 1.5–2× a free whisker-step (issue 24, engine CPU-
 Bullet's own contact before → this: RC1 against the active pegs ×1.4–1.6, the right array
 against them ×1.05, the passive peg through it ×1.08–1.16).
 
+Base wrench. The follicle's force and moment about the base point are Newton–Euler of the
+step that starts at the sample's time (:mod:`pipeline.engines.bullet_wrench`: the links'
+accelerations from the step's q̈, less the loads and contact forces), so sample k is recorded
+at the start of the step after t_k, as MuJoCo's (one extra step at the end of a trial).
+pybullet's force/torque sensor on the fixed joint to link 1 reads the step before, and misses
+much of the centripetal load: on free RA0 at 12 Hz its axial force was 7 % (of |F|) off Σ m·a
+of the links' paths, Newton–Euler 0.2 % (``tests/test_bullet_wrench.py``). It is read only
+when Bullet's own contact solver (meshes) pushed on the whisker.
+
 Contact jams. A whisker whose base moment leaves the plausible range (a contact that cannot
 be resolved, e.g. a bent start held against a surface) is parked out of the way (the rest of
 its world goes on); the template simulates it again alone with half the step.
@@ -366,9 +375,7 @@ class BulletWorld(World):
                     self._park(k, drive)
                     running.remove(k)
                 yield sample - 1
-            if step == n_steps - 1:
-                break
-            p.stepSimulation(physicsClientId=c)
+            p.stepSimulation(physicsClientId=c)          # also the last: it clears the applied forces
             self._collect_mesh_contacts(flags, result.touched)
             if setup.hold_on_contact:
                 for k in np.flatnonzero(flags.touching.any(axis=1)):

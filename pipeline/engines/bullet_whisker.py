@@ -7,7 +7,9 @@ any) on massless links, a fixed joint to link 1 carrying the force/torque sensor
 bending node one revolute joint per hinge of the node, all on massless links but the last,
 which carries the next whisker link. The implicit step is described in
 :mod:`pipeline.engines.bullet`; loads (:mod:`pipeline.model.loads`) enter it as generalised
-forces Jᵀ·F and are applied to Bullet's bodies too, so that the base sensor feels them.
+forces Jᵀ·F and are applied to Bullet's bodies too. The base wrench is Newton–Euler of the
+step (:mod:`pipeline.engines.bullet_wrench`) with these external forces; the sensor is read
+only when Bullet's own contact solver (meshes) acted, whose forces the step does not know.
 """
 
 from __future__ import annotations
