@@ -344,6 +344,12 @@ class BulletWorld(World):
         loads, head = setup.loads, setup.head
         yield plan
         for step in range(n_steps):
+            sample, due = divmod(step, spp)
+            records = due == 0 and sample > 0            # sample − 1 is the state at this step's start
+            if records:                                  # (before the head moves on)
+                for k in running:
+                    result.nodes[sample - 1, k] = self.bodies[k].node_positions()
+                result.contact[sample - 1], result.point_of_contact[sample - 1] = flags.take()
             if moving:                                   # contacts with where obstacles will be
                 self._place_obstacles((step + 1) * h)
             twist = None
@@ -354,33 +360,27 @@ class BulletWorld(World):
             contacts = find_contacts(c, obstacles, self._links) if obstacles else {}
             if twist is not None and contacts:
                 contacts = relative_to_head(contacts, *twist)
-            sample, due = divmod(step, spp)
-            records = due == 0 and sample > 0            # sample − 1 is the state at this step's start
-            normal = {}
             for k in running:
                 w = self.bodies[k]
                 target = held[k] if held[k] is not None else w.rest_driven + w.rates * plan.theta[step, k]
-                normal[k] = w.apply_implicit_torques(target, h, loads[k], contacts.get(w.body, ()),
-                                                     config.contact_friction, config.solver_iterations, records)
-            if records:
-                for k in running:
-                    result.wrench[sample - 1, k] = self.bodies[k].base_wrench()
-                    result.nodes[sample - 1, k] = self.bodies[k].node_positions()
-                result.contact[sample - 1], result.point_of_contact[sample - 1] = flags.take()
-            for k in running:
-                self._flag_contacts(k, contacts.get(self.bodies[k].body, ()), normal[k], flags, result.touched)
-            if records:
-                for k in [running[i] for i in implausible(result.wrench[sample - 1, running])]:
-                    result.jammed[k] = jam_message(self.whiskers[k].name, result.wrench[sample - 1, k], step * h)
-                    self._park(k, drive)
-                    running.remove(k)
-                yield sample - 1
-            p.stepSimulation(physicsClientId=c)          # also the last: it clears the applied forces
+                points = contacts.get(w.body, ())
+                normal = w.apply_implicit_torques(target, h, loads[k], points, config.contact_friction,
+                                                  config.solver_iterations, records)
+                self._flag_contacts(k, points, normal, flags, result.touched)
+            p.stepSimulation(physicsClientId=c)
             self._collect_mesh_contacts(flags, result.touched)
             if setup.hold_on_contact:
                 for k in np.flatnonzero(flags.touching.any(axis=1)):
                     if held[k] is None:
                         held[k] = self.bodies[k].driven_angles()
+            if records:
+                for k in running:
+                    result.wrench[sample - 1, k] = self.bodies[k].base_wrench()
+                for k in [running[i] for i in implausible(result.wrench[sample - 1, running])]:
+                    result.jammed[k] = jam_message(self.whiskers[k].name, result.wrench[sample - 1, k], step * h)
+                    self._park(k, drive)
+                    running.remove(k)
+                yield sample - 1
 
     def _flag_contacts(self, k: int, points, normal_forces: np.ndarray, flags: ContactFlags,
                        touched: np.ndarray) -> None:

@@ -156,9 +156,10 @@ class BulletWhisker:
         revolute = np.array(links.columns["linkJointTypes"]) == p.JOINT_REVOLUTE
         self._chain_links = list(range(len(links.inertia)))
         self._local_axes = np.array(links.columns["linkJointAxis"], float) * revolute[:, None]
+        self._link_offsets = np.array(links.columns["linkPositions"], float)   # in the parent link frame
         self._link_mass = chain.link_mass_kg * U.MASS
         self._link_inertia = chain.link_inertia_kg_m2 * U.INERTIA
-        self._step_wrench = None
+        self._step = None
 
     # -- per trial -----------------------------------------------------------------------
     def reset(self, base_mm: np.ndarray, orientation: list[float], drive: ProtractionDrive, h: float,
@@ -209,7 +210,7 @@ class BulletWhisker:
         q_free = q[3:]
         if self._lhs_inverse is None or np.abs(q_free - self._factorised_at).max() > MASS_REFRESH_RAD:
             self._factorise(q_list, h)
-        external = [np.zeros(3), np.zeros(3)]           # external force, its moment about the origin
+        external = []                                   # (points, forces, torques) on the links
         generalised = self._apply_loads(loads, q_list, external) if loads else 0.0   # Bullet adds Jᵀ·F itself
         accel_driven = (((q_target - q[:3]) / h - v[:3]) / h).tolist()
         driven_only = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, accel_driven + self._free_zeros,
@@ -225,7 +226,7 @@ class BulletWhisker:
             generalised = generalised + contact_generalised
             accel_free = accel[3:]
         if record:
-            self._record_wrench(q_list, v, np.concatenate([accel_driven, accel_free]), external)
+            self._record_wrench(q_list, v, h, external)
         torque = p.calculateInverseDynamics(self.body, q_list, v_list, accel_driven + accel_free.tolist(),
                                             physicsClientId=c)
         if loads or contacts:                          # (x − 0.0 is x: skipped without them)
@@ -237,7 +238,7 @@ class BulletWhisker:
                         friction: float, iterations: int, external: list) -> tuple[np.ndarray, np.ndarray]:
         """Solve the contact forces of the step (:mod:`pipeline.engines.bullet_contact`), add
         their free-joint response W·J_Fᵀ·f to ``accel`` (in place), apply them to the links and
-        add them to ``external`` (force, moment about the origin); returns the normal forces [P]
+        append them to ``external`` as (points, forces, torques); returns the normal forces [P]
         and their generalised force Jᵀ·f [n_dof].
 
         One Jacobian per step, at the frame origin o of the farthest touched link: a point p on
@@ -267,9 +268,7 @@ class BulletWhisker:
                               np.array([contact.gap_mm for contact in contacts]), h, friction, iterations)
         accel[3:] += response @ forces
         world = np.einsum("ij,i->ij", frames, forces).reshape(len(contacts), per_point, 3).sum(axis=1)
-        points = np.array([contact.point_mm for contact in contacts])
-        external[0] += world.sum(axis=0)
-        external[1] += np.cross(points, world).sum(axis=0)
+        external.append((np.array([contact.point_mm for contact in contacts]), world, np.zeros_like(world)))
         for contact, force in zip(contacts, world):
             p.applyExternalForce(self.body, self.whisker_links[contact.link], force.tolist(),
                                  contact.point_mm.tolist(), p.WORLD_FRAME, physicsClientId=c)
@@ -297,8 +296,8 @@ class BulletWhisker:
                          np.array([s[7] for s in states]) if velocities else zeros)
 
     def _apply_loads(self, loads, q: list[float], external: list) -> np.ndarray:
-        """Apply the loads' per-link forces to Bullet's bodies for the next step and add them to
-        ``external`` (force, moment about the origin); returns their generalised force Jᵀ·F
+        """Apply the loads' per-link forces to Bullet's bodies for the next step and append them
+        to ``external`` as (points, forces, torques); returns their generalised force Jᵀ·F
         [n_dof] (internal units). pybullet takes the Jacobian's point in
         the link frame (not the centre-of-mass frame): checked by the static tip load test,
         whose deflection is then independent of the step size."""
@@ -307,8 +306,7 @@ class BulletWhisker:
         state = self.link_state(any(load.needs_velocity for load in loads))
         force, torque = total_link_forces(loads, self.model.chain, state)
         force, torque = force * U.FORCE, torque * U.TORQUE
-        external[0] += force.sum(axis=0)
-        external[1] += (np.cross(state.com_m * U.LENGTH, force) + torque).sum(axis=0)
+        external.append((state.com_m * U.LENGTH, force, torque))
         zeros = [0.0] * self.n_dof
         generalised = np.zeros(self.n_dof)
         for i in np.flatnonzero(np.any(force != 0, axis=1) | np.any(torque != 0, axis=1)):
@@ -322,36 +320,46 @@ class BulletWhisker:
                                   physicsClientId=self.client)
         return generalised
 
-    def _record_wrench(self, q: list[float], v: np.ndarray, accel: np.ndarray, external: list) -> None:
-        """The base wrench of the step about to be taken from joint angles q, rates v and
-        accelerations ``accel`` (internal units), by Newton–Euler
-        (:mod:`pipeline.engines.bullet_wrench`), in the whisker frame (SI)."""
+    def _record_wrench(self, q: list[float], v: np.ndarray, h: float, external: list) -> None:
+        """Keep what :meth:`base_wrench` needs of the step about to be taken from joint angles q
+        and rates v: the chain's frames and the ``external`` (points, forces, torques) on the
+        links (internal units, world frame)."""
         import pybullet as p
 
         states = p.getLinkStates(self.body, self._chain_links, computeForwardKinematics=True,
                                  physicsClientId=self.client)
-        origins = np.array([s[4] for s in states])
         rotations = np.array([matrix_from_xyzw(s[5]) for s in states])
-        rates, accelerations = np.zeros(len(states)), np.zeros(len(states))
-        rates[self.dofs], accelerations[self.dofs] = v, accel
-        com = np.array([states[link][0] for link in self.whisker_links])
-        world = chain_wrench(origins, rotations, self._local_axes, rates, accelerations,
-                             np.asarray(self.whisker_links), com, self._link_mass, self._link_inertia,
-                             self.sensor_joint, (external[0], external[1]))
-        rotation = rot_z(self.link1_angle) @ rotations[self.sensor_joint].T     # world → link 1 → whisker
-        for axis, angle in zip(reversed(self.follicle_axes), reversed(q[3:3 + len(self.follicle_axes)])):
-            rotation = axis_rotation(axis, angle) @ rotation
-        self._step_wrench = np.concatenate([rotation @ world[:3] / U.FORCE, rotation @ world[3:] / U.TORQUE])
+        points, forces, torques = ([np.concatenate(part) for part in zip(*external)] if external
+                                   else [np.zeros((0, 3))] * 3)
+        self._step = (q, v, h, rotations, np.asarray(states[0][4]), points, forces, torques)
 
     def base_wrench(self) -> np.ndarray:
         """Follicle → whisker force (N) and moment about the base point (N·m), whisker frame, in
-        the last step, recorded by :meth:`apply_implicit_torques`; the sensor's
-        (:meth:`sensor_wrench`) when Bullet's own contact solver (meshes) pushed on the whisker."""
+        the step recorded by :meth:`apply_implicit_torques` and just taken, by Newton–Euler
+        (:mod:`pipeline.engines.bullet_wrench`) with the joint accelerations Bullet took,
+        (v′ − v)/h; the sensor's (:meth:`sensor_wrench`) when Bullet's own contact solver
+        (meshes) pushed on the whisker, whose forces the step does not know."""
         import pybullet as p
 
-        if p.getContactPoints(bodyA=self.body, physicsClientId=self.client):
+        c = self.client
+        if p.getContactPoints(bodyA=self.body, physicsClientId=c):
             return self.sensor_wrench()
-        return self._step_wrench
+        q, v, h, rotations, base, points, forces, torques = self._step
+        after = np.array([s[1] for s in p.getJointStates(self.body, self.dofs, physicsClientId=c)])
+        # origins from the base by the links' offsets (pybullet's link frame positions are off by
+        # up to 10⁻⁵ relative), so that the wrench does not depend on where the base is
+        origins = np.vstack([np.zeros(3), np.cumsum(np.einsum("lij,lj->li", rotations[:-1], self._link_offsets[1:]),
+                                                    axis=0)])
+        bodies = np.asarray(self.whisker_links)
+        com = origins[bodies] + rotations[bodies, :, 0] * self.link_com[:, None]
+        rates, accelerations = np.zeros(len(rotations)), np.zeros(len(rotations))
+        rates[self.dofs], accelerations[self.dofs] = v, (after - v) / h
+        world = chain_wrench(origins, rotations, self._local_axes, rates, accelerations, bodies, com,
+                             self._link_mass, self._link_inertia, self.sensor_joint, points - base, forces, torques)
+        rotation = rot_z(self.link1_angle) @ rotations[self.sensor_joint].T     # world → link 1 → whisker
+        for axis, angle in zip(reversed(self.follicle_axes), reversed(q[3:3 + len(self.follicle_axes)])):
+            rotation = axis_rotation(axis, angle) @ rotation
+        return np.concatenate([rotation @ world[:3] / U.FORCE, rotation @ world[3:] / U.TORQUE])
 
     def sensor_wrench(self) -> np.ndarray:
         """The same from pybullet's force/torque sensor on the fixed joint to link 1 (it includes

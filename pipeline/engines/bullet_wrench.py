@@ -31,16 +31,17 @@ def _parent(x: np.ndarray) -> np.ndarray:
 
 def chain_wrench(origins: np.ndarray, rotations: np.ndarray, local_axes: np.ndarray, rates: np.ndarray,
                  accelerations: np.ndarray, bodies: np.ndarray, com: np.ndarray, mass: np.ndarray,
-                 inertia: np.ndarray, base: int, external: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+                 inertia: np.ndarray, base: int, points: np.ndarray, forces: np.ndarray,
+                 torques: np.ndarray) -> np.ndarray:
     """Follicle → whisker force and moment about the base point, world frame, [6].
 
-    Over the chain's L links: ``origins`` [L, 3] frame origins, ``rotations`` [L, 3, 3] frames,
+    Over the chain's L links: ``origins`` [L, 3] frame origins (any fixed origin), ``rotations`` [L, 3, 3] frames,
     ``local_axes`` [L, 3] joint axes in the link frame (zeros: fixed joint), ``rates`` and
     ``accelerations`` [L] of each link's joint (zero for a fixed joint). Over the whisker's B
     links: ``bodies`` [B] their chain indices, ``com`` [B, 3] centres of mass, ``mass`` [B],
     ``inertia`` [B, 3] principal moments in the link frame. ``base``: the chain index of the
-    first whisker link (its origin is the base point); ``external``: total external force and
-    its moment about the world origin, [3] each."""
+    first whisker link (its origin is the base point); the external forces [E, 3] at ``points``
+    [E, 3] and torques [E, 3] on the whisker."""
     axes = np.einsum("lij,lj->li", rotations, local_axes)
     spin = axes * rates[:, None]
     omega = np.cumsum(spin, axis=0)
@@ -57,9 +58,9 @@ def chain_wrench(origins: np.ndarray, rotations: np.ndarray, local_axes: np.ndar
     world_inertia = np.einsum("bij,bj,bkj->bik", frames, inertia, frames)
     momentum_rate = mass[:, None] * com_acceleration
     point = origins[base]
-    force = momentum_rate.sum(axis=0) - external[0]
+    force = momentum_rate.sum(axis=0) - forces.sum(axis=0)
     moment = (np.cross(com - point, momentum_rate).sum(axis=0)
               + np.einsum("bij,bj->i", world_inertia, a)
               + np.cross(w, np.einsum("bij,bj->bi", world_inertia, w)).sum(axis=0)
-              - (external[1] - np.cross(point, external[0])))
+              - np.cross(points - point, forces).sum(axis=0) - torques.sum(axis=0))
     return np.concatenate([force, moment])
