@@ -40,8 +40,9 @@ against them ×1.05, the passive peg through it ×1.08–1.16).
 
 Base wrench. The follicle's force and moment about the base point are Newton–Euler of the
 step that starts at the sample's time (:mod:`pipeline.engines.bullet_wrench`: the links'
-accelerations from the step's q̈, less the loads and contact forces), so sample k is recorded
-at the start of the step after t_k, as MuJoCo's (one extra step at the end of a trial).
+accelerations from the joint accelerations Bullet took, less the loads and contact forces), as
+MuJoCo's: sample k is recorded after the step that starts at t_k (one extra step at the end of
+a trial), its node positions before it.
 pybullet's force/torque sensor on the fixed joint to link 1 reads the step before, and misses
 much of the centripetal load: on free RA0 at 12 Hz its axial force was 7 % (of |F|) off Σ m·a
 of the links' paths, Newton–Euler 0.2 % (``tests/test_bullet_wrench.py``). It is read only

@@ -189,7 +189,8 @@ class BulletWhisker:
                                friction: float = 0.0, iterations: int = 50, record: bool = False) -> np.ndarray:
         """Joint torques of one linearly implicit step of size h (s) toward driven angles q_target;
         returns the normal force (internal units) at each of ``contacts``. With ``record`` the
-        step's base wrench is computed for :meth:`base_wrench` (the step that ends a sample).
+        step's frames and external forces are kept for :meth:`base_wrench` (the step that
+        starts at a sample's time).
 
         ``loads`` (:mod:`pipeline.model.loads`) enter the implicit solve as the generalised force
         Jᵀ·F and are applied to Bullet's bodies too, so the step Bullet takes is the implicit one.
