@@ -329,7 +329,7 @@ class BulletWhisker:
 
         states = p.getLinkStates(self.body, self._chain_links, computeForwardKinematics=True,
                                  physicsClientId=self.client)
-        rotations = np.array([matrix_from_xyzw(s[5]) for s in states])
+        rotations = matrix_from_xyzw([s[5] for s in states])
         points, forces, torques = ([np.concatenate(part) for part in zip(*external)] if external
                                    else [np.zeros((0, 3))] * 3)
         self._step = (q, v, h, rotations, np.asarray(states[0][4]), points, forces, torques)
