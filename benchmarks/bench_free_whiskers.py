@@ -1,8 +1,8 @@
 """Accuracy and cost of the cheap path for free whiskers (pipeline/engines/free_path.py).
 
 Run: .venv/bin/python benchmarks/bench_free_whiskers.py [--engine mujoco|bullet] [--cheap mujoco|bullet|linear]
-[--frequencies 6 9 12] [--worst 5]   (--cheap: the engine whose coarse path is compared, or the linear
-chain's path, pipeline/engines/linear/free.py; default --engine)
+[--frequencies 6 9 12] [--worst 5] [--versus ENGINE]   (--cheap: the engine whose coarse path is compared, or the linear
+chain's path, pipeline/engines/linear/free.py; default --engine; --versus: another engine in full instead)
 
 Every whisker of configs/simulate.yaml's array whisks freely (empty scene, 125 ms, the largest
 whisk of the dataset's range: 45° protraction, 20° retraction) at each frequency, once at the
@@ -68,12 +68,16 @@ def main() -> None:
     parser.add_argument("--frequencies", type=float, nargs="+", default=[6.0, 9.0, 12.0])
     parser.add_argument("--duration", type=float, default=0.125)
     parser.add_argument("--worst", type=int, default=5, help="whiskers listed with their error and f1")
+    parser.add_argument("--versus", default=None, help="instead of a cheap path, this engine in full at its "
+                        "default step (e.g. Bullet against MuJoCo)")
     args = parser.parse_args()
     config, _ = load_config(SimulateConfig, REPO / "configs" / "simulate.yaml", env_prefix="PIPELINE_SIMULATE_",
                             overrides={"model": {"engine": {"name": args.engine, "free_whiskers": "engine"}}})
     array = Whisking(config.model).array
     full_config = config.model
-    if args.cheap == "linear":
+    if args.versus:
+        coarse_engine = full_config.engine.model_copy(update={"name": args.versus})
+    elif args.cheap == "linear":
         coarse_engine = full_config.engine.model_copy(update={"free_whiskers": "linear"})
     else:
         cheap_engine = full_config.engine.model_copy(update={"name": args.cheap or args.engine})

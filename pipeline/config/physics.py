@@ -16,7 +16,7 @@ from pipeline.config.material import MaterialConfig, StrictModel
 from pipeline.config.model_file import LoadedModelFile, merge_model_file
 
 EngineName = Literal["bullet", "mujoco"]     # the physics engines (pipeline/engines)
-FreeWhiskers = Literal["engine", "coarse", "linear"]   # how an engine simulates whiskers that cannot touch
+FreeWhiskers = Literal["engine", "coarse", "linear", "auto"]   # how an engine simulates whiskers that cannot touch
 
 
 class EngineConfig(StrictModel):
@@ -37,7 +37,8 @@ class EngineConfig(StrictModel):
     solver_iterations: int = Field(50, ge=1, le=1000, description="Bullet: most Gauss–Seidel sweeps of a step's contact solve")
     free_whiskers: FreeWhiskers = Field("engine", description="whiskers that cannot touch anything in a trial: "
                                         "'engine' (the full step), 'coarse' (pipeline/engines/free_path.py) or "
-                                        "'linear' (pipeline/engines/linear/free.py)")
+                                        "'linear' (pipeline/engines/linear/free.py) or 'auto' (the engine's: "
+                                        "pipeline/engines/free_path.py AUTO_PATH)")
 
 
 class WhiskConfig(StrictModel):

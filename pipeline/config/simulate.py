@@ -272,9 +272,10 @@ class SimulateConfig(StrictModel):
     trials: int = Field(20, ge=1, le=10_000_000, description="trials in a run (--n)")
     seed: int = Field(0, ge=0, le=2**63 - 1, description="dataset seed; trial i draws from (seed, i)")
     model: ModelConfig = ModelConfig()
-    free_whiskers: FreeWhiskers = Field("coarse", description="whiskers that cannot touch anything in a trial: "
+    free_whiskers: FreeWhiskers = Field("auto", description="whiskers that cannot touch anything in a trial: "
                                         "'coarse' (cheap, pipeline/engines/free_path.py), 'linear' (the linear "
-                                        "chain, pipeline/engines/linear/free.py) or 'engine' (the full step); "
+                                        "chain, pipeline/engines/linear/free.py), 'engine' (the full step) or "
+                                        "'auto' (MuJoCo coarse, Bullet linear: free_path.AUTO_PATH); "
                                         "overrides model.engine.free_whiskers")
     scenes: ScenesConfig = ScenesConfig()
     poses: PoseSamplingConfig = PoseSamplingConfig()

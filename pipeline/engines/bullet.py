@@ -38,6 +38,15 @@ Jacobian and the solve, ≈ 1.5–2× a free whisker-step (issue 24, engine CPU-
 Bullet's own contact before → this: RC1 against the active pegs ×1.4–1.6, the right array
 against them ×1.05, the passive peg through it ×1.08–1.16).
 
+Base wrench. The follicle's force and moment about the base point are Newton–Euler of the
+step that starts at the sample's time (:mod:`pipeline.engines.bullet_wrench`: the links'
+accelerations from the joint accelerations Bullet took, less the loads and contact forces), as
+MuJoCo's: sample k is recorded after the step that starts at t_k (one extra step at the end of
+a trial), its node positions before it.
+pybullet's force/torque sensor (on the fixed joint to link 1) is not used: it reads the step
+before and misses much of the centripetal load (on free RA0 at 12 Hz its axial force was 7 % of
+|F| off Σ m·a of the links' paths, Newton–Euler 0.2 %: ``tests/test_bullet_wrench.py``).
+
 Contact jams. A whisker whose base moment leaves the plausible range (a contact that cannot
 be resolved, e.g. a bent start held against a surface) is parked out of the way (the rest of
 its world goes on); the template simulates it again alone with half the step.
@@ -153,8 +162,9 @@ class BulletPlan:
 
     def interval(self, sample: int, spp: int) -> tuple[slice, np.ndarray, np.ndarray]:
         """(rows, their protractions' times, their head frames' times) that the generator steps
-        through before it records ``sample``."""
-        rows = slice(sample * spp, (sample + 1) * spp)
+        through before it records ``sample`` (at the start of the step after the interval: one
+        step's plan beyond the sample's time)."""
+        rows = slice(0 if sample == 0 else sample * spp + 1, (sample + 1) * spp + 1)
         return rows, self.ends[rows], self.ends[rows]
 
     def set_protraction(self, steps: slice, theta_rad: np.ndarray) -> None:
@@ -315,12 +325,19 @@ class BulletWorld(World):
         held: list[np.ndarray | None] = [None] * n_w      # drive stopped at contact
         moving = any(o.velocity_mm_s.any() for o in self.obstacles)
         running = list(np.flatnonzero(active))
-        n_steps = setup.samples * self.steps_per_sample
+        spp = self.steps_per_sample
+        n_steps = setup.samples * spp + 1                # + the step whose start is the last sample
         plan = BulletPlan(setup, n_steps, h, n_w)
         obstacles = self._contact_obstacles(0.0)
         loads, head = setup.loads, setup.head
         yield plan
         for step in range(n_steps):
+            sample, due = divmod(step, spp)
+            records = due == 0 and sample > 0            # sample − 1 is the state at this step's start
+            if records:                                  # (before the head moves on)
+                for k in running:
+                    result.nodes[sample - 1, k] = self.bodies[k].node_positions()
+                result.contact[sample - 1], result.point_of_contact[sample - 1] = flags.take()
             if moving:                                   # contacts with where obstacles will be
                 self._place_obstacles((step + 1) * h)
                 obstacles = self._contact_obstacles((step + 1) * h)
@@ -336,25 +353,22 @@ class BulletWorld(World):
                 w = self.bodies[k]
                 target = held[k] if held[k] is not None else w.rest_driven + w.rates * plan.theta[step, k]
                 points = contacts.get(w.body, ())
-                normal = w.apply_implicit_torques(target, h, loads[k], points,
-                                                  config.contact_friction, config.solver_iterations)
+                normal = w.apply_implicit_torques(target, h, loads[k], points, config.contact_friction,
+                                                  config.solver_iterations, records)
                 self._flag_contacts(k, points, normal, flags, result.touched)
             p.stepSimulation(physicsClientId=c)
             if setup.hold_on_contact:
                 for k in np.flatnonzero(flags.touching.any(axis=1)):
                     if held[k] is None:
                         held[k] = self.bodies[k].driven_angles()
-            if (step + 1) % self.steps_per_sample == 0:
-                sample = (step + 1) // self.steps_per_sample - 1
+            if records:
                 for k in running:
-                    result.wrench[sample, k] = self.bodies[k].base_wrench()
-                    result.nodes[sample, k] = self.bodies[k].node_positions()
-                result.contact[sample], result.point_of_contact[sample] = flags.take()
-                for k in [running[i] for i in implausible(result.wrench[sample, running])]:
-                    result.jammed[k] = jam_message(self.whiskers[k].name, result.wrench[sample, k], (step + 1) * h)
+                    result.wrench[sample - 1, k] = self.bodies[k].base_wrench()
+                for k in [running[i] for i in implausible(result.wrench[sample - 1, running])]:
+                    result.jammed[k] = jam_message(self.whiskers[k].name, result.wrench[sample - 1, k], step * h)
                     self._park(k, drive)
                     running.remove(k)
-                yield sample
+                yield sample - 1
 
     def _flag_contacts(self, k: int, points, normal_forces: np.ndarray, flags: ContactFlags,
                        touched: np.ndarray) -> None:

@@ -3,11 +3,14 @@
 Layout of the multibody (fixed base at the whisker's base point, head orientation): three
 driven revolute joints (Z, Y, X Euler angles of the follicle), then the spring joints of the
 whisker's :class:`~pipeline.model.joints.JointLayout`: the compliant follicle's hinges (if
-any) on massless links, a fixed joint to link 1 carrying the force/torque sensor, then per
+any) on massless links, a fixed joint to link 1 (where the base wrench is taken), then per
 bending node one revolute joint per hinge of the node, all on massless links but the last,
 which carries the next whisker link. The implicit step is described in
 :mod:`pipeline.engines.bullet`; loads (:mod:`pipeline.model.loads`) enter it as generalised
-forces Jᵀ·F and are applied to Bullet's bodies too, so that the base sensor feels them.
+forces Jᵀ·F and are applied to Bullet's bodies too. The base wrench is Newton–Euler of the
+step (:mod:`pipeline.engines.bullet_wrench`) with these external forces and the contacts' (the
+step solves every contact itself: Bullet's own solver never sees one, module
+:mod:`pipeline.engines.bullet`).
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ import numpy as np
 
 from pipeline.engines import units as U
 from pipeline.engines.bullet_contact import contact_frame, solve_forces
+from pipeline.engines.bullet_wrench import chain_wrench
 from pipeline.engines.common import start_rate
 from pipeline.model.array import WhiskerModel
 from pipeline.model.kinematics import ProtractionDrive
@@ -132,7 +136,6 @@ class BulletWhisker:
         self.dofs = [j for j, t in enumerate(links.columns["linkJointTypes"]) if t == p.JOINT_REVOLUTE]
         p.setJointMotorControlArray(self.body, self.dofs, p.VELOCITY_CONTROL,
                                     forces=[0.0] * len(self.dofs), physicsClientId=client)
-        p.enableJointForceTorqueSensor(self.body, self.sensor_joint, True, physicsClientId=client)
         self.n_dof = len(self.dofs)
         self.free_dofs = np.arange(3, self.n_dof)
         self.stiffness = np.concatenate([np.zeros(3), layout.stiffness * U.TORQUE])
@@ -142,7 +145,6 @@ class BulletWhisker:
         self.rest_driven = np.asarray(model.rest_joint_angles, float)
         self.rates = np.asarray(model.joint_rates, float)
         self.link_com = chain.link_com_m * U.LENGTH
-        self.link1_com = self.link_com[0]
         self.link1_angle = chain.link_angles_rad[0]
         self.link_lengths = (chain.link_lengths_m * U.LENGTH).tolist()
         self.tip_offset = self.link_lengths[-1]
@@ -151,6 +153,14 @@ class BulletWhisker:
         # dofs moving whisker link i: those of its joint and before (a serial chain)
         self.ancestor_dofs = np.searchsorted(self.dofs, self.whisker_links, side="right")
         self._lhs_inverse, self._factorised_at = None, None
+        # Newton–Euler base wrench (:mod:`pipeline.engines.bullet_wrench`): the chain's links
+        revolute = np.array(links.columns["linkJointTypes"]) == p.JOINT_REVOLUTE
+        self._chain_links = list(range(len(links.inertia)))
+        self._local_axes = np.array(links.columns["linkJointAxis"], float) * revolute[:, None]
+        self._link_offsets = np.array(links.columns["linkPositions"], float)   # in the parent link frame
+        self._link_mass = chain.link_mass_kg * U.MASS
+        self._link_inertia = chain.link_inertia_kg_m2 * U.INERTIA
+        self._step = None
 
     # -- per trial -----------------------------------------------------------------------
     def reset(self, base_mm: np.ndarray, orientation: list[float], drive: ProtractionDrive, h: float,
@@ -177,9 +187,11 @@ class BulletWhisker:
                                                           physicsClientId=self.client)])
 
     def apply_implicit_torques(self, q_target: np.ndarray, h: float, loads=(), contacts=(),
-                               friction: float = 0.0, iterations: int = 50) -> np.ndarray:
+                               friction: float = 0.0, iterations: int = 50, record: bool = False) -> np.ndarray:
         """Joint torques of one linearly implicit step of size h (s) toward driven angles q_target;
-        returns the normal force (internal units) at each of ``contacts``.
+        returns the normal force (internal units) at each of ``contacts``. With ``record`` the
+        step's frames and external forces are kept for :meth:`base_wrench` (the step that
+        starts at a sample's time).
 
         ``loads`` (:mod:`pipeline.model.loads`) enter the implicit solve as the generalised force
         Jᵀ·F and are applied to Bullet's bodies too, so the step Bullet takes is the implicit one.
@@ -200,7 +212,8 @@ class BulletWhisker:
         q_free = q[3:]
         if self._lhs_inverse is None or np.abs(q_free - self._factorised_at).max() > MASS_REFRESH_RAD:
             self._factorise(q_list, h)
-        generalised = self._apply_loads(loads, q_list) if loads else 0.0   # Bullet adds Jᵀ·F itself
+        external = []                                   # (points, forces, torques) on the links
+        generalised = self._apply_loads(loads, q_list, external) if loads else 0.0   # Bullet adds Jᵀ·F itself
         accel_driven = (((q_target - q[:3]) / h - v[:3]) / h).tolist()
         driven_only = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, accel_driven + self._free_zeros,
                                                           physicsClientId=c))   # M_·D·a_D + b
@@ -211,9 +224,11 @@ class BulletWhisker:
         if contacts:
             accel = np.concatenate([accel_driven, accel_free])
             normal_forces, contact_generalised = self._contact_forces(contacts, q_list, v, accel, h,
-                                                                      friction, iterations)
+                                                                      friction, iterations, external)
             generalised = generalised + contact_generalised
             accel_free = accel[3:]
+        if record:
+            self._record_wrench(q_list, v, h, external)
         torque = p.calculateInverseDynamics(self.body, q_list, v_list, accel_driven + accel_free.tolist(),
                                             physicsClientId=c)
         if loads or contacts:                          # (x − 0.0 is x: skipped without them)
@@ -222,10 +237,11 @@ class BulletWhisker:
         return normal_forces
 
     def _contact_forces(self, contacts, q: list[float], v: np.ndarray, accel: np.ndarray, h: float,
-                        friction: float, iterations: int) -> tuple[np.ndarray, np.ndarray]:
+                        friction: float, iterations: int, external: list) -> tuple[np.ndarray, np.ndarray]:
         """Solve the contact forces of the step (:mod:`pipeline.engines.bullet_contact`), add
-        their free-joint response W·J_Fᵀ·f to ``accel`` (in place) and apply them to the links;
-        returns the normal forces [P] and their generalised force Jᵀ·f [n_dof].
+        their free-joint response W·J_Fᵀ·f to ``accel`` (in place), apply them to the links and
+        append them to ``external`` as (points, forces, torques); returns the normal forces [P]
+        and their generalised force Jᵀ·f [n_dof].
 
         One Jacobian per step, at the frame origin o of the farthest touched link: a point p on
         link l has the row d·J_lin + ((p − o) × d)·J_ang along d, with the columns of the joints
@@ -252,6 +268,7 @@ class BulletWhisker:
                               np.array([contact.gap_mm for contact in contacts]), h, friction, iterations)
         accel[3:] += response @ forces
         world = np.einsum("ij,i->ij", frames, forces).reshape(len(contacts), per_point, 3).sum(axis=1)
+        external.append((np.array([contact.point_mm for contact in contacts]), world, np.zeros_like(world)))
         for contact, force in zip(contacts, world):
             p.applyExternalForce(self.body, self.whisker_links[contact.link], force.tolist(),
                                  contact.point_mm.tolist(), p.WORLD_FRAME, physicsClientId=c)
@@ -295,9 +312,10 @@ class BulletWhisker:
                          np.array([s[6] for s in states]) / U.LENGTH if velocities else zeros,
                          np.array([s[7] for s in states]) if velocities else zeros, motion)
 
-    def _apply_loads(self, loads, q: list[float]) -> np.ndarray:
-        """Apply the loads' per-link forces to Bullet's bodies for the next step; returns their
-        generalised force Jᵀ·F [n_dof] (internal units). pybullet takes the Jacobian's point in
+    def _apply_loads(self, loads, q: list[float], external: list) -> np.ndarray:
+        """Apply the loads' per-link forces to Bullet's bodies for the next step and append them
+        to ``external`` as (points, forces, torques); returns their generalised force Jᵀ·F
+        [n_dof] (internal units). pybullet takes the Jacobian's point in
         the link frame (not the centre-of-mass frame): checked by the static tip load test,
         whose deflection is then independent of the step size."""
         import pybullet as p
@@ -305,6 +323,7 @@ class BulletWhisker:
         state = self.link_state(any(load.needs_velocity for load in loads), any(load.needs_base for load in loads))
         force, torque = total_link_forces(loads, self.model.chain, state)
         force, torque = force * U.FORCE, torque * U.TORQUE
+        external.append((state.com_m * U.LENGTH, force, torque))
         generalised = np.zeros(self.n_dof)
         for i in np.flatnonzero(np.any(force != 0, axis=1) | np.any(torque != 0, axis=1)):
             link = self.whisker_links[i]
@@ -316,20 +335,43 @@ class BulletWhisker:
                                   physicsClientId=self.client)
         return generalised
 
-    def base_wrench(self) -> np.ndarray:
-        """Follicle → whisker force (N) and moment about the base point (N·m), whisker frame."""
+    def _record_wrench(self, q: list[float], v: np.ndarray, h: float, external: list) -> None:
+        """Keep what :meth:`base_wrench` needs of the step about to be taken from joint angles q
+        and rates v: the chain's frames and the ``external`` (points, forces, torques) on the
+        links (internal units, world frame)."""
         import pybullet as p
 
-        reading = np.asarray(p.getJointState(self.body, self.sensor_joint, physicsClientId=self.client)[2])
-        force, moment = reading[:3], reading[3:]
-        moment = moment + np.cross([self.link1_com, 0.0, 0.0], force)
-        rotation = rot_z(self.link1_angle)
-        if self.follicle_axes:
-            states = p.getJointStates(self.body, self.dofs[3:3 + len(self.follicle_axes)],
-                                      physicsClientId=self.client)
-            for axis, state in zip(reversed(self.follicle_axes), reversed(states)):
-                rotation = axis_rotation(axis, state[0]) @ rotation
-        return np.concatenate([rotation @ force / U.FORCE, rotation @ moment / U.TORQUE])
+        states = p.getLinkStates(self.body, self._chain_links, computeForwardKinematics=True,
+                                 physicsClientId=self.client)
+        rotations = matrix_from_xyzw([s[5] for s in states])
+        points, forces, torques = ([np.concatenate(part) for part in zip(*external)] if external
+                                   else [np.zeros((0, 3))] * 3)
+        self._step = (q, v, h, rotations, np.asarray(states[0][4]), points, forces, torques)
+
+    def base_wrench(self) -> np.ndarray:
+        """Follicle → whisker force (N) and moment about the base point (N·m), whisker frame, in
+        the step recorded by :meth:`apply_implicit_torques` and just taken, by Newton–Euler
+        (:mod:`pipeline.engines.bullet_wrench`) with the joint accelerations Bullet took,
+        (v′ − v)/h."""
+        import pybullet as p
+
+        c = self.client
+        q, v, h, rotations, base, points, forces, torques = self._step
+        after = np.array([s[1] for s in p.getJointStates(self.body, self.dofs, physicsClientId=c)])
+        # origins from the base by the links' offsets (pybullet's link frame positions are off by
+        # up to 10⁻⁵ relative), so that the wrench does not depend on where the base is
+        origins = np.vstack([np.zeros(3), np.cumsum(np.einsum("lij,lj->li", rotations[:-1], self._link_offsets[1:]),
+                                                    axis=0)])
+        bodies = np.asarray(self.whisker_links)
+        com = origins[bodies] + rotations[bodies, :, 0] * self.link_com[:, None]
+        rates, accelerations = np.zeros(len(rotations)), np.zeros(len(rotations))
+        rates[self.dofs], accelerations[self.dofs] = v, (after - v) / h
+        world = chain_wrench(origins, rotations, self._local_axes, rates, accelerations, bodies, com,
+                             self._link_mass, self._link_inertia, self.sensor_joint, points - base, forces, torques)
+        rotation = rot_z(self.link1_angle) @ rotations[self.sensor_joint].T     # world → link 1 → whisker
+        for axis, angle in zip(reversed(self.follicle_axes), reversed(q[3:3 + len(self.follicle_axes)])):
+            rotation = axis_rotation(axis, angle) @ rotation
+        return np.concatenate([rotation @ world[:3] / U.FORCE, rotation @ world[3:] / U.TORQUE])
 
     def link_nodes(self, i: int) -> tuple[tuple[float, ...], tuple[float, ...]]:
         """Proximal and distal node of whisker link i, world frame, mm (internal units). Plain

@@ -24,9 +24,9 @@ from the full engine over the RMS magnitude of the whisker's force (for force co
 moment. MuJoCo at 2.5·10⁻⁴ s: ≤ 0.23, 0.34, 0.67 % at 6, 9, 12 Hz (every whisker; median
 ≤ 0.11 %; over the component's own RMS ≤ 1.33 %), 2.0–2.7× less CPU than the full step. Bullet
 missed 1 % on its longest whisker (RA0's Mz) at 2.5·10⁻⁴ s (0.83 % at 6 Hz, 1.40 % at 9 Hz)
-and at 2·10⁻⁴ s (1.60 % at 12 Hz) for 1.6× less CPU, and MuJoCo's path is no stand-in for
-Bullet's engine (RA0's Fx 9.4 % at 12 Hz): Bullet has no coarse path (free whiskers of a Bullet
-trial take the full step; parked ones sleep, pipeline/engines/bullet.py).
+and at 2·10⁻⁴ s (1.60 % at 12 Hz) for 1.6× less CPU: Bullet has no coarse path (with
+``free_whiskers: coarse`` its free whiskers take the full step; parked ones sleep,
+pipeline/engines/bullet.py); ``auto`` gives them the linear chain (:data:`AUTO_PATH`).
 """
 
 from __future__ import annotations
@@ -47,6 +47,10 @@ from pipeline.scenes.obstacles import Scene
 FREE_DT_S = {"mujoco": 2.5e-4}
 FREE_F1_TOLERANCE = 0.05     # its f1 tolerance (the full engine's default: 0.01): 0.02 cost 0.15 s more, same accuracy
 FREE_PATH_MARGIN_M = 1e-3    # clearance kept beyond FreeMotion's padding (module docstring, Safety)
+# ``free_whiskers: auto``: per engine the cheapest path within 1 % of its full step on every whisker
+# it takes (benchmarks/bench_free_whiskers.py; docs/scaling.md): MuJoCo's coarse run costs about
+# what the linear chain does, Bullet's full step ≈ 4× a dataset trial's linear path
+AUTO_PATH = {"mujoco": "coarse", "bullet": "linear"}
 
 
 def coarse_config(config: EngineConfig, longest_s: float | None = None) -> EngineConfig | None:
@@ -76,11 +80,12 @@ class FreePath:
 
     @classmethod
     def of(cls, make_engine, array: ArrayModel, config: EngineConfig) -> "FreePath | LinearFreePath | None":
-        """The path ``config.free_whiskers`` asks for: the linear chain's, or the coarse one if a
-        coarser step exists; else None."""
-        if config.free_whiskers == "linear":
+        """The path ``config.free_whiskers`` asks for (``auto``: the engine's :data:`AUTO_PATH`):
+        the linear chain's, or the coarse one if a coarser step exists; else None."""
+        choice = AUTO_PATH.get(config.name, "engine") if config.free_whiskers == "auto" else config.free_whiskers
+        if choice == "linear":
             return LinearFreePath(array, config.output_rate_hz)
-        coarse = coarse_config(config) if config.free_whiskers == "coarse" else None
+        coarse = coarse_config(config) if choice == "coarse" else None
         return cls(make_engine, array, coarse) if coarse is not None else None
 
     def clear(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float,
