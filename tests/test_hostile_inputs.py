@@ -8,7 +8,6 @@ completes the version, and a complete version can never be changed.
 
 from __future__ import annotations
 
-import errno
 import hashlib
 import json
 import os

@@ -19,6 +19,8 @@ from pipeline.errors import UserError
 
 SAVE_MODEL = typer.Option(None, "--save-model", help="Write the fitted model (docs/model_file.md).")
 REPLACE_SAVED_MODEL = typer.Option(False, "--force", help="Replace an existing --save-model file.")
+CHECK_ON_ENGINE = typer.Option(None, "--engine", show_default=False,
+                               help="Check and refine the result on this engine. \\[default: none]")
 
 
 @app.command()
@@ -33,8 +35,7 @@ def calibrate(
                                                                       "trajectory (the tracked points)."),
     grid_points: Optional[int] = typer.Option(None, "--grid-points", min=2, help="Grid values per parameter."),
     bootstrap: int = typer.Option(0, "--bootstrap", min=0, help="Bootstrap refits over trials for the sd."),
-    engine: Optional[EngineName] = typer.Option(None, "--engine", show_default=False,
-                                                help="Check and refine the fit on this engine. \\[default: none]"),
+    engine: Optional[EngineName] = CHECK_ON_ENGINE,
     config: Optional[Path] = CONFIG,
     save_model: Optional[Path] = SAVE_MODEL,
     force: bool = REPLACE_SAVED_MODEL,
@@ -73,9 +74,9 @@ def diagnose(
     file: Optional[Path] = typer.Argument(None, help="Measurement: time series (.h5) or resonance table (.csv)."),
     library: bool = typer.Option(False, "--library", help="Diagnose the shipped measurement library's resonance tables combined."),
     report: Optional[Path] = typer.Option(None, "--report", help="Write report.md and PNG figures here."),
-    engine: Optional[EngineName] = typer.Option(None, "--engine", show_default=False,
-                                                help="Check and refine the result on this engine. \\[default: none]"),
-    candidates: Optional[str] = typer.Option(None, "--candidates", help="Only these extensions (comma-separated)."),
+    engine: Optional[EngineName] = CHECK_ON_ENGINE,
+    candidates: Optional[str] = typer.Option(None, "--candidates", help="Only these candidates, comma-separated: "
+                                             "extensions and damping laws (rayleigh, eq3, kelvin_voigt)."),
     config: Optional[Path] = CONFIG,
     save_model: Optional[Path] = SAVE_MODEL,
     force: bool = REPLACE_SAVED_MODEL,
