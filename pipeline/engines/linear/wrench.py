@@ -8,12 +8,14 @@ forward kinematics at q, its velocity and acceleration relative to the base to s
 J_v at rest; the links' angular velocity J_ω·q̇ to first order), Newton–Euler about O gives,
 in whisker-frame components,
 
-    F = Σ m·a − F_air,   a = a_rel + 2ω × v + α × c + ω × (ω × c),
-    M = Σ (m·c × a + I·α_l + ω_l × I·ω_l) − M_air,
+    F = Σ m·a − F_air − F_md,   a = a_rel + 2ω × v + α × c + ω × (ω × c),
+    M = Σ (m·c × a + I·α_l + ω_l × I·ω_l) − M_air − M_md,
     ω_l = ω + J_ω·q̇,   α_l = α + J_ω·q̈ + ω × J_ω·q̇,
 
 F_air, M_air the air drag on the links' quadrature points (linear and quadratic in the normal
-velocity J·q̇ + ω × x, :mod:`.chain`). Gravity is not included: the engines' free path, this
+velocity J·q̇ + ω × x, :mod:`.chain`), F_md, M_md the mass-proportional damping of the motion
+relative to the base (:class:`~pipeline.model.loads.MassDampingLoad`: −α·m·v on each link, −α·I·J_ω·q̇
+on its rotation). Gravity is not included: the engines' free path, this
 wrench's user, is off for loads that depend on the head's pose.
 """
 
@@ -61,7 +63,11 @@ def base_wrench(lin: LinearWhisker, q: np.ndarray, shape: tuple[np.ndarray, np.n
     force = np.einsum("l,tla->ta", m, a)
     moment = np.einsum("l,tla->ta", m, np.cross(c, a)) + momentum_rate.sum(axis=1)
     air_force, air_moment = _air(lin, rate, omega)
-    return np.concatenate([force - air_force, moment - air_moment], axis=1)
+    damping = lin.physics.mass_damping_per_s      # the links' damping forces are −α·(their momentum terms)
+    force = force + damping * np.einsum("l,tla->ta", m, velocity) - air_force
+    moment = moment + damping * (np.einsum("l,tla->ta", m, np.cross(c, velocity))
+                                 + (turned @ spin[..., None])[..., 0].sum(axis=1)) - air_moment
+    return np.concatenate([force, moment], axis=1)
 
 
 def _hessian(lin: LinearWhisker) -> np.ndarray:
