@@ -1,8 +1,8 @@
 """Start-up cost (issue 16 §3): the CLI and a short trial load no heavy module they do not use.
 
-Each of scipy's subpackages, open3d, dask, trimesh and h5py costs 0.03–0.3 CPU-s to import;
-``pipeline trial`` before its first step stays under 0.5 CPU-s only while they stay out. The
-check runs in a fresh interpreter and lists what was imported by the time the process exits.
+Each of scipy's subpackages, open3d, dask, trimesh, h5py and filelock costs 0.03–0.3 CPU-s to
+import; ``pipeline trial`` before its first step stays under 0.5 CPU-s only while they stay out.
+The check runs in a fresh interpreter and lists what was imported by the time the process exits.
 """
 
 import json
@@ -13,7 +13,7 @@ import pytest
 
 from tests.conftest import REPO
 
-HEAVY = ("scipy", "open3d", "dask", "distributed", "trimesh", "h5py", "matplotlib", "rich")
+HEAVY = ("scipy", "open3d", "dask", "distributed", "trimesh", "h5py", "matplotlib", "rich", "filelock")
 
 _REPORT_AT_EXIT = """
 import atexit, json, runpy, sys

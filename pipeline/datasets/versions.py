@@ -11,8 +11,6 @@ import os
 import re
 from pathlib import Path
 
-from filelock import FileLock, Timeout
-
 from pipeline.config.project import datasets_root
 from pipeline.datasets.manifest import read_manifest
 from pipeline.datasets.schema import DATA_FILE, MANIFEST_FILE
@@ -101,6 +99,15 @@ def resolve(target: str | Path, root: str | Path | None = None) -> Path:
     return folder / DATA_FILE
 
 
+def _file_lock(path: Path):
+    """filelock's ``flock`` lock of ``path`` and the exception a busy lock raises (filelock is
+    imported here: 0.1 CPU-s that every command writing an output file would pay at start-up,
+    tests/test_startup.py)."""
+    from filelock import FileLock, Timeout
+
+    return FileLock(path, is_singleton=False), Timeout
+
+
 class VersionLock:
     """Exclusive lock of a version (or shard) folder for the one process writing it (filelock's
     ``flock`` on ``LOCK_FILE``, which names what the holder does and its pid while it holds the
@@ -109,12 +116,12 @@ class VersionLock:
     def __init__(self, folder: Path, activity: str = "written"):
         self.path = Path(folder) / LOCK_FILE
         self.activity = activity
-        self._lock = FileLock(self.path, is_singleton=False)
+        self._lock, self._timeout = _file_lock(self.path)
 
     def __enter__(self) -> "VersionLock":
         try:
             self._lock.acquire(blocking=False)
-        except Timeout:
+        except self._timeout:
             owner = self.path.read_text().strip() if self.path.is_file() else ""
             raise UserError(f"{self.path.parent} is being {owner or 'written by another process'}") from None
         self.path.write_text(f"{self.activity} by pid {os.getpid()}")
@@ -129,10 +136,10 @@ def is_locked(folder: Path) -> bool:
     path = Path(folder) / LOCK_FILE
     if not path.is_file():
         return False
-    probe = FileLock(path, is_singleton=False)
+    probe, timeout = _file_lock(path)
     try:
         probe.acquire(blocking=False)
-    except Timeout:
+    except timeout:
         return True
     probe.release()
     return False

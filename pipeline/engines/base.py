@@ -51,7 +51,6 @@ from pipeline.engines.free_path import FreePath
 from pipeline.engines.stepping import refinement_levels, step_groups, steps_per_sample
 from pipeline.errors import SimulationError
 from pipeline.model.array import ArrayModel, WhiskerModel
-from pipeline.model.base_motion import BaseInertia
 from pipeline.model.head_motion import HeadMotion
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.loads import TipForce
@@ -157,7 +156,7 @@ class Engine(ABC):
         self.build_seconds = time.perf_counter() - start
         self.free = FreeMotion(array.whiskers)
         self.free_path = FreePath.of(type(self), array, config)
-        self.inertia = [BaseInertia.of(w.physics) for w in array.whiskers]
+        self.inertia = [w.physics.base_inertia for w in array.whiskers]
 
     def step_levels(self, array: ArrayModel, config: EngineConfig) -> np.ndarray:
         """[W] j per whisker: it steps at ``dt_s / 2**j`` (:mod:`pipeline.engines.stepping`)."""

@@ -329,7 +329,9 @@ class MujocoPlan:
 
 
 class MujocoWorld(World):
-    """One MjModel: whiskers stepping at one step size ``dt_s``, and what they can reach."""
+    """One MjModel: whiskers stepping at one step size ``dt_s``, and what they can reach. The
+    model is compiled by :meth:`_prepare` for a trial's whiskers and parts, and again only when
+    they change (a world none of whose whiskers a trial needs compiles nothing)."""
 
     def __init__(self, whiskers: list[WhiskerModel], config: EngineConfig, dt_s: float,
                  prisms: dict[tuple, MeshPrisms]):
@@ -341,7 +343,6 @@ class MujocoWorld(World):
         self.padding_m = node_padding_m(whiskers, CLEARANCE_MARGIN_M)   # [w]
         self._prisms = prisms
         self._built_key: object = None
-        self._build([], np.arange(len(whiskers)))
 
     # -- model ---------------------------------------------------------------------------
     def _contact_options(self, element) -> None:

@@ -14,6 +14,7 @@ from functools import cached_property
 import numpy as np
 
 from pipeline.config.physics import MaterialConfig
+from pipeline.model.base_motion import BaseInertia
 from pipeline.model.damping import damping_model
 from pipeline.model.extensions import BaseSegment, CompliantFollicle, Extension, Gravity
 from pipeline.model.joints import JointLayout, joint_layout
@@ -50,6 +51,12 @@ class WhiskerPhysics:
     def layout(self) -> JointLayout:
         """The spring joints, in the order every engine and the linear model use."""
         return joint_layout(self)
+
+    @cached_property
+    def base_inertia(self) -> BaseInertia:
+        """The moving base's inertial loads on the spring joints (built once per whisker: an
+        engine and its coarse free path share them)."""
+        return BaseInertia.of(self)
 
     @property
     def planar_stiffness_nm_per_rad(self) -> np.ndarray:
