@@ -106,6 +106,8 @@ class LinearFreePath:
         at most :data:`MAX_BEND` (then :meth:`recall` gives its outputs); computed once per drive."""
         self.motion.select(drive, len(times_s), depends_on_pose=False)
         if not self.motion.motions:
+            import scipy.linalg  # noqa: F401  (loads its BLAS now: the limit covers the libraries loaded when set)
+
             with threadpool_limits(limits=1, user_api="blas"):     # ~100×100 matrices: threads cost more
                 self._compute(drive, times_s)
         return self.motion.reusable(pose, scene, times_s) & self.linear

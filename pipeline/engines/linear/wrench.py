@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.engines.linear.chain import LinearWhisker
+from pipeline.engines.linear.rotating import com_hessian
 from pipeline.model.base_motion import joint_jacobian, link_frames
 
 
@@ -50,8 +51,9 @@ def base_wrench(lin: LinearWhisker, q: np.ndarray, shape: tuple[np.ndarray, np.n
     frames, nodes = shape
     w, al = omega[:, None, :], alpha[:, None, :]
     c = nodes[:, :-1] + frames[..., 0] * chain.link_com_m[:, None]
-    velocity = _apply(jv, rate) + _second(lin, q, rate)
-    a = _apply(jv, acceleration) + _second(lin, q, acceleration) + _second(lin, rate, rate) \
+    hessian = _hessian(lin)
+    velocity = _apply(jv, rate) + _second(hessian, q, rate)
+    a = _apply(jv, acceleration) + _second(hessian, q, acceleration) + _second(hessian, rate, rate) \
         + 2 * np.cross(w, velocity) + np.cross(al, c) + np.cross(w, np.cross(w, c))
     turned = (frames * chain.link_inertia_kg_m2[:, None, :]) @ np.swapaxes(frames, -1, -2)
     spin = _apply(jw, rate)
@@ -68,36 +70,18 @@ def base_wrench(lin: LinearWhisker, q: np.ndarray, shape: tuple[np.ndarray, np.n
     return np.concatenate([force, moment], axis=1)
 
 
-def _second(lin: LinearWhisker, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """[T, L, 3] H(x, y) = Σ_ij ∂²c/∂q_i∂q_j·x_j·y_i for joint vectors x, y [T, n] without the
-    Hessian (:func:`.rotating.com_hessian`): its pair term a_lo × (a_hi × (c − o_hi)), summed
-    over the joints lo ≤ hi that move link l (a prefix of the joints, which run base to tip), is
-    Σ_hi P_hi × (a_hi × (c − o_hi)) with P_hi = x_hi·Σ_{lo<hi} y_lo·a_lo + y_hi·Σ_{lo<hi} x_lo·a_lo
-    + x_hi·y_hi·a_hi, i.e. a_hi·(P_hi·(c − o_hi)) − (c − o_hi)·(P_hi·a_hi), running sums over hi."""
-    layout, com, moving = _prefix(lin)
-    axes, pivots = layout.axes, layout.pivots                                  # [n, 3]
-    ya, xa = y[..., None] * axes, x[..., None] * axes                          # [T, n, 3]
-    p = x[..., None] * (np.cumsum(ya, axis=1) - ya) + y[..., None] * (np.cumsum(xa, axis=1) - xa) \
-        + (x * y)[..., None] * axes
-    along = np.einsum("tha,ha->th", p, axes)                                   # P_hi·a_hi
-    terms = np.concatenate([(axes[None, :, :, None] * p[:, :, None, :]).reshape(len(x), -1, 9),   # a ⊗ P
-                            axes * np.einsum("tha,ha->th", p, pivots)[..., None],                 # a·(P·o)
-                            pivots * along[..., None], along[..., None]], axis=2)                 # o·(P·a), P·a
-    sums = np.concatenate([np.zeros_like(terms[:, :1]), np.cumsum(terms, axis=1)], axis=1)[:, moving]   # [T, L, 16]
-    outer = sums[..., :9].reshape(*sums.shape[:2], 3, 3)
-    return np.einsum("tlab,lb->tla", outer, com) - sums[..., 9:12] + sums[..., 12:15] - sums[..., 15:] * com
+def _hessian(lin: LinearWhisker) -> np.ndarray:
+    """[n, L·3·n] the links' centre-of-mass Hessian (:func:`.rotating.com_hessian`) for :func:`_second`."""
+    if "wrench_hessian" not in lin.cache:
+        second = com_hessian(lin)                                              # [L, i, j, 3]
+        lin.cache["wrench_hessian"] = np.transpose(second, (2, 0, 3, 1)).reshape(second.shape[2], -1)
+    return lin.cache["wrench_hessian"]
 
 
-def _prefix(lin: LinearWhisker):
-    """(layout, [L, 3] rest centres of mass, [L] how many joints move each link)."""
-    if "wrench_prefix" not in lin.cache:
-        layout = lin.dofs
-        if np.any(np.diff(layout.first_link) < 0):
-            raise ValueError("the joints of a linear chain must run from base to tip")
-        _, com, _ = link_frames(lin.physics.chain)
-        moving = np.searchsorted(layout.first_link, np.arange(lin.physics.chain.links), side="right")
-        lin.cache["wrench_prefix"] = (layout, com, moving)
-    return lin.cache["wrench_prefix"]
+def _second(hessian: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """[T, L, 3] Σ_ij ∂²c/∂q_i∂q_j·x_j·y_i for joint vectors x, y [T, n]."""
+    t, n = x.shape
+    return np.einsum("tlai,ti->tla", (x @ hessian).reshape(t, -1, 3, n), y)
 
 
 def _apply(jacobian: np.ndarray, values: np.ndarray) -> np.ndarray:
