@@ -116,7 +116,7 @@ class MaterialConfig(StrictModel):
 
 
 EngineName = Literal["bullet", "mujoco"]     # the physics engines (pipeline/engines)
-FreeWhiskers = Literal["engine", "coarse"]   # how an engine simulates whiskers that cannot touch
+FreeWhiskers = Literal["engine", "coarse", "late"]   # how an engine simulates whiskers that cannot touch
 
 
 class EngineConfig(StrictModel):
@@ -136,7 +136,8 @@ class EngineConfig(StrictModel):
     contact_friction: float = Field(0.5, ge=0, le=2.0, description="Coulomb μ whisker–object")
     solver_iterations: int = Field(50, ge=1, le=1000, description="Bullet: most Gauss–Seidel sweeps of a step's contact solve")
     free_whiskers: FreeWhiskers = Field("engine", description="whiskers that cannot touch anything in a trial: "
-                                        "'engine' (the full step) or 'coarse' (pipeline/engines/free_path.py)")
+                                        "'engine' (the full step), 'coarse' (pipeline/engines/free_path.py) or 'late' "
+                                        "(coarse, and those that can touch start late from the coarse run)")
 
 
 class WhiskConfig(StrictModel):

@@ -74,6 +74,17 @@ class WorldResult:
     def zeros(cls, samples: int, whiskers: int, links: int) -> "WorldResult":
         return cls(*empty_signals(samples, whiskers, links), np.zeros(whiskers, bool))
 
+    def later(self, start: int, samples: int) -> "WorldResult":
+        """This result of a run begun at output sample ``start`` as ``samples`` rows (the first
+        ``start`` zero)."""
+        if start == 0:
+            return self
+        padded = WorldResult.zeros(samples, self.wrench.shape[1], self.nodes.shape[2] - 1)
+        for name in ("wrench", "contact", "point_of_contact", "nodes"):
+            getattr(padded, name)[start:] = getattr(self, name)
+        padded.touched, padded.jammed = self.touched, self.jammed
+        return padded
+
     def put(self, whiskers, other: "WorldResult", columns=slice(None)) -> None:
         """Copy ``other``'s whiskers ``columns`` into this result's ``whiskers``."""
         for name in ("wrench", "contact", "point_of_contact", "nodes", "touched"):
@@ -205,24 +216,33 @@ class Engine(ABC):
             coarse = ~reused & self.free_path.clear(scene, pose, drive, duration_s, times)
             setup = replace(setup, free_paths=tuple(self.free_path.recall(k, pose)[1]
                                                     for k in range(len(self.array.whiskers))))
+        starts = np.zeros(len(self.array.whiskers), int)
+        if self.config.free_whiskers == "late" and self.free_path is not None and setup.free_paths is not None:
+            starts = self.free_path.late_starts(scene, pose, times)
         result = WorldResult.zeros(samples, len(self.array.whiskers), self.array.links)
         steps, refined = 0, {}
+        late_starts = np.zeros(len(self.array.whiskers), int)
         plan = [(members, world, ~(reused | coarse)[members]) for members, world in self.worlds]
         planned = sum(samples * world.steps_per_sample * int(active.sum()) for _, world, active in plan)
         for members, world, active in plan:
             if not active.any():
                 continue
-            part = world.run(setup.only(members), active)
-            steps += samples * world.steps_per_sample * int(active.sum())
+            start = int(starts[members][active].min())
+            world_setup = setup if start == 0 else self.free_path.started_at(setup, start)
+            part = world.run(world_setup.only(members), active)
+            steps += world_setup.samples * world.steps_per_sample * int(active.sum())
             if self.progress is not None:
                 self.progress(min(steps, planned), planned)
             for local, message in part.jammed.items():
                 k = members[local]
                 alone, refined[self.array.whiskers[k].name], extra_steps = self._refine(
-                    k, world.dt_s, message, setup.only([k]))
+                    k, world.dt_s, message, world_setup.only([k]))
                 part.put([local], alone)
                 steps += extra_steps
-            result.put(members[active], part, active)
+            result.put(members[active], part.later(start, samples), active)
+            for k in members[active] if start else ():          # before the start: the coarse run
+                wrench, nodes = self.free_path.recall(k, pose)
+                result.wrench[:start, k], result.nodes[:start, k], late_starts[k] = wrench[:start], nodes[:start], start
         for k in np.flatnonzero(reused):
             result.wrench[:, k], result.nodes[:, k] = self.free.recall(k, pose)
         for k in np.flatnonzero(coarse):
@@ -234,6 +254,7 @@ class Engine(ABC):
                     "jam_refined": refined, "whisker_steps": steps,
                     "reused_free_motion": int(reused.sum()),
                     "coarse_free_whiskers": [self.array.names[k] for k in np.flatnonzero(coarse)],
+                    "late_start_samples": {self.array.names[k]: int(late_starts[k]) for k in np.flatnonzero(late_starts)},
                     "wall_seconds": time.perf_counter() - start_wall,
                     "cpu_seconds": time.process_time() - start_cpu,
                     "build_seconds": self.build_seconds}

@@ -31,10 +31,12 @@ trial take the full step; parked ones sleep, pipeline/engines/bullet.py).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from pipeline.config.physics import EngineConfig
-from pipeline.engines.common import CLEARANCE_MARGIN_M, FreeMotion
+from pipeline.engines.common import CLEARANCE_MARGIN_M, FreeMotion, clearance_m
 from pipeline.model.array import ArrayModel
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.scenes.library import empty
@@ -46,6 +48,7 @@ from pipeline.scenes.obstacles import Scene
 FREE_DT_S = {"mujoco": 2.5e-4}
 FREE_F1_TOLERANCE = 0.05     # its f1 tolerance (the full engine's default: 0.01): 0.02 cost 0.15 s more, same accuracy
 FREE_PATH_MARGIN_M = 1e-3    # clearance kept beyond FreeMotion's padding (module docstring, Safety)
+LATE_START_LEAD_S = 5e-3     # a late start begins this long before the first possible contact (module docstring, Late start)
 
 
 def coarse_config(config: EngineConfig, longest_s: float | None = None) -> EngineConfig | None:
@@ -76,7 +79,7 @@ class FreePath:
     @classmethod
     def of(cls, make_engine, array: ArrayModel, config: EngineConfig) -> "FreePath | None":
         """The coarse path if ``config`` asks for it and a coarser step exists, else None."""
-        coarse = coarse_config(config) if config.free_whiskers == "coarse" else None
+        coarse = coarse_config(config) if config.free_whiskers in ("coarse", "late") else None
         return cls(make_engine, array, coarse) if coarse is not None else None
 
     def clear(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float,
@@ -85,7 +88,15 @@ class FreePath:
         (then :meth:`recall` gives its outputs); runs the coarse engine in an empty scene."""
         if self.engine is None:
             self.engine = self.make_engine(self.array, self.config)
+        for _, world in self.engine.worlds:
+            world.joint_log = {}
         output = self.engine.run(empty(), pose, drive, duration_s)
+        self.joints = {}
+        for members, world in self.engine.worlds:
+            log, world.joint_log = world.joint_log, None
+            if len(log) == len(times_s):                   # simulated, not reused
+                for j, k in enumerate(members[world.members]):
+                    self.joints[int(k)] = [np.array([log[s][j][part] for s in range(len(times_s))]) for part in (0, 1)]
         self.motion.select(drive, len(times_s), depends_on_pose=False)
         for k in range(len(self.array.whiskers)):
             self.motion.remember(k, output.base_wrench[:, k], output.node_positions_m[:, k], pose)
@@ -94,6 +105,40 @@ class FreePath:
     def recall(self, k: int, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
         """Whisker k's coarse wrench [T, 6] (N, N·m) and node positions [T, N+1, 3] (m, world)."""
         return self.motion.recall(k, pose)
+
+    def first_reach(self, scene: Scene, pose: Pose, times_s: np.ndarray) -> np.ndarray:
+        """[W] per whisker the first output sample at which its padded coarse node path comes
+        within reach of ``scene`` (``len(times_s)``: never); call after :meth:`clear`."""
+        result = np.full(len(self.array.whiskers), len(times_s))
+        for k, (_, head_nodes, pad) in self.motion.motions.items():
+            nodes = pose.apply(head_nodes)                                   # [T, N+1, 3]
+            times = np.repeat(times_s, nodes.shape[1])
+            near = ~(clearance_m(nodes.reshape(-1, 3), times, scene, beyond_m=pad) > pad)
+            hits = np.flatnonzero(near.reshape(nodes.shape[:2]).any(axis=1))
+            result[k] = hits[0] if hits.size else len(times_s)
+        return result
+
+    def late_starts(self, scene: Scene, pose: Pose, times_s: np.ndarray) -> np.ndarray:
+        """[W] per whisker the output sample from which the full engine must simulate it:
+        :data:`LATE_START_LEAD_S` before :meth:`first_reach`, 0 without the coarse run's joint
+        states; call after :meth:`clear`."""
+        period = float(times_s[1] - times_s[0]) if len(times_s) > 1 else float(times_s[0])
+        lead = int(np.ceil(LATE_START_LEAD_S / period - 1e-9))
+        starts = np.maximum(self.first_reach(scene, pose, times_s) - lead, 0)
+        starts[[k for k in range(len(starts)) if k not in self.joints]] = 0
+        return np.minimum(starts, len(times_s) - 1)
+
+    def started_at(self, setup, start: int):
+        """``setup`` (a :class:`~pipeline.engines.base.TrialSetup` of the whole array) for a run
+        that begins at output sample ``start`` > 0: drive shifted, free joints at the coarse
+        run's state at that time, ``start`` fewer samples."""
+        t0 = start / self.config.output_rate_hz
+        state = [self.joints.get(k) for k in range(len(self.array.whiskers))]
+        initial = tuple(a if j is None else j[0][start - 1] for a, j in zip(setup.initial, state))
+        rates = tuple(r if j is None else j[1][start - 1] for r, j in zip(setup.initial_rates, state))
+        return replace(setup, samples=setup.samples - start, drive=setup.drive.shifted(t0), initial=initial,
+                       initial_rates=rates,
+                       free_paths=None if setup.free_paths is None else tuple(p[start:] for p in setup.free_paths))
 
     def close(self) -> None:
         if self.engine is not None:
