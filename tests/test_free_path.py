@@ -98,13 +98,13 @@ def test_a_whisker_within_the_margin_never_takes_the_cheap_path():
     assert reference.contact.any()                            # the peg across the path is touched
 
 
-@pytest.mark.parametrize("choice", ["coarse", "engine"])
+@pytest.mark.parametrize("choice", ["coarse", "late", "engine"])
 def test_simulate_config_chooses_the_path_of_free_whiskers(choice):
     from pipeline.config.simulate import SimulateConfig
     from pipeline.runner.simulate import _layout
     from pipeline.runner.trial import RunSpec, Simulator
 
     config = SimulateConfig(free_whiskers=choice)
-    assert SimulateConfig().free_whiskers == "coarse"
+    assert SimulateConfig().free_whiskers == "late"
     simulator = Simulator(RunSpec(config, (), _layout(config)))
     assert simulator.whisking.config.engine.free_whiskers == choice

@@ -272,9 +272,10 @@ class SimulateConfig(StrictModel):
     trials: int = Field(20, ge=1, le=10_000_000, description="trials in a run (--n)")
     seed: int = Field(0, ge=0, le=2**63 - 1, description="dataset seed; trial i draws from (seed, i)")
     model: ModelConfig = ModelConfig()
-    free_whiskers: FreeWhiskers = Field("coarse", description="whiskers that cannot touch anything in a trial: "
-                                        "'coarse' (cheap, pipeline/engines/free_path.py) or 'engine' (the full "
-                                        "step); overrides model.engine.free_whiskers")
+    free_whiskers: FreeWhiskers = Field("late", description="whiskers that cannot touch anything in a trial: "
+                                        "'coarse' (cheap, pipeline/engines/free_path.py), 'late' (coarse, and "
+                                        "those that can touch start late from the coarse run) or 'engine' (the "
+                                        "full step); overrides model.engine.free_whiskers")
     scenes: ScenesConfig = ScenesConfig()
     poses: PoseSamplingConfig = PoseSamplingConfig()
     whisk: WhiskSamplingConfig = WhiskSamplingConfig()
