@@ -7,9 +7,11 @@ the same for every backend:
 1. check the trial (:func:`~pipeline.engines.common.start_trial`);
 2. reuse the outputs of whiskers whose free motion in an earlier trial provably keeps clear
    of this trial's obstacles (:class:`~pipeline.engines.common.FreeMotion`) and, with
-   ``engine.free_whiskers: coarse``, take those whose free motion at a coarse step keeps clear
+   ``engine.free_whiskers: coarse`` (or ``late``), take those whose free motion at a coarse step keeps clear
    from that cheap path (:mod:`pipeline.engines.free_path`);
-3. run each world for its remaining whiskers (:meth:`World.run`);
+3. run each world for its remaining whiskers (:meth:`World.run`); with ``free_whiskers: late``
+   from the earliest late start of its whiskers (:meth:`FreePath.late_starts`), the samples
+   before it taken from the coarse run;
 4. simulate every whisker whose contact jammed again alone, with half its step, up to
    ``engine.jam_refinements`` times;
 5. merge the worlds' :class:`WorldResult` into one :class:`~pipeline.model.outputs.TrialOutput`
