@@ -8,8 +8,8 @@ The trials are those of configs/simulate.yaml (as `pipeline simulate` draws them
 pose, whisk; run `pipeline build-meshes` first). Variants: ``default`` (the config), ``half``
 (``engine.dt_s`` and ``engine.f1_tolerance`` halved: every whisker's step halved), ``bullet``
 (the same trials on the other engine), ``full-free`` (``free_whiskers: engine``: whiskers that
-cannot touch on the full step instead of the cheap path, pipeline/engines/free_path.py), ``late``
-(``free_whiskers: late``: those that can touch start late from the coarse run). Per (trial, whisker): touched or not, contact onset and
+cannot touch on the full step instead of the cheap path, pipeline/engines/free_path.py), ``coarse``
+(``free_whiskers: coarse``: those that can touch run from t = 0, not from a late start). Per (trial, whisker): touched or not, contact onset and
 duration (samples of 1 ms), peak |M| (N·m), peak transverse force |F_t| = |(F_y, F_z)| (N) and
 the point of contact at the peak |M| (fraction of S). Each variant is compared with ``default``:
 
@@ -44,7 +44,7 @@ from pipeline.runner.trial import RunSpec, Simulator
 REPO = Path(__file__).resolve().parents[1]
 VARIANTS = {"default": {}, "half": {"model": {"engine": {"dt_s": 5e-5, "f1_tolerance": 0.005}}},
             "bullet": {"model": {"engine": {"name": "bullet"}}}, "full-free": {"free_whiskers": "engine"},
-            "late": {"free_whiskers": "late"}}
+            "coarse": {"free_whiskers": "coarse"}}
 FIELDS = ("touched", "onset", "duration", "peak_moment", "peak_transverse", "poc_at_peak")
 
 

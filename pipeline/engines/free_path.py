@@ -39,7 +39,7 @@ starts at the earliest start of its simulated whiskers. Accuracy, a peg across t
 within 1.4 % of the run from t = 0 (tests/test_late_start.py). Cost: dataset trials of
 configs/simulate.yaml 2.34 → 2.22 CPU-s (benchmarks/profile_dataset_trial.py --trials 8), as
 most worlds hold a whisker that can touch early. The statistics (benchmarks/bench_statistics.py
---trials 0-11 --variants late) keep within the half step's scatter: the same 74 pairs touch,
+--trials 0-11 --variants coarse) keep within the half step's scatter: the same 74 pairs touch,
 onsets identical, peak |M| / |F_t| median |d| 0.0 %, P90 6.1 / 2.8 % (half step: 21 / 40 %).
 """
 
