@@ -78,7 +78,7 @@ def test_the_wrench_is_newton_euler_of_the_chains_own_motion(name):
     chain, h = whisker.chain, 1e-4
     drive = sinusoidal_whisk(9.0, 45.0, 20.0, DURATION_S)
     samples = int(round(DURATION_S / h))
-    wrench, nodes = free_response(whisker, linearise(whisker.physics), drive.continued(DURATION_S, h), samples, h)
+    wrench, nodes, _ = free_response(whisker, linearise(whisker.physics), drive.continued(DURATION_S, h), samples, h)
     times = np.arange(1, samples + 1) * h
     fraction = chain.link_com_m / chain.link_lengths_m
     com = nodes[:, :-1] + (nodes[:, 1:] - nodes[:, :-1]) * fraction[None, :, None]

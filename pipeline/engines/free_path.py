@@ -77,6 +77,7 @@ class FreePath:
         self.make_engine, self.array, self.config = make_engine, array, config
         self.engine = None
         self.motion = FreeMotion(array.whiskers, margin_m=CLEARANCE_MARGIN_M + FREE_PATH_MARGIN_M)
+        self.joints: dict = {}   # whisker → its free joints' (angles rad, rates rad/s) [T, n] at the samples
 
     @classmethod
     def of(cls, make_engine, array: ArrayModel, config: EngineConfig) -> "FreePath | LinearFreePath | None":
@@ -94,7 +95,15 @@ class FreePath:
         (then :meth:`recall` gives its outputs); runs the coarse engine in an empty scene."""
         if self.engine is None:
             self.engine = self.make_engine(self.array, self.config)
+        for _, world in self.engine.worlds:
+            world.joint_log = {}
         output = self.engine.run(empty(), pose, drive, duration_s)
+        self.joints = {}
+        for members, world in self.engine.worlds:
+            log, world.joint_log = world.joint_log, None
+            if len(log) == len(times_s):                   # simulated, not reused
+                for j, k in enumerate(members[world.members]):
+                    self.joints[int(k)] = tuple(np.array([log[s][j][part] for s in range(len(times_s))]) for part in (0, 1))
         self.motion.select(drive, len(times_s), depends_on_pose=False)
         for k in range(len(self.array.whiskers)):
             self.motion.remember(k, output.base_wrench[:, k], output.node_positions_m[:, k], pose)

@@ -51,10 +51,10 @@ def whisker_frames(whisker: WhiskerModel, theta: np.ndarray) -> np.ndarray:
 
 
 def free_response(whisker: WhiskerModel, lin: LinearWhisker, drive: ProtractionDrive, samples: int,
-                  interval_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Whisker's free base wrench [T, 6] (N, N·m, whisker frame) and node positions [T, N+1, 3]
-    (m, head frame) at the output times ``interval_s``·(1 … T), from the quasi-steady state of
-    ``drive`` at t = 0."""
+                  interval_s: float) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    """Whisker's free base wrench [T, 6] (N, N·m, whisker frame), node positions [T, N+1, 3]
+    (m, head frame) and joint angles and rates [T, n] (rad, rad/s) at the output times
+    ``interval_s``·(1 … T), from the quasi-steady state of ``drive`` at t = 0."""
     m = int(np.ceil(interval_s / SUBSTEPS_S - 1e-9))
     h = interval_s / m
     times = np.arange(samples * m + 2) * h
@@ -79,7 +79,7 @@ def free_response(whisker: WhiskerModel, lin: LinearWhisker, drive: ProtractionD
     shape = bent_chain(lin.physics, q)
     wrench = base_wrench(lin, q, shape, q_rate[at], q_acceleration, omega[at], alpha[at])
     nodes = whisker.base_point_m + np.einsum("tab,tnb->tna", rotation[at], shape[1])
-    return wrench, nodes
+    return wrench, nodes, (q, q_rate[at])
 
 
 def bend(whisker: WhiskerModel, drive: ProtractionDrive, times_s: np.ndarray, nodes: np.ndarray) -> float:
@@ -99,6 +99,7 @@ class LinearFreePath:
         self.chains: list[LinearWhisker] = []
         self.motion = FreeMotion(array.whiskers, margin_m=CLEARANCE_MARGIN_M + LINEAR_PATH_MARGIN_M)
         self.linear = np.zeros(len(array.whiskers), bool)     # bent little enough for the linear chain
+        self.joints: dict = {}   # whisker within MAX_BEND → its joints' (angles rad, rates rad/s) [T, n] at the samples
 
     def clear(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float,
               times_s: np.ndarray) -> np.ndarray:
@@ -106,6 +107,7 @@ class LinearFreePath:
         at most :data:`MAX_BEND` (then :meth:`recall` gives its outputs); computed once per drive."""
         self.motion.select(drive, len(times_s), depends_on_pose=False)
         if not self.motion.motions:
+            self.joints = {}
             import scipy.linalg  # noqa: F401  (loads its BLAS now: the limit covers the libraries loaded when set)
 
             with threadpool_limits(limits=1, user_api="blas"):     # ~100×100 matrices: threads cost more
@@ -117,9 +119,11 @@ class LinearFreePath:
             self.chains = [linearise(w.physics) for w in self.array.whiskers]
         continued = drive.continued(float(times_s[-1]), self.interval_s)
         for k, (whisker, lin) in enumerate(zip(self.array.whiskers, self.chains)):
-            wrench, nodes = free_response(whisker, lin, continued, len(times_s), self.interval_s)
+            wrench, nodes, joints = free_response(whisker, lin, continued, len(times_s), self.interval_s)
             self.motion.remember(k, wrench, nodes, Pose())
             self.linear[k] = bend(whisker, continued, times_s, nodes) <= MAX_BEND
+            if self.linear[k]:
+                self.joints[k] = joints
 
     def recall(self, k: int, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
         """Whisker k's free wrench [T, 6] (N, N·m) and node positions [T, N+1, 3] (m, world)."""
