@@ -16,7 +16,7 @@ from pipeline.scenes import empty
 from test_free_path import PEG_RADIUS_M, POSE, _peg_at_clearance
 
 DURATION_S = 0.06
-PEAK_TOLERANCE = 0.03     # relative; measured ≤ 0.4 % (the half step's median peak shift on scans: 0.2–1.3 %)
+PEAK_TOLERANCE = 0.03     # relative; measured 1.4 % from the coarse run, 0.03 % from the linear chain (RC1, 12 Hz)
 
 
 def _engine(free_whiskers: str, late_start: bool):

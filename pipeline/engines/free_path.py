@@ -31,11 +31,14 @@ pipeline/engines/bullet.py); ``auto`` gives them the linear chain (:data:`AUTO_P
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from pipeline.config.physics import EngineConfig
 from pipeline.engines.common import CLEARANCE_MARGIN_M, FreeMotion
 from pipeline.engines.linear.free import LinearFreePath
+from pipeline.engines.mirror import joint_signs, mirrored, twins
 from pipeline.model.array import ArrayModel
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.scenes.library import empty
@@ -78,6 +81,7 @@ class FreePath:
         self.engine = None
         self.motion = FreeMotion(array.whiskers, margin_m=CLEARANCE_MARGIN_M + FREE_PATH_MARGIN_M)
         self.joints: dict = {}   # whisker → its free joints' (angles rad, rates rad/s) [T, n] at the samples
+        self.source = twins(array.whiskers)        # the coarse engine runs one whisker of each mirror pair
 
     @classmethod
     def of(cls, make_engine, array: ArrayModel, config: EngineConfig) -> "FreePath | LinearFreePath | None":
@@ -93,20 +97,31 @@ class FreePath:
               times_s: np.ndarray) -> np.ndarray:
         """[W] whether each whisker's coarse free motion keeps clear of ``scene`` at ``pose``
         (then :meth:`recall` gives its outputs); runs the coarse engine in an empty scene."""
+        sources = np.flatnonzero(self.source == np.arange(len(self.source)))      # the coarse engine's whiskers
         if self.engine is None:
-            self.engine = self.make_engine(self.array, self.config)
+            self.engine = self.make_engine(replace(self.array, whiskers=tuple(self.array.whiskers[k] for k in sources)),
+                                           self.config)
         for _, world in self.engine.worlds:
             world.joint_log = {}
         output = self.engine.run(empty(), pose, drive, duration_s)
-        self.joints = {}
+        joints = {}
         for members, world in self.engine.worlds:
             log, world.joint_log = world.joint_log, None
             if len(log) == len(times_s):                   # simulated, not reused
-                for j, k in enumerate(members[world.members]):
-                    self.joints[int(k)] = tuple(np.array([log[s][j][part] for s in range(len(times_s))]) for part in (0, 1))
+                for j, i in enumerate(members[world.members]):
+                    joints[int(sources[i])] = tuple(np.array([log[s][j][part] for s in range(len(times_s))]) for part in (0, 1))
         self.motion.select(drive, len(times_s), depends_on_pose=False)
-        for k in range(len(self.array.whiskers)):
-            self.motion.remember(k, output.base_wrench[:, k], output.node_positions_m[:, k], pose)
+        self.joints = {}
+        for k, source in enumerate(self.source):
+            i = int(np.searchsorted(sources, source))
+            wrench, nodes = output.base_wrench[:, i].astype(float), output.node_positions_m[:, i].astype(float)
+            if k != source:                                # a mirror twin's, reflected (pipeline/engines/mirror.py)
+                wrench, head = mirrored(wrench, (nodes - np.asarray(pose.position_m, float)) @ pose.rotation)
+                nodes = pose.apply(head)
+            self.motion.remember(k, wrench, nodes, pose)
+            if source in joints:
+                signs = 1.0 if k == source else joint_signs(self.array.whiskers[k].physics.layout)
+                self.joints[k] = tuple(signs * part for part in joints[source])
         return self.motion.reusable(pose, scene, times_s)
 
     def recall(self, k: int, pose: Pose) -> tuple[np.ndarray, np.ndarray]:

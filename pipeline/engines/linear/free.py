@@ -31,6 +31,7 @@ from pipeline.engines.linear.chain import LinearWhisker, linearise
 from pipeline.engines.linear.modal import joint_angles, modal, respond
 from pipeline.engines.linear.motion import BaseMotion, inputs
 from pipeline.engines.linear.wrench import base_wrench
+from pipeline.engines.mirror import joint_signs, mirrored, twins
 from pipeline.model.array import ArrayModel, WhiskerModel
 from pipeline.model.base_motion import BaseInertia, angular_motion
 from pipeline.model.joints import bent_chain
@@ -96,7 +97,7 @@ class LinearFreePath:
 
     def __init__(self, array: ArrayModel, output_rate_hz: float):
         self.array, self.interval_s = array, 1.0 / output_rate_hz
-        self.chains: list[LinearWhisker] = []
+        self.chains: list[LinearWhisker | None] = []    # None: a mirror twin's chain gives its motion
         self.motion = FreeMotion(array.whiskers, margin_m=CLEARANCE_MARGIN_M + LINEAR_PATH_MARGIN_M)
         self.linear = np.zeros(len(array.whiskers), bool)     # bent little enough for the linear chain
         self.joints: dict = {}   # whisker within MAX_BEND → its joints' (angles rad, rates rad/s) [T, n] at the samples
@@ -116,10 +117,19 @@ class LinearFreePath:
 
     def _compute(self, drive: ProtractionDrive, times_s: np.ndarray) -> None:
         if not self.chains:
-            self.chains = [linearise(w.physics) for w in self.array.whiskers]
+            self.source = twins(self.array.whiskers)
+            self.chains = [linearise(w.physics) if k == s else None for k, (w, s) in
+                           enumerate(zip(self.array.whiskers, self.source))]
         continued = drive.continued(float(times_s[-1]), self.interval_s)
+        responses = {}
         for k, (whisker, lin) in enumerate(zip(self.array.whiskers, self.chains)):
-            wrench, nodes, joints = free_response(whisker, lin, continued, len(times_s), self.interval_s)
+            source = int(self.source[k])
+            if k == source:
+                wrench, nodes, joints = responses[k] = free_response(whisker, lin, continued, len(times_s),
+                                                                     self.interval_s)
+            else:                                          # a mirror twin's, reflected (pipeline/engines/mirror.py)
+                wrench, nodes = mirrored(*responses[source][:2])
+                joints = tuple(joint_signs(whisker.physics.layout) * part for part in responses[source][2])
             self.motion.remember(k, wrench, nodes, Pose())
             self.linear[k] = bend(whisker, continued, times_s, nodes) <= MAX_BEND
             if self.linear[k]:
