@@ -3,8 +3,9 @@
 A whisker that touches nothing moves relative to the head as it would in an empty scene, and
 without a load that depends on the head's pose (gravity, a world-frame tip force) that motion
 does not depend on the pose (:class:`~pipeline.engines.common.FreeMotion`). Before a trial the
-engine therefore runs the whole array in an empty scene on a second engine of its own kind at a
-coarse step (:data:`FREE_DT_S`, f1 tolerance :data:`FREE_F1_TOLERANCE`), about 2.7× cheaper
+engine therefore runs the array in an empty scene on a second engine of its own kind at a
+coarse step, one whisker of each mirror pair (the other's outputs are its reflection,
+:mod:`pipeline.engines.mirror`) (:data:`FREE_DT_S`, f1 tolerance :data:`FREE_F1_TOLERANCE`), about 2.7× cheaper
 than the full step (MuJoCo; Bullet has no coarse path, see Accuracy), and keeps the outputs of every whisker whose free node paths stay clear of
 the trial's obstacles by FreeMotion's padding (base radius, half the longest link, half the
 farthest a node moves between samples) plus :data:`FREE_PATH_MARGIN_M`; only the others are
@@ -51,8 +52,8 @@ FREE_DT_S = {"mujoco": 2.5e-4}
 FREE_F1_TOLERANCE = 0.05     # its f1 tolerance (the full engine's default: 0.01): 0.02 cost 0.15 s more, same accuracy
 FREE_PATH_MARGIN_M = 1e-3    # clearance kept beyond FreeMotion's padding (module docstring, Safety)
 # ``free_whiskers: auto``: per engine the cheapest path within 1 % of its full step on every whisker
-# it takes (benchmarks/bench_free_whiskers.py; docs/scaling.md): MuJoCo's coarse run costs about
-# what the linear chain does, Bullet's full step ≈ 4× a dataset trial's linear path
+# it takes (benchmarks/bench_free_whiskers.py; docs/scaling.md): a MuJoCo dataset trial costs 1.92 CPU-s
+# with the coarse run, 2.06 with the linear chain; Bullet's full step ≈ 4× a dataset trial's linear path
 AUTO_PATH = {"mujoco": "coarse", "bullet": "linear"}
 
 

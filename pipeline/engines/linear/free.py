@@ -4,7 +4,8 @@ A whisker that touches nothing follows its drive, and without loads that depend 
 pose its motion relative to the head is the same at every pose (:class:`~pipeline.engines.
 common.FreeMotion`). Per drive, every whisker's free motion is computed by the linear chain
 (:mod:`.modal`, integrated exactly on :data:`SUBSTEPS_S`-sized substeps of the output
-interval, first-order hold of the drive's base motion) from the drive's quasi-steady state at
+interval, first-order hold of the drive's base motion; one whisker of each mirror pair, the
+other's reflected, :mod:`pipeline.engines.mirror`) from the drive's quasi-steady state at
 t = 0, the engines' start (:meth:`~pipeline.model.base_motion.BaseInertia.quasi_steady`): its
 base wrench (:mod:`.wrench`) and its node positions through the chain's exact forward
 kinematics. A whisker gets it in a trial when those node paths keep clear of the trial's
