@@ -10,7 +10,8 @@ pose, whisk; run `pipeline build-meshes` first). Variants: ``default`` (the conf
 (the same trials on the other engine), ``full-free`` (``free_whiskers: engine``: whiskers that
 cannot touch on the full step instead of the cheap path, pipeline/engines/free_path.py),
 ``linear-free`` (``free_whiskers: linear``, pipeline/engines/linear/free.py), ``early`` (``late_start:
-false``: whiskers that can touch run from t = 0, pipeline/engines/late_start.py). Per (trial, whisker): touched or not, contact onset and
+false``: whiskers that can touch run from t = 0, pipeline/engines/late_start.py; the default is
+off, so run it with PIPELINE_SIMULATE_LATE_START=true). Per (trial, whisker): touched or not, contact onset and
 duration (samples of 1 ms), peak |M| (N·m), peak transverse force |F_t| = |(F_y, F_z)| (N) and
 the point of contact at the peak |M| (fraction of S). Each variant is compared with ``default``:
 
