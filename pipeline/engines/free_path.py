@@ -4,9 +4,10 @@ A whisker that touches nothing moves relative to the head as it would in an empt
 without a load that depends on the head's pose (gravity, a world-frame tip force) that motion
 does not depend on the pose (:class:`~pipeline.engines.common.FreeMotion`). Before a trial the
 engine therefore runs the array in an empty scene on a second engine of its own kind at a
-coarse step, one whisker of each mirror pair (the other's outputs are its reflection,
-:mod:`pipeline.engines.mirror`) (:data:`FREE_DT_S`, f1 tolerance :data:`FREE_F1_TOLERANCE`), about 2.7× cheaper
-than the full step (MuJoCo; Bullet has no coarse path, see Accuracy), and keeps the outputs of every whisker whose free node paths stay clear of
+coarse step (:data:`FREE_DT_S`, f1 tolerance :data:`FREE_F1_TOLERANCE`), about 2.7× cheaper
+than the full step (MuJoCo; Bullet has no coarse path, see Accuracy), one whisker of each
+mirror pair (the other's outputs are its reflection, :mod:`pipeline.engines.mirror`), and
+keeps the outputs of every whisker whose free node paths stay clear of
 the trial's obstacles by FreeMotion's padding (base radius, half the longest link, half the
 farthest a node moves between samples) plus :data:`FREE_PATH_MARGIN_M`; only the others are
 simulated at the full step, with the scene. A kept whisker gets the coarse run's base wrench
