@@ -9,7 +9,9 @@ pose, whisk; run `pipeline build-meshes` first). Variants: ``default`` (the conf
 (``engine.dt_s`` and ``engine.f1_tolerance`` halved: every whisker's step halved), ``bullet``
 (the same trials on the other engine), ``full-free`` (``free_whiskers: engine``: whiskers that
 cannot touch on the full step instead of the cheap path, pipeline/engines/free_path.py),
-``linear-free`` (``free_whiskers: linear``, pipeline/engines/linear/free.py). Per (trial, whisker): touched or not, contact onset and
+``linear-free`` (``free_whiskers: linear``, pipeline/engines/linear/free.py), ``early`` (``late_start:
+false``: whiskers that can touch run from t = 0, pipeline/engines/late_start.py; the default is
+off, so run it with PIPELINE_SIMULATE_LATE_START=true). Per (trial, whisker): touched or not, contact onset and
 duration (samples of 1 ms), peak |M| (N·m), peak transverse force |F_t| = |(F_y, F_z)| (N) and
 the point of contact at the peak |M| (fraction of S). Each variant is compared with ``default``:
 
@@ -44,7 +46,7 @@ from pipeline.runner.trial import RunSpec, Simulator
 REPO = Path(__file__).resolve().parents[1]
 VARIANTS = {"default": {}, "half": {"model": {"engine": {"dt_s": 5e-5, "f1_tolerance": 0.005}}},
             "bullet": {"model": {"engine": {"name": "bullet"}}}, "full-free": {"free_whiskers": "engine"},
-            "linear-free": {"free_whiskers": "linear"}}
+            "linear-free": {"free_whiskers": "linear"}, "early": {"late_start": False}}
 FIELDS = ("touched", "onset", "duration", "peak_moment", "peak_transverse", "poc_at_peak")
 
 

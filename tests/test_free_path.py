@@ -109,6 +109,7 @@ def test_simulate_config_chooses_the_path_of_free_whiskers(choice):
     assert SimulateConfig().free_whiskers == "auto"
     simulator = Simulator(RunSpec(config, (), _layout(config)))
     assert simulator.whisking.config.engine.free_whiskers == choice
+    assert simulator.whisking.config.engine.late_start == SimulateConfig().late_start
 
 
 @pytest.mark.parametrize(("engine", "path"), [("mujoco", "FreePath"), ("bullet", "LinearFreePath")])

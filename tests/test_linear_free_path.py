@@ -4,11 +4,14 @@ keeps the engine, and the chain's wrench is Newton–Euler of its own motion."""
 
 import numpy as np
 import pytest
+from scipy.linalg import expm
+from threadpoolctl import threadpool_limits
 
 from pipeline.config.physics import EngineConfig, ModelConfig
 from pipeline.engines import create_engine
 from pipeline.engines.linear.chain import linearise
 from pipeline.engines.linear.free import LINEAR_PATH_MARGIN_M, MAX_BEND, bend, free_response, whisker_frames
+from pipeline.engines.linear.modal import _state_matrix, discretise, modal
 from pipeline.model.array import build_array
 from pipeline.model.extensions import model_parts
 from pipeline.model.kinematics import Pose, sinusoidal_whisk
@@ -78,7 +81,7 @@ def test_the_wrench_is_newton_euler_of_the_chains_own_motion(name):
     chain, h = whisker.chain, 1e-4
     drive = sinusoidal_whisk(9.0, 45.0, 20.0, DURATION_S)
     samples = int(round(DURATION_S / h))
-    wrench, nodes = free_response(whisker, linearise(whisker.physics), drive.continued(DURATION_S, h), samples, h)
+    wrench, nodes, _ = free_response(whisker, linearise(whisker.physics), drive.continued(DURATION_S, h), samples, h)
     times = np.arange(1, samples + 1) * h
     fraction = chain.link_com_m / chain.link_lengths_m
     com = nodes[:, :-1] + (nodes[:, 1:] - nodes[:, :-1]) * fraction[None, :, None]
@@ -87,3 +90,35 @@ def test_the_wrench_is_newton_euler_of_the_chains_own_motion(name):
     force = np.einsum("tab,ta->tb", whisker_frames(whisker, drive(times[1:-1])), head)
     error = np.sqrt(((wrench[1:-1, :3] - force) ** 2).mean(0)) / np.sqrt((force ** 2).sum(1).mean())
     assert error.max() < 0.01, error
+
+
+def test_the_cached_step_is_the_exact_exponential_per_whisker_and_step():
+    """:func:`~pipeline.engines.linear.modal.discretise` (input columns scaled to unit size before
+    the matrix exponential) against the exponential of the unscaled augmented matrix, per whisker
+    and step; the cache on each chain keeps whiskers and steps apart, and a response from a warm
+    cache (an earlier trial's drive) is the response from a cold one."""
+    whiskers = build_array(model_rat().select("RA1,RD6"), ModelConfig().material).whiskers
+    chains = [linearise(w.physics) for w in whiskers]
+    columns, steps = tuple(range(12)), {}
+    with threadpool_limits(limits=1, user_api="blas"):       # as the free path runs them: threads cost more
+        for k, lin in enumerate(chains):
+            mod = modal(lin)
+            n = len(mod.omega)
+            for h in (2.5e-4, 1e-3):
+                phi, g0, g1, _ = steps[k, h] = discretise(lin, h, columns, False)
+                aug = np.zeros((2 * n + 24,) * 2)
+                aug[:2 * n, :2 * n], aug[n:2 * n, 2 * n:2 * n + 12] = _state_matrix(mod) * h, mod.inputs[:, :12] * h
+                aug[2 * n:2 * n + 12, 2 * n + 12:] = np.eye(12)
+                exact = expm(aug)
+                for mine, theirs in ((phi, exact[:2 * n, :2 * n]), (g0 + g1, exact[:2 * n, 2 * n:2 * n + 12]),
+                                     (g1, exact[:2 * n, 2 * n + 12:])):
+                    np.testing.assert_allclose(mine, theirs, rtol=0, atol=1e-8 * np.abs(theirs).max())
+                assert discretise(lin, h, columns, False) is steps[k, h]
+        assert not np.allclose(steps[0, 2.5e-4][0], steps[0, 1e-3][0])
+        assert not np.allclose(steps[0, 2.5e-4][0], steps[1, 2.5e-4][0])
+        drive, other = sinusoidal_whisk(9.0, 45.0, 20.0, DURATION_S), sinusoidal_whisk(6.0, 30.0, 10.0, DURATION_S)
+        warm, cold = chains[0], linearise(whiskers[0].physics)
+        free_response(whiskers[0], warm, other.continued(DURATION_S, 1e-3), 60, 1e-3)
+        for a, b in zip(free_response(whiskers[0], warm, drive.continued(DURATION_S, 1e-3), 60, 1e-3)[:2],
+                        free_response(whiskers[0], cold, drive.continued(DURATION_S, 1e-3), 60, 1e-3)[:2]):
+            np.testing.assert_array_equal(a, b)

@@ -39,6 +39,9 @@ class EngineConfig(StrictModel):
                                         "'engine' (the full step), 'coarse' (pipeline/engines/free_path.py) or "
                                         "'linear' (pipeline/engines/linear/free.py) or 'auto' (the engine's: "
                                         "pipeline/engines/free_path.py AUTO_PATH)")
+    late_start: bool = Field(False, description="with a free path: whiskers that can touch start on the full "
+                                                "engine a little before their first possible contact, from the "
+                                                "free path's state (pipeline/engines/late_start.py)")
 
 
 class WhiskConfig(StrictModel):

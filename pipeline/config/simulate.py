@@ -277,6 +277,8 @@ class SimulateConfig(StrictModel):
                                         "chain, pipeline/engines/linear/free.py), 'engine' (the full step) or "
                                         "'auto' (MuJoCo coarse, Bullet linear: free_path.AUTO_PATH); "
                                         "overrides model.engine.free_whiskers")
+    late_start: bool = Field(False, description="whiskers that can touch start late, from the free path's state "
+                                                "(pipeline/engines/late_start.py); overrides model.engine.late_start")
     scenes: ScenesConfig = ScenesConfig()
     poses: PoseSamplingConfig = PoseSamplingConfig()
     whisk: WhiskSamplingConfig = WhiskSamplingConfig()

@@ -7,9 +7,11 @@ the same for every backend:
 1. check the trial (:func:`~pipeline.engines.common.start_trial`);
 2. reuse the outputs of whiskers whose free motion in an earlier trial provably keeps clear
    of this trial's obstacles (:class:`~pipeline.engines.common.FreeMotion`) and, with
-   ``engine.free_whiskers: coarse``, take those whose free motion at a coarse step keeps clear
-   from that cheap path (:mod:`pipeline.engines.free_path`);
-3. run each world for its remaining whiskers (:meth:`World.run`);
+   a free path (``engine.free_whiskers``), take those whose free motion on that cheap path keeps
+   clear (:mod:`pipeline.engines.free_path`);
+3. run each world for its remaining whiskers (:meth:`World.run`); with ``engine.late_start``
+   from the earliest late start of its whiskers (:mod:`pipeline.engines.late_start`), the
+   samples before it taken from the free path;
 4. simulate every whisker whose contact jammed again alone, with half its step, up to
    ``engine.jam_refinements`` times;
 5. merge the worlds' :class:`WorldResult` into one :class:`~pipeline.model.outputs.TrialOutput`
@@ -48,6 +50,7 @@ import numpy as np
 from pipeline.config.physics import EngineConfig
 from pipeline.engines.common import FreeMotion, blocked_at_start, empty_signals, start_trial
 from pipeline.engines.free_path import FreePath
+from pipeline.engines.late_start import late_starts, started_at
 from pipeline.engines.stepping import refinement_levels, step_groups, steps_per_sample
 from pipeline.errors import SimulationError
 from pipeline.model.array import ArrayModel, WhiskerModel
@@ -72,6 +75,17 @@ class WorldResult:
     @classmethod
     def zeros(cls, samples: int, whiskers: int, links: int) -> "WorldResult":
         return cls(*empty_signals(samples, whiskers, links), np.zeros(whiskers, bool))
+
+    def later(self, start: int, samples: int) -> "WorldResult":
+        """This result of a run begun at output sample ``start`` as ``samples`` rows (the first
+        ``start`` zero)."""
+        if start == 0:
+            return self
+        padded = WorldResult.zeros(samples, self.wrench.shape[1], self.nodes.shape[2] - 1)
+        for name in ("wrench", "contact", "point_of_contact", "nodes"):
+            getattr(padded, name)[start:] = getattr(self, name)
+        padded.touched, padded.jammed = self.touched, self.jammed
+        return padded
 
     def put(self, whiskers, other: "WorldResult", columns=slice(None)) -> None:
         """Copy ``other``'s whiskers ``columns`` into this result's ``whiskers``."""
@@ -204,24 +218,33 @@ class Engine(ABC):
             coarse = ~reused & self.free_path.clear(scene, pose, drive, duration_s, times)
             setup = replace(setup, free_paths=tuple(self.free_path.recall(k, pose)[1]
                                                     for k in range(len(self.array.whiskers))))
+        starts = np.zeros(len(self.array.whiskers), int)
+        if self.config.late_start and setup.free_paths is not None:
+            starts = late_starts(self.free_path, scene, pose, times)
         result = WorldResult.zeros(samples, len(self.array.whiskers), self.array.links)
         steps, refined = 0, {}
+        started_late = np.zeros(len(self.array.whiskers), int)
         plan = [(members, world, ~(reused | coarse)[members]) for members, world in self.worlds]
         planned = sum(samples * world.steps_per_sample * int(active.sum()) for _, world, active in plan)
         for members, world, active in plan:
             if not active.any():
                 continue
-            part = world.run(setup.only(members), active)
-            steps += samples * world.steps_per_sample * int(active.sum())
+            start = int(starts[members][active].min())
+            world_setup = setup if start == 0 else started_at(self.free_path, setup, start, self.config.output_rate_hz)
+            part = world.run(world_setup.only(members), active)
+            steps += world_setup.samples * world.steps_per_sample * int(active.sum())
             if self.progress is not None:
                 self.progress(min(steps, planned), planned)
             for local, message in part.jammed.items():
                 k = members[local]
                 alone, refined[self.array.whiskers[k].name], extra_steps = self._refine(
-                    k, world.dt_s, message, setup.only([k]))
+                    k, world.dt_s, message, world_setup.only([k]))
                 part.put([local], alone)
                 steps += extra_steps
-            result.put(members[active], part, active)
+            result.put(members[active], part.later(start, samples), active)
+            for k in members[active] if start else ():          # before the start: the free path
+                wrench, nodes = self.free_path.recall(k, pose)
+                result.wrench[:start, k], result.nodes[:start, k], started_late[k] = wrench[:start], nodes[:start], start
         for k in np.flatnonzero(reused):
             result.wrench[:, k], result.nodes[:, k] = self.free.recall(k, pose)
         for k in np.flatnonzero(coarse):
@@ -233,6 +256,7 @@ class Engine(ABC):
                     "jam_refined": refined, "whisker_steps": steps,
                     "reused_free_motion": int(reused.sum()),
                     "coarse_free_whiskers": [self.array.names[k] for k in np.flatnonzero(coarse)],
+                    "late_start_samples": {self.array.names[k]: int(started_late[k]) for k in np.flatnonzero(started_late)},
                     "wall_seconds": time.perf_counter() - start_wall,
                     "cpu_seconds": time.process_time() - start_cpu,
                     "build_seconds": self.build_seconds}

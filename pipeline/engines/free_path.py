@@ -3,9 +3,11 @@
 A whisker that touches nothing moves relative to the head as it would in an empty scene, and
 without a load that depends on the head's pose (gravity, a world-frame tip force) that motion
 does not depend on the pose (:class:`~pipeline.engines.common.FreeMotion`). Before a trial the
-engine therefore runs the whole array in an empty scene on a second engine of its own kind at a
+engine therefore runs the array in an empty scene on a second engine of its own kind at a
 coarse step (:data:`FREE_DT_S`, f1 tolerance :data:`FREE_F1_TOLERANCE`), about 2.7× cheaper
-than the full step (MuJoCo; Bullet has no coarse path, see Accuracy), and keeps the outputs of every whisker whose free node paths stay clear of
+than the full step (MuJoCo; Bullet has no coarse path, see Accuracy), one whisker of each
+mirror pair (the other's outputs are its reflection, :mod:`pipeline.engines.mirror`), and
+keeps the outputs of every whisker whose free node paths stay clear of
 the trial's obstacles by FreeMotion's padding (base radius, half the longest link, half the
 farthest a node moves between samples) plus :data:`FREE_PATH_MARGIN_M`; only the others are
 simulated at the full step, with the scene. A kept whisker gets the coarse run's base wrench
@@ -31,11 +33,14 @@ pipeline/engines/bullet.py); ``auto`` gives them the linear chain (:data:`AUTO_P
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from pipeline.config.physics import EngineConfig
 from pipeline.engines.common import CLEARANCE_MARGIN_M, FreeMotion
 from pipeline.engines.linear.free import LinearFreePath
+from pipeline.engines.mirror import joint_signs, mirrored, twins
 from pipeline.model.array import ArrayModel
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.scenes.library import empty
@@ -48,8 +53,8 @@ FREE_DT_S = {"mujoco": 2.5e-4}
 FREE_F1_TOLERANCE = 0.05     # its f1 tolerance (the full engine's default: 0.01): 0.02 cost 0.15 s more, same accuracy
 FREE_PATH_MARGIN_M = 1e-3    # clearance kept beyond FreeMotion's padding (module docstring, Safety)
 # ``free_whiskers: auto``: per engine the cheapest path within 1 % of its full step on every whisker
-# it takes (benchmarks/bench_free_whiskers.py; docs/scaling.md): MuJoCo's coarse run costs about
-# what the linear chain does, Bullet's full step ≈ 4× a dataset trial's linear path
+# it takes (benchmarks/bench_free_whiskers.py; docs/scaling.md): a MuJoCo dataset trial costs 1.92 CPU-s
+# with the coarse run, 2.06 with the linear chain; Bullet's full step ≈ 4× a dataset trial's linear path
 AUTO_PATH = {"mujoco": "coarse", "bullet": "linear"}
 
 
@@ -77,6 +82,8 @@ class FreePath:
         self.make_engine, self.array, self.config = make_engine, array, config
         self.engine = None
         self.motion = FreeMotion(array.whiskers, margin_m=CLEARANCE_MARGIN_M + FREE_PATH_MARGIN_M)
+        self.joints: dict = {}   # whisker → its free joints' (angles rad, rates rad/s) [T, n] at the samples
+        self.source = twins(array.whiskers)        # the coarse engine runs one whisker of each mirror pair
 
     @classmethod
     def of(cls, make_engine, array: ArrayModel, config: EngineConfig) -> "FreePath | LinearFreePath | None":
@@ -92,12 +99,31 @@ class FreePath:
               times_s: np.ndarray) -> np.ndarray:
         """[W] whether each whisker's coarse free motion keeps clear of ``scene`` at ``pose``
         (then :meth:`recall` gives its outputs); runs the coarse engine in an empty scene."""
+        sources = np.flatnonzero(self.source == np.arange(len(self.source)))      # the coarse engine's whiskers
         if self.engine is None:
-            self.engine = self.make_engine(self.array, self.config)
+            self.engine = self.make_engine(replace(self.array, whiskers=tuple(self.array.whiskers[k] for k in sources)),
+                                           self.config)
+        for _, world in self.engine.worlds:
+            world.joint_log = {}
         output = self.engine.run(empty(), pose, drive, duration_s)
+        joints = {}
+        for members, world in self.engine.worlds:
+            log, world.joint_log = world.joint_log, None
+            if len(log) == len(times_s):                   # simulated, not reused
+                for j, i in enumerate(members[world.members]):
+                    joints[int(sources[i])] = tuple(np.array([log[s][j][part] for s in range(len(times_s))]) for part in (0, 1))
         self.motion.select(drive, len(times_s), depends_on_pose=False)
-        for k in range(len(self.array.whiskers)):
-            self.motion.remember(k, output.base_wrench[:, k], output.node_positions_m[:, k], pose)
+        self.joints = {}
+        for k, source in enumerate(self.source):
+            i = int(np.searchsorted(sources, source))
+            wrench, nodes = output.base_wrench[:, i].astype(float), output.node_positions_m[:, i].astype(float)
+            if k != source:                                # a mirror twin's, reflected (pipeline/engines/mirror.py)
+                wrench, head = mirrored(wrench, (nodes - np.asarray(pose.position_m, float)) @ pose.rotation)
+                nodes = pose.apply(head)
+            self.motion.remember(k, wrench, nodes, pose)
+            if source in joints:
+                signs = 1.0 if k == source else joint_signs(self.array.whiskers[k].physics.layout)
+                self.joints[k] = tuple(signs * part for part in joints[source])
         return self.motion.reusable(pose, scene, times_s)
 
     def recall(self, k: int, pose: Pose) -> tuple[np.ndarray, np.ndarray]:

@@ -333,6 +333,10 @@ class MujocoWorld(World):
     model is compiled by :meth:`_prepare` for a trial's whiskers and parts, and again only when
     they change (a world none of whose whiskers a trial needs compiles nothing)."""
 
+    joint_log: dict | None = None
+    """When a dict: each recorded sample → per member its free joints' (angles rad, rates rad/s)
+    (the coarse run's states a late start begins from, :mod:`pipeline.engines.free_path`)."""
+
     def __init__(self, whiskers: list[WhiskerModel], config: EngineConfig, dt_s: float,
                  prisms: dict[tuple, MeshPrisms]):
         """``prisms``: the engine's cache of static meshes as prisms, by (scene key, index)."""
@@ -879,6 +883,8 @@ class MujocoWorld(World):
             result.wrench[sample] = np.concatenate([wrench[:, 0] / U.FORCE, wrench[:, 1] / U.TORQUE], axis=1)
         nodes = np.concatenate([d.xpos[self.link_bodies], d.site_xpos[self.tip_sites][:, None]], axis=1)
         result.nodes[sample] = nodes / U.LENGTH
+        if self.joint_log is not None:                       # hinges: qpos address = dof address
+            self.joint_log[sample] = [(d.qpos[q].copy(), d.qvel[q].copy()) for q in self.free_qpos]
         result.contact[sample] = contact
         result.point_of_contact[sample] = point_of_contact
         bad = implausible(result.wrench[sample])

@@ -91,6 +91,10 @@ class ProtractionDrive:
             return self
         return replace(self, continued_after_s=min(float(end_s), self.duration_s))
 
+    def shifted(self, start_s: float) -> "ProtractionDrive":
+        """This drive as seen from ``start_s`` (s): θ'(t) = θ(t + start_s) (a trial started late)."""
+        return replace(self, time_s=self.time_s - start_s, continued_after_s=self.continued_after_s - start_s)
+
 
 def sinusoidal_whisk(frequency_hz: float = 8.0, protraction_deg: float = 35.0,
                      retraction_deg: float = 15.0, duration_s: float = 0.25,

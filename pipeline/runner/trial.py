@@ -93,7 +93,8 @@ class Simulator:
     def __init__(self, spec: RunSpec):
         self.spec = spec
         model = spec.config.model
-        engine = model.engine.model_copy(update={"free_whiskers": spec.config.free_whiskers})
+        engine = model.engine.model_copy(update={"free_whiskers": spec.config.free_whiskers,
+                                                      "late_start": spec.config.late_start})
         self.whisking = Whisking(model.model_copy(update={"engine": engine}))
         self._scenes: dict[str, object] = {}
         self._samplers: dict[str, object] = {}

@@ -4,7 +4,8 @@ A whisker that touches nothing follows its drive, and without loads that depend 
 pose its motion relative to the head is the same at every pose (:class:`~pipeline.engines.
 common.FreeMotion`). Per drive, every whisker's free motion is computed by the linear chain
 (:mod:`.modal`, integrated exactly on :data:`SUBSTEPS_S`-sized substeps of the output
-interval, first-order hold of the drive's base motion) from the drive's quasi-steady state at
+interval, first-order hold of the drive's base motion; one whisker of each mirror pair, the
+other's reflected, :mod:`pipeline.engines.mirror`) from the drive's quasi-steady state at
 t = 0, the engines' start (:meth:`~pipeline.model.base_motion.BaseInertia.quasi_steady`): its
 base wrench (:mod:`.wrench`) and its node positions through the chain's exact forward
 kinematics. A whisker gets it in a trial when those node paths keep clear of the trial's
@@ -31,6 +32,7 @@ from pipeline.engines.linear.chain import LinearWhisker, linearise
 from pipeline.engines.linear.modal import joint_angles, modal, respond
 from pipeline.engines.linear.motion import BaseMotion, inputs
 from pipeline.engines.linear.wrench import base_wrench
+from pipeline.engines.mirror import joint_signs, mirrored, twins
 from pipeline.model.array import ArrayModel, WhiskerModel
 from pipeline.model.base_motion import BaseInertia, angular_motion
 from pipeline.model.joints import bent_chain
@@ -51,10 +53,10 @@ def whisker_frames(whisker: WhiskerModel, theta: np.ndarray) -> np.ndarray:
 
 
 def free_response(whisker: WhiskerModel, lin: LinearWhisker, drive: ProtractionDrive, samples: int,
-                  interval_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Whisker's free base wrench [T, 6] (N, N·m, whisker frame) and node positions [T, N+1, 3]
-    (m, head frame) at the output times ``interval_s``·(1 … T), from the quasi-steady state of
-    ``drive`` at t = 0."""
+                  interval_s: float) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    """Whisker's free base wrench [T, 6] (N, N·m, whisker frame), node positions [T, N+1, 3]
+    (m, head frame) and joint angles and rates [T, n] (rad, rad/s) at the output times
+    ``interval_s``·(1 … T), from the quasi-steady state of ``drive`` at t = 0."""
     m = int(np.ceil(interval_s / SUBSTEPS_S - 1e-9))
     h = interval_s / m
     times = np.arange(samples * m + 2) * h
@@ -79,7 +81,7 @@ def free_response(whisker: WhiskerModel, lin: LinearWhisker, drive: ProtractionD
     shape = bent_chain(lin.physics, q)
     wrench = base_wrench(lin, q, shape, q_rate[at], q_acceleration, omega[at], alpha[at])
     nodes = whisker.base_point_m + np.einsum("tab,tnb->tna", rotation[at], shape[1])
-    return wrench, nodes
+    return wrench, nodes, (q, q_rate[at])
 
 
 def bend(whisker: WhiskerModel, drive: ProtractionDrive, times_s: np.ndarray, nodes: np.ndarray) -> float:
@@ -96,9 +98,10 @@ class LinearFreePath:
 
     def __init__(self, array: ArrayModel, output_rate_hz: float):
         self.array, self.interval_s = array, 1.0 / output_rate_hz
-        self.chains: list[LinearWhisker] = []
+        self.chains: list[LinearWhisker | None] = []    # None: a mirror twin's chain gives its motion
         self.motion = FreeMotion(array.whiskers, margin_m=CLEARANCE_MARGIN_M + LINEAR_PATH_MARGIN_M)
         self.linear = np.zeros(len(array.whiskers), bool)     # bent little enough for the linear chain
+        self.joints: dict = {}   # whisker within MAX_BEND → its joints' (angles rad, rates rad/s) [T, n] at the samples
 
     def clear(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float,
               times_s: np.ndarray) -> np.ndarray:
@@ -106,18 +109,32 @@ class LinearFreePath:
         at most :data:`MAX_BEND` (then :meth:`recall` gives its outputs); computed once per drive."""
         self.motion.select(drive, len(times_s), depends_on_pose=False)
         if not self.motion.motions:
+            self.joints = {}
+            import scipy.linalg  # noqa: F401  (loads its BLAS now: the limit covers the libraries loaded when set)
+
             with threadpool_limits(limits=1, user_api="blas"):     # ~100×100 matrices: threads cost more
                 self._compute(drive, times_s)
         return self.motion.reusable(pose, scene, times_s) & self.linear
 
     def _compute(self, drive: ProtractionDrive, times_s: np.ndarray) -> None:
         if not self.chains:
-            self.chains = [linearise(w.physics) for w in self.array.whiskers]
+            self.source = twins(self.array.whiskers)
+            self.chains = [linearise(w.physics) if k == s else None for k, (w, s) in
+                           enumerate(zip(self.array.whiskers, self.source))]
         continued = drive.continued(float(times_s[-1]), self.interval_s)
+        responses = {}
         for k, (whisker, lin) in enumerate(zip(self.array.whiskers, self.chains)):
-            wrench, nodes = free_response(whisker, lin, continued, len(times_s), self.interval_s)
+            source = int(self.source[k])
+            if k == source:
+                wrench, nodes, joints = responses[k] = free_response(whisker, lin, continued, len(times_s),
+                                                                     self.interval_s)
+            else:                                          # a mirror twin's, reflected (pipeline/engines/mirror.py)
+                wrench, nodes = mirrored(*responses[source][:2])
+                joints = tuple(joint_signs(whisker.physics.layout) * part for part in responses[source][2])
             self.motion.remember(k, wrench, nodes, Pose())
             self.linear[k] = bend(whisker, continued, times_s, nodes) <= MAX_BEND
+            if self.linear[k]:
+                self.joints[k] = joints
 
     def recall(self, k: int, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
         """Whisker k's free wrench [T, 6] (N, N·m) and node positions [T, N+1, 3] (m, world)."""

@@ -89,12 +89,14 @@ def discretise(lin: LinearWhisker, h: float, columns: tuple[int, ...], forces: b
         if forces:
             b[n:, len(columns):] = np.eye(n)
         nu = b.shape[1]
+        scale = np.abs(b * h).sum(axis=0)                    # unit input columns: far fewer squarings
+        scale[scale == 0] = 1.0
         aug = np.zeros((2 * n + 2 * nu,) * 2)
         aug[:2 * n, :2 * n] = _state_matrix(mod) * h
-        aug[:2 * n, 2 * n:2 * n + nu] = b * h
+        aug[:2 * n, 2 * n:2 * n + nu] = b * h / scale
         aug[2 * n:2 * n + nu, 2 * n + nu:] = np.eye(nu)
         e = expm(aug)
-        phi, ga, gb = e[:2 * n, :2 * n], e[:2 * n, 2 * n:2 * n + nu], e[:2 * n, 2 * n + nu:]
+        phi, ga, gb = e[:2 * n, :2 * n], e[:2 * n, 2 * n:2 * n + nu] * scale, e[:2 * n, 2 * n + nu:] * scale
         k = len(columns)
         lin.cache[key] = (phi, ga[:, :k] - gb[:, :k], gb[:, :k], ga[:, k:])
     return lin.cache[key]
