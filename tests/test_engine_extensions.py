@@ -11,7 +11,7 @@ from pipeline.diagnosis.engine import EngineSimulator
 from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial
 from pipeline.engines.linear.chain import linearise
 from pipeline.measurements import ReleaseDrive, Trial
-from pipeline.model.extensions import make_extension
+from pipeline.model.effects.registry import make_effect
 from pipeline.model.physics import build_physics
 from pipeline.model.whisker import WhiskerGeometry
 
@@ -57,7 +57,7 @@ def baseline():
 @pytest.mark.parametrize("case", CASES)
 def test_extension_runs_on_both_engines_as_the_linear_model_predicts(case, baseline):
     name, values = CASES[case]
-    physics = build_physics(CURVED, MATERIAL, (make_extension(name, **values),))
+    physics = build_physics(CURVED, MATERIAL, (make_effect(name, **values),))
     prepared = _prepared(physics)
     linear = FastSimulator().simulate(physics, prepared)[0]
     bullet, mujoco = (EngineSimulator(engine).simulate(physics, prepared)[0] for engine in ("bullet", "mujoco"))
@@ -88,7 +88,7 @@ def test_drag_moment_of_a_steadily_turning_whisker_is_the_integral_of_the_drag_l
     straight = WhiskerGeometry(30e-3, 60e-6, 15e-6, 0.0)
     material = MaterialConfig(youngs_modulus_gpa=20.0)
     omega = 20.0                                                            # rad/s
-    array = single_whisker(straight, material, extensions=(make_extension("drag", linear=linear, quadratic=quadratic),))
+    array = single_whisker(straight, material, extensions=(make_effect("drag", linear=linear, quadratic=quadratic),))
     drive = ProtractionDrive(np.array([0.0, 1.0]), np.array([0.0, omega]), interpolation="linear")
     with create_engine(ModelConfig(material=material, engine=EngineConfig(name=engine)), array) as simulator:
         out = simulator.run(empty(), Pose(), drive, 0.06)
