@@ -87,7 +87,7 @@ def sweep(name: str, fraction: float, mu: float, dt_s: float, engine_name: str,
     geometry = WhiskerGeometry(spec.arc_length_m, spec.base_radius_m, spec.tip_radius_m, spec.curvature_per_m)
     config = ModelConfig(engine=EngineConfig(name=engine_name, dt_s=dt_s, contact_friction=mu),
                          extensions=extensions or {})
-    from pipeline.model.extensions import model_parts
+    from pipeline.model.effects.registry import model_parts
 
     material, parts = model_parts(config)
     duration = SWEEP_DEG / SWEEP_DEG_S

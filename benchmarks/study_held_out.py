@@ -24,7 +24,9 @@ from pipeline.diagnosis.joint import calibrate_sets, held_out_errors
 from pipeline.diagnosis.parameters import ModelSpec
 from pipeline.measurements.library import HELD_OUT, load_library, material_table
 from pipeline.measurements.table import combine
-from pipeline.model.extensions import MIN_TIP_RADIUS_M, DensityChange, StiffnessGradient
+from pipeline.model.effects.arc_length import MIN_TIP_RADIUS_M
+from pipeline.model.effects.density_change import DensityChange
+from pipeline.model.effects.stiffness_gradient import StiffnessGradient
 
 DENSITY_GRADIENT = float(np.log(1.69 / 1.26))      # Yang et al. 2019: distal / proximal density
 STIFFNESS_GRADIENT = float(np.log(3.96 / 2.90))    # Quist et al. 2011: tip / base segment E

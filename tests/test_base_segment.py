@@ -1,4 +1,4 @@
-"""The base segment (pipeline.model.extensions.BaseSegment): the compliance of the base
+"""The base segment (pipeline.model.effects.base_segment.BaseSegment): the compliance of the base
 half-link, which the chain's joints leave out, as a spring at the base point."""
 
 import numpy as np
@@ -10,7 +10,9 @@ from pipeline.diagnosis.discretisation import modulus_discretisation
 from pipeline.engines.linear.modal import damped_modes
 from pipeline.engines.linear.chain import linearise
 from pipeline.diagnosis.parameters import ModelSpec
-from pipeline.model.extensions import BaseSegment, CompliantFollicle, IntegratedDensity
+from pipeline.model.effects.base_segment import BaseSegment
+from pipeline.model.effects.follicle import CompliantFollicle
+from pipeline.model.effects.integrated_density import IntegratedDensity
 from pipeline.model.physics import build_physics
 from pipeline.model.whisker import WhiskerGeometry
 

@@ -15,7 +15,7 @@ from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial
 from pipeline.diagnosis.objective import protocol_trial
 from pipeline.diagnosis.scenarios import draw
 from pipeline.diagnosis.synth import synthesise
-from pipeline.model.extensions import MassDamping
+from pipeline.model.effects.mass_damping import MassDamping
 from pipeline.model.physics import build_physics
 from pipeline.model.whisker import WhiskerGeometry
 from pipeline.protocols.resonance import run_resonance

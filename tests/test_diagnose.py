@@ -15,7 +15,7 @@ from pipeline.engines.linear.modal import damped_modes
 from pipeline.engines.linear.chain import linearise
 from pipeline.errors import UserError
 from pipeline.measurements import PAPER_ALPHA_B1, ReleaseDrive, RotationDrive, Trial, load_measurement
-from pipeline.model.extensions import make_extension
+from pipeline.model.effects.registry import make_effect
 from pipeline.model.physics import build_physics
 from pipeline.model.whisker import WhiskerGeometry
 
@@ -35,7 +35,7 @@ def test_each_extension_changes_what_its_equation_says():
     s = np.arange(1, 20) / 20
 
     def with_(name, **values):
-        return build_physics(CURVED, material, (make_extension(name, **values),))
+        return build_physics(CURVED, material, (make_effect(name, **values),))
 
     np.testing.assert_allclose(with_("stiffness_gradient", gamma=1.2).chain.stiffness_nm_per_rad,
                                base.chain.stiffness_nm_per_rad * np.exp(1.2 * (s - 0.5)), rtol=1e-12)
@@ -48,10 +48,11 @@ def test_each_extension_changes_what_its_equation_says():
     assert short.geometry.tip_radius_m == pytest.approx(60e-6 - 0.8 * 45e-6)
     assert short.links == 20
     assert with_("follicle", k_f=2e-6, c_f=3e-9).follicle.k_f == 2e-6
-    assert with_("drag", linear=2e-4).drag_linear_ns_per_m2 == 2e-4
+    assert [load.linear for load in with_("drag", linear=2e-4).loads] == [2e-4]
     assert with_("gravity").gravity_m_s2 == 9.81
     twist = with_("twist", g_over_e=0.4)
-    np.testing.assert_allclose(twist.twist_stiffness_nm_per_rad, 0.8 * base.chain.stiffness_nm_per_rad)
+    twist_joints = [j.stiffness_nm_per_rad for j in twist.layout.joints if j.local_axis == "x"]
+    np.testing.assert_allclose(twist_joints, 0.8 * base.chain.stiffness_nm_per_rad)
     # the damping model sees the final chain: eq. 3 has c ∝ √(distal mass), so 4× density doubles c
     heavy = with_("density", scale=4.0)
     np.testing.assert_allclose(heavy.chain.damping_nms_per_rad, 2 * base.chain.damping_nms_per_rad, rtol=1e-9)
@@ -60,7 +61,7 @@ def test_each_extension_changes_what_its_equation_says():
                                base.chain.damping_nms_per_rad * np.exp(-2.0 * (s - 0.5)), rtol=1e-12)
     for name, values in (("wings", {}), ("twist", {"poisson": 0.3}), ("length", {"scale": 5.0})):
         with pytest.raises(UserError):
-            make_extension(name, **values)
+            make_effect(name, **values)
 
 
 # -- the fast simulator -----------------------------------------------------------------------
@@ -79,7 +80,7 @@ def test_gravity_sag_converges_to_euler_bernoulli():
     still = RotationDrive(np.array([0.0, 0.1]), np.zeros((2, 3)))
     tips = []
     for links in (40, 80):
-        physics = build_physics(ALPHA, MaterialConfig(links=links), (make_extension("gravity"),))
+        physics = build_physics(ALPHA, MaterialConfig(links=links), (make_effect("gravity"),))
         tips.append(FastSimulator().simulate(physics, [PreparedTrial(_trial(still, 0.01), (0, 0, -1))])[0][:, -1])
         np.testing.assert_allclose(tips[-1][-1], tips[-1][0], atol=1e-9)      # starts in equilibrium
     x = np.linspace(0, ALPHA.arc_length_m, 4001)
@@ -92,7 +93,7 @@ def test_gravity_sag_converges_to_euler_bernoulli():
 
 
 def test_release_starts_at_the_contact_point_and_settles():
-    physics = build_physics(CURVED, MaterialConfig(), (make_extension("follicle", k_f=5e-6, c_f=2e-9),))
+    physics = build_physics(CURVED, MaterialConfig(), (make_effect("follicle", k_f=5e-6, c_f=2e-9),))
     lin = linearise(physics)
     rest = lin.rest_points(np.array([0.7]))[0]
     target = rest + np.array([0.0, 1e-3, -0.5e-3])
@@ -107,7 +108,7 @@ def test_release_starts_at_the_contact_point_and_settles():
 
 def test_quadratic_drag_damps_large_swings_relatively_more():
     def decay(amplitude):
-        drag = make_extension("drag", linear=1e-7, quadratic=10.0)
+        drag = make_effect("drag", linear=1e-7, quadratic=10.0)
         physics = build_physics(ALPHA, MaterialConfig(damping_ratio=0.01), (drag,))
         rest = linearise(physics).rest_points(np.array([1.0]))[0]
         out = FastSimulator().simulate(physics, [PreparedTrial(
@@ -130,7 +131,7 @@ def test_fast_simulator_agrees_with_bullet():
     f1 = [analyse_tip(sim.simulate(physics, [trial])[0][1:, 0, 1], trial.trial.time_s[1:], 1000.0).f1_hz
           for sim in (fast, bullet)]
     assert f1[0] == pytest.approx(f1[1], rel=0.01)
-    physics = build_physics(CURVED, MaterialConfig(), (make_extension("follicle", k_f=5e-6, c_f=2e-9),))
+    physics = build_physics(CURVED, MaterialConfig(), (make_effect("follicle", k_f=5e-6, c_f=2e-9),))
     rest = linearise(physics).rest_points(np.array([0.6]))[0]
     release = PreparedTrial(_trial(ReleaseDrive(0.6, rest + [0, 0.8e-3, 0.4e-3]), 0.1, (0.3, 0.6, 1.0)), (0, 0, -1))
     a, b = (sim.simulate(physics, [release])[0] for sim in (fast, bullet))

@@ -170,7 +170,7 @@ def test_point_of_contact_is_where_the_whisker_touches_a_peg(engine):
     whisker turns at 180 °/s, touches and bends around the peg; the stored POC is the arc
     length fraction of the closest point of the whisker (stored nodes) to the peg's axis."""
     from pipeline.model.array import single_whisker
-    from pipeline.model.extensions import model_parts
+    from pipeline.model.effects.registry import model_parts
     from pipeline.model.kinematics import ProtractionDrive
     from pipeline.model.rotations import rot_z
     from pipeline.model.whisker import WhiskerGeometry

@@ -1,7 +1,11 @@
 """Every model extension on both engines: a small 3-D release of a curved whisker, simulated by
 Bullet, by MuJoCo and by the linearised chain of the diagnosis (exact in time, no shared
 stepping code), must agree — and must differ from the same release without the extension,
-so that an engine that ignored it would fail."""
+so that an engine that ignored it would fail. A toy load defined here (one class, one
+registration line) shows that a new load-type effect needs nothing else."""
+
+from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -11,7 +15,10 @@ from pipeline.diagnosis.engine import EngineSimulator
 from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial
 from pipeline.engines.linear.chain import linearise
 from pipeline.measurements import ReleaseDrive, Trial
-from pipeline.model.extensions import make_extension
+from pipeline.model.effects.base import Parameter
+from pipeline.model.effects.loads import LinearForm, LoadEffect
+from pipeline.model.effects.registry import EFFECTS, make_effect
+from pipeline.model.rotations import skew
 from pipeline.model.physics import build_physics
 from pipeline.model.whisker import WhiskerGeometry
 
@@ -57,7 +64,7 @@ def baseline():
 @pytest.mark.parametrize("case", CASES)
 def test_extension_runs_on_both_engines_as_the_linear_model_predicts(case, baseline):
     name, values = CASES[case]
-    physics = build_physics(CURVED, MATERIAL, (make_extension(name, **values),))
+    physics = build_physics(CURVED, MATERIAL, (make_effect(name, **values),))
     prepared = _prepared(physics)
     linear = FastSimulator().simulate(physics, prepared)[0]
     bullet, mujoco = (EngineSimulator(engine).simulate(physics, prepared)[0] for engine in ("bullet", "mujoco"))
@@ -88,7 +95,7 @@ def test_drag_moment_of_a_steadily_turning_whisker_is_the_integral_of_the_drag_l
     straight = WhiskerGeometry(30e-3, 60e-6, 15e-6, 0.0)
     material = MaterialConfig(youngs_modulus_gpa=20.0)
     omega = 20.0                                                            # rad/s
-    array = single_whisker(straight, material, extensions=(make_extension("drag", linear=linear, quadratic=quadratic),))
+    array = single_whisker(straight, material, extensions=(make_effect("drag", linear=linear, quadratic=quadratic),))
     drive = ProtractionDrive(np.array([0.0, 1.0]), np.array([0.0, omega]), interpolation="linear")
     with create_engine(ModelConfig(material=material, engine=EngineConfig(name=engine)), array) as simulator:
         out = simulator.run(empty(), Pose(), drive, 0.06)
@@ -98,3 +105,45 @@ def test_drag_moment_of_a_steadily_turning_whisker_is_the_integral_of_the_drag_l
     expected = np.trapezoid((linear * speed + 0.5 * 1.2 * quadratic * diameter * speed ** 2) * s, s)
     moment = np.linalg.norm(out.base_wrench[-10:, 0, 3:].astype(float), axis=1)
     np.testing.assert_allclose(moment, expected, rtol=0.005)      # measured −0.05 % / −0.02 %
+
+
+@dataclass(frozen=True)
+class LinkFriction(LoadEffect):
+    """Toy load: f_l = −b·v_l on each link's centre of mass (world velocity), no torque. Linear
+    form at the rest centres c_l with Jacobians J_l: C = b·Σ J_lᵀJ_l, D = −b·Σ J_lᵀ·[c_l]×,
+    base wrench F = Σ f_l, M = Σ c_l × f_l with v_l = J_l·q̇ + ω × c_l."""
+
+    name: ClassVar[str] = "link_friction"
+    PARAMETERS: ClassVar[tuple[Parameter, ...]] = (
+        Parameter("b", "N*s/m", 1e-6, 0.0, 1e-3, False, "friction per link"),
+    )
+    b: float = 1e-6
+    needs_velocity: ClassVar[bool] = True
+    depends_on_pose: ClassVar[bool] = False
+
+    def link_forces(self, chain, state):
+        force = -self.b * state.velocity_m_s
+        return force, np.zeros_like(force)
+
+    def linear_form(self, rest):
+        com = rest.com_m
+        jac = rest.jacobian(com, np.arange(len(com)))                        # [N, 3, n]
+
+        def wrench(rate, omega):
+            force = -self.b * (np.einsum("lai,ti->tla", jac, rate) + np.cross(omega[:, None, :], com))
+            return force.sum(axis=1), np.cross(com, force).sum(axis=1)
+
+        return LinearForm(damping=self.b * np.einsum("lai,laj->ij", jac, jac),
+                          rate_coupling=-self.b * np.einsum("lai,lab->ib", jac, skew(com)), wrench=wrench)
+
+
+def test_a_toy_load_effect_runs_through_the_linear_chain_and_an_engine(monkeypatch, baseline):
+    monkeypatch.setitem(EFFECTS, LinkFriction.name, LinkFriction)           # its registration
+    physics = build_physics(CURVED, MATERIAL, (make_effect("link_friction", b=3e-6),))
+    prepared = _prepared(physics)
+    linear = FastSimulator().simulate(physics, prepared)[0]
+    mujoco = EngineSimulator("mujoco").simulate(physics, prepared)[0]
+    swing = float(np.abs(linear - linear[-1]).max())
+    effect = _rms(linear, baseline)
+    assert effect > 0.05 * swing, f"effect {effect:.3g} m too small to test"
+    assert _rms(mujoco, linear) < 0.015 * swing

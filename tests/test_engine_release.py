@@ -202,10 +202,10 @@ def test_engine_simulator_release_agrees_between_engines():
     from pipeline.diagnosis.engine import EngineSimulator
     from pipeline.diagnosis.fastsim import PreparedTrial
     from pipeline.measurements import ReleaseDrive, Trial
-    from pipeline.model.extensions import make_extension
+    from pipeline.model.effects.registry import make_effect
     from pipeline.model.physics import build_physics
 
-    physics = build_physics(CURVED, MaterialConfig(), (make_extension("follicle", k_f=5e-6, c_f=2e-9),))
+    physics = build_physics(CURVED, MaterialConfig(), (make_effect("follicle", k_f=5e-6, c_f=2e-9),))
     rest = linearise(physics).rest_points(np.array([0.6]))[0]
     time_s = np.arange(51) / 1000.0
     fractions = np.array([0.3, 0.6, 1.0])

@@ -83,7 +83,7 @@ def test_joint_fit_keeps_a_fixed_extension():
     import numpy as np
 
     from pipeline.diagnosis.joint import calibrate_sets
-    from pipeline.model.extensions import DensityChange
+    from pipeline.model.effects.density_change import DensityChange
 
     untrimmed = [t for t in load_library() if t.conditions["trimmed"] == "no"]
     material = MaterialConfig(preset="untrimmed")

@@ -13,7 +13,7 @@ from pipeline.engines.linear.chain import linearise
 from pipeline.engines.linear.free import LINEAR_PATH_MARGIN_M, MAX_BEND, bend, free_response, whisker_frames
 from pipeline.engines.linear.modal import _state_matrix, discretise, modal
 from pipeline.model.array import build_array
-from pipeline.model.extensions import model_parts
+from pipeline.model.effects.registry import model_parts
 from pipeline.model.kinematics import Pose, sinusoidal_whisk
 from pipeline.model.morphology import model_rat
 from pipeline.scenes import empty

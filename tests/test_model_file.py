@@ -19,7 +19,9 @@ from pipeline.config.physics import MaterialConfig, ModelConfig
 from pipeline.diagnosis.diagnose import CONTINUUM
 from pipeline.config.simulate import SimulateConfig
 from pipeline.errors import UserError
-from pipeline.model.extensions import CompliantFollicle, StiffnessGradient, model_parts
+from pipeline.model.effects.follicle import CompliantFollicle
+from pipeline.model.effects.registry import model_parts
+from pipeline.model.effects.stiffness_gradient import StiffnessGradient
 from pipeline.model.whisker import WhiskerGeometry
 
 REPO = Path(__file__).resolve().parents[1]
@@ -59,10 +61,10 @@ def save_hand_model(path: Path, data_file: Path, extensions=HIDDEN, e_gpa: float
     from pipeline.diagnosis.calibrate import modal_summary
     from pipeline.diagnosis.parameters import ModelSpec
     from pipeline.diagnosis.saved_model import save_model
-    from pipeline.model.extensions import extensions_from
+    from pipeline.model.effects.registry import effects_from
 
     spec = ModelSpec(MaterialConfig(youngs_modulus_gpa=e_gpa, damping_ratio=0.15),
-                     extensions_from(extensions, "test"))
+                     effects_from(extensions, "test"))
     params = {"E": {"value": e_gpa * 1e9, "sd": 2e7, "unit": "Pa"},
               "follicle.k_f": {"value": 6e-6, "sd": 1e-7, "unit": "N*m/rad"}}
     fit = {"method": "calibrate", "metric": "msa_eq4a+4b", "error": 0.01, "whisker": "C2",

@@ -93,7 +93,7 @@ def test_resonance_of_a_mouse_whisker_by_name(pipeline_cli):
     """``pipeline resonance --whisker RC2 --morphology mouse`` runs the whisker's own sizes: its f1
     is the chain's first mode (engine vs chain within 3 %, as the rat's in Fig. 2)."""
     from pipeline.config.physics import ModelConfig
-    from pipeline.model.extensions import model_parts
+    from pipeline.model.effects.registry import model_parts
     from pipeline.model.physics import build_physics
     from pipeline.model.whisker import WhiskerGeometry
 

@@ -104,7 +104,7 @@ class MaterialConfig(StrictModel):
                                   "paper) or the ramp integrated across the link ('integrated')")
     base_segment: bool = Field(
         True, description="the bending compliance of the base half-link as a spring at the base point "
-                          "(pipeline.model.extensions.BaseSegment); false: that arc is rigid (the paper)")
+                          "(pipeline.model.effects.base_segment.BaseSegment); false: that arc is rigid (the paper)")
     links: int = Field(20, ge=2, le=120, description="N, links per whisker")
     gravity: bool = False
     follicle: FollicleConfig = FollicleConfig()

@@ -4,7 +4,7 @@ their values and uncertainties, and where they came from.
 ``pipeline calibrate/diagnose --save-model`` write it; ``--model M.yaml`` and a config's
 ``model: {file: M.yaml}`` read it (:func:`merge_model_file`). Structure and types are checked
 here; each extension parameter's bounds and unit are checked where the extensions are made
-(:func:`pipeline.model.extensions.model_parts`), with the file named in the message.
+(:func:`pipeline.model.effects.registry.model_parts`), with the file named in the message.
 """
 
 from __future__ import annotations
@@ -71,7 +71,7 @@ class ModelProvenance(StrictModel):
 
 class ModelFile(StrictModel):
     """The whole file; extension names and parameter names are those of
-    :data:`pipeline.model.extensions.EXTENSIONS` (``name: {parameter: {value, unit, sd}}``)."""
+    :data:`pipeline.model.effects.registry.EFFECTS` (``name: {parameter: {value, unit, sd}}``)."""
 
     format: Literal["whisker-model/1"] = FORMAT
     material: MaterialConfig
@@ -80,7 +80,7 @@ class ModelFile(StrictModel):
     provenance: ModelProvenance
 
     def extension_values(self) -> dict[str, dict[str, float]]:
-        """``{extension: {parameter: value}}`` (SI), as configs and :func:`make_extension` take them."""
+        """``{extension: {parameter: value}}`` (SI), as configs and :func:`make_effect` take them."""
         return {name: {p: v.value for p, v in params.items()} for name, params in self.extensions.items()}
 
 

@@ -73,7 +73,7 @@ class ModelConfig(StrictModel):
     material: MaterialConfig = MaterialConfig()
     extensions: dict[str, dict[str, float]] = Field(
         default_factory=dict, description="model extensions: name → {parameter: value (SI)} "
-                                          "(pipeline.model.extensions)")
+                                          "(pipeline.model.effects)")
     engine: EngineConfig = EngineConfig()
     whisk: WhiskConfig = WhiskConfig()
     _model_file: Optional[LoadedModelFile] = PrivateAttr(None)

@@ -8,7 +8,7 @@ compliant as the whisker itself; ζ_f = c_f/(2√(k_f·J_w)) is the follicle's d
 
 Damping laws are candidates too (``law`` set): one changes the material's damping model
 (``eq3``: the paper's joint dampers; ``kelvin_voigt``: β·k_n), ``rayleigh`` adds the
-mass-proportional α·M of :class:`~pipeline.model.extensions.MassDamping` to the Kelvin–Voigt
+mass-proportional α·M of :class:`~pipeline.model.effects.mass_damping.MassDamping` to the Kelvin–Voigt
 joints (C = α·M + β·K). A law candidate equal to the model's own damping model is not tried.
 """
 

@@ -8,7 +8,7 @@ Laws (one parameter each, the material's ``damping_ratio``; docs/measurements.md
 - ``kelvin_voigt``: C = β·K, ζ_n = ζ1·ω_n/ω1 (grows with the mode's frequency);
 - ``rayleigh``: C = a·M + b·K with ζ = ζ1 at the first and third in-plane modes (ζ2 below),
   built as the engines run it (:func:`rayleigh_spec`: Kelvin–Voigt joints b·K and the
-  :class:`~pipeline.model.extensions.MassDamping` a·M);
+  :class:`~pipeline.model.effects.mass_damping.MassDamping` a·M);
 - ``modal``: C = M·Φ·diag(2ζ1ω_n)·Φᵀ·M, the same ζ1 on every mode (Φ mass-normalised).
 
 Air drag stays as the linearisation has it (added to every law). The engines have eq. 3,
@@ -39,7 +39,7 @@ def _in_plane_omegas(lin: LinearWhisker) -> np.ndarray:
 def rayleigh_spec(spec: ModelSpec, geometry) -> ModelSpec:
     """``spec`` (Kelvin–Voigt, ζ1 = its ``zeta``) made Rayleigh as the engines run it: joint
     dampers β·k_n with β = 2ζ1/(ω1 + ω3) (its ``zeta`` rescaled to that β) and mass-proportional
-    α = 2ζ1·ω1·ω3/(ω1 + ω3) (:class:`~pipeline.model.extensions.MassDamping`), ω1, ω3 the
+    α = 2ζ1·ω1·ω3/(ω1 + ω3) (:class:`~pipeline.model.effects.mass_damping.MassDamping`), ω1, ω3 the
     undamped first and third in-plane modes: ζ = ζ1 at both, ζ2 below."""
     kelvin_voigt = ModelSpec(spec.material.model_copy(update={"damping_model": "kelvin_voigt"}), spec.extensions)
     physics = kelvin_voigt.physics(geometry)

@@ -8,9 +8,9 @@ Time series (positions of tracked points):
    FRF and δ match the data); its error on the held-out trials is e₀. Every model fitted here
    has the two ``CONTINUUM`` corrections, which make the chain converge to the continuous
    whisker at second order in 1/N: the base segment
-   (:class:`~pipeline.model.extensions.BaseSegment`; the chain's rigid base half-link would
+   (:class:`~pipeline.model.effects.base_segment.BaseSegment`; the chain's rigid base half-link would
    otherwise bias E by ≈ −1.2/N and the base-weighted parameters with it) and the integrated
-   link density (:class:`~pipeline.model.extensions.IntegratedDensity`; the paper's
+   link density (:class:`~pipeline.model.effects.integrated_density.IntegratedDensity`; the paper's
    proximal-node density, ≈ −0.5 % on E at N = 20).
 3. Each candidate extension (:mod:`.candidates`): fit E, ζ and its parameters on the training
    trials (best of a few starts), held-out error e_c, and BIC = n·ln(RSS/n) + p·ln(n) on the
@@ -88,7 +88,8 @@ from pipeline.diagnosis.parameters import BASELINE_NAMES, ModelSpec
 from pipeline.diagnosis.residuals import analyse, noise_estimate
 from pipeline.errors import SimulationError, UserError
 from pipeline.measurements.timeseries import ReleaseDrive, TimeSeriesMeasurement
-from pipeline.model.extensions import BaseSegment, IntegratedDensity
+from pipeline.model.effects.base_segment import BaseSegment
+from pipeline.model.effects.integrated_density import IntegratedDensity
 
 CONTINUUM = (BaseSegment(), IntegratedDensity())   # in every model diagnose fits (step 2)
 BIC_MIN = 10.0             # "very strong" evidence on the Kass–Raftery scale

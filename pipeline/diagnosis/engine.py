@@ -1,7 +1,7 @@
 """Simulate measurement trials on a physics engine, for checking and refining fits.
 
 Same interface as :class:`~pipeline.diagnosis.fastsim.FastSimulator`: positions of the
-tracked points for a :class:`~pipeline.model.extensions.WhiskerPhysics`. The whisker is the
+tracked points for a :class:`~pipeline.model.physics.WhiskerPhysics`. The whisker is the
 bench whisker of :func:`pipeline.model.array.single_whisker` (whisker frame = head frame)
 with the extended chain and follicle, built by :func:`pipeline.engines.create_engine`
 (``bullet`` or ``mujoco``). A trial starts where the fast simulator starts it: a release

@@ -79,14 +79,14 @@ def simulate_trial(lin: LinearWhisker, prepared: PreparedTrial) -> np.ndarray:
     trial = prepared.trial
     mod = modal(lin)
     n = len(mod.omega)
-    m = prepared.substeps(lin.physics.drag_coefficient > 0)
+    m = prepared.substeps(bool(lin.nonlinear))
     motion, u = prepared.grid(m)
     gravity_lab = lin.physics.gravity_m_s2 * prepared.direction
     if isinstance(trial.drive, ReleaseDrive):
         q0, rate0 = release_state(lin, trial.drive, gravity_lab), np.zeros(n)
     else:
         w0 = motion.omega[0]
-        static = lin.gravity @ (motion.rotation[0].T @ gravity_lab) - lin.drag_base @ w0 \
+        static = lin.gravity @ (motion.rotation[0].T @ gravity_lab) - lin.rate_coupling @ w0 \
             - lin.centrifugal @ np.array([w0[a] * w0[b] for a, b in PAIRS])
         q0, rate0 = static / np.diag(lin.stiffness), mod.participation @ w0
     y = respond(lin, motion, u, 1.0 / (trial.sampling_rate_hz * m), m, q0, rate0)

@@ -16,7 +16,8 @@ import numpy as np
 
 from pipeline.config.physics import MaterialConfig
 from pipeline.errors import UserError
-from pipeline.model.extensions import EXTENSIONS, Extension, Parameter
+from pipeline.model.effects.base import Effect, Parameter
+from pipeline.model.effects.registry import EFFECTS
 from pipeline.model.physics import build_physics
 
 BASELINE = (
@@ -28,7 +29,7 @@ BASELINE_NAMES = tuple(p.name for p in BASELINE)
 
 def all_parameters() -> dict[str, Parameter]:
     table = {p.name: p for p in BASELINE}
-    for ext_name, cls in EXTENSIONS.items():
+    for ext_name, cls in EFFECTS.items():
         for p in cls.PARAMETERS:
             table[f"{ext_name}.{p.name}"] = p
     return table
@@ -58,9 +59,9 @@ class ModelSpec:
     """Base material plus extensions: everything that defines one whisker model."""
 
     material: MaterialConfig
-    extensions: tuple[Extension, ...] = ()
+    extensions: tuple[Effect, ...] = ()
 
-    def extension(self, name: str) -> Extension | None:
+    def extension(self, name: str) -> Effect | None:
         return next((e for e in self.extensions if e.name == name), None)
 
     def with_values(self, values: dict[str, float]) -> "ModelSpec":
@@ -81,7 +82,7 @@ class ModelSpec:
         for ext, fields in grouped.items():
             current = next((e for e in extensions if e.name == ext), None)
             if current is None:
-                extensions.append(EXTENSIONS[ext](**fields))
+                extensions.append(EFFECTS[ext](**fields))
             else:
                 extensions[extensions.index(current)] = replace(current, **fields)
         return ModelSpec(material, tuple(extensions))

@@ -127,10 +127,10 @@ def load_synth_config(path: str | Path | None, overrides: dict | None = None) ->
 
 def true_spec(config: SynthConfig):
     from pipeline.diagnosis.parameters import ModelSpec
-    from pipeline.model.extensions import extensions_from
+    from pipeline.model.effects.registry import effects_from
 
     where = f"model file {config.model_file}" if config.model_file else "synth config"
-    return ModelSpec(config.material, extensions_from(config.extensions, where))
+    return ModelSpec(config.material, effects_from(config.extensions, where))
 
 
 def _drive(spec: TrialSpec, config: SynthConfig, duration: float, truth_lin, direction):

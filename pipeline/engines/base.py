@@ -18,7 +18,7 @@ the same for every backend:
    with timing and metadata.
 
 A backend implements :meth:`Engine.make_world` and :class:`World` (build the joints of
-:mod:`pipeline.model.joints`, apply the loads of :mod:`pipeline.model.loads`, step, read).
+:mod:`pipeline.model.joints`, apply the loads of :mod:`pipeline.model.effects.loads`, step, read).
 
 Free joints. Besides the three driven base joints, a whisker has the spring joints of its
 :class:`~pipeline.model.joints.JointLayout` (follicle z, y if compliant; z, y and, with twist,
@@ -56,7 +56,7 @@ from pipeline.errors import SimulationError
 from pipeline.model.array import ArrayModel, WhiskerModel
 from pipeline.model.head_motion import HeadMotion
 from pipeline.model.kinematics import Pose, ProtractionDrive
-from pipeline.model.loads import TipForce
+from pipeline.model.effects.loads import TipForce
 from pipeline.model.outputs import TrialOutput
 from pipeline.scenes.obstacles import Scene
 
@@ -101,7 +101,7 @@ class WorldResult:
 class TrialSetup:
     """What a world needs to run one trial: the scene, head pose and drive (continued past the
     trial's end), the number of output samples, per whisker of the world its free-joint angles
-    (rad) and rates (rad/s) at t = 0 and its loads (:mod:`pipeline.model.loads`), whether a
+    (rad) and rates (rad/s) at t = 0 and its loads (:mod:`pipeline.model.effects.loads`), whether a
     whisker's base holds still from its first contact on, the head's trajectory (None: the head
     stays at ``pose``) and, where the coarse path ran, each whisker's free node paths (a mesh is
     cropped to them, :mod:`pipeline.engines.swept_crop`)."""
@@ -201,7 +201,7 @@ class Engine(ABC):
         samples, initial = start_trial(self.array, scene, pose, drive, duration_s,
                                        self.config.output_rate_hz, initial_joint_angles_rad)
         extra = () if external_tip_force_n is None else (TipForce.checked(external_tip_force_n),)
-        loads = [w.physics.loads() + extra for w in self.array.whiskers]
+        loads = [w.physics.loads + extra for w in self.array.whiskers]
         interval = 1.0 / self.config.output_rate_hz
         times = np.arange(1, samples + 1) * interval
         driven = initial_joint_angles_rad is None          # not a release: starts with the drive

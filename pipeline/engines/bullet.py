@@ -13,7 +13,7 @@ Integration scheme (one step of size h, per whisker; q, v joint positions and ve
         semi-implicit Euler step (v ← v + h·a; q ← q + h·v)
 
 M is Bullet's joint-space mass matrix and b its bias forces (Coriolis, centrifugal) less the
-generalised loads Jᵀ·F (:mod:`pipeline.model.loads`: gravity, drag, a tip force) at the current state; F are the spring joints, D the driven ones whose accelerations a_D make
+generalised loads Jᵀ·F (:mod:`pipeline.model.effects.loads`: gravity, drag, a tip force) at the current state; F are the spring joints, D the driven ones whose accelerations a_D make
 them land exactly on the prescribed angles at t + h. This linearly implicit scheme is stable
 for any h (for an undamped mode it is symplectic Euler with ω² replaced by k/(m + h²k)) and,
 unlike backward Euler, adds no numerical damping; frequencies drop by ≈ (hω)²/2 relative.

@@ -6,7 +6,7 @@ whisker's :class:`~pipeline.model.joints.JointLayout`: the compliant follicle's 
 any) on massless links, a fixed joint to link 1 (where the base wrench is taken), then per
 bending node one revolute joint per hinge of the node, all on massless links but the last,
 which carries the next whisker link. The implicit step is described in
-:mod:`pipeline.engines.bullet`; loads (:mod:`pipeline.model.loads`) enter it as generalised
+:mod:`pipeline.engines.bullet`; loads (:mod:`pipeline.model.effects.loads`) enter it as generalised
 forces Jᵀ·F and are applied to Bullet's bodies too. The base wrench is Newton–Euler of the
 step (:mod:`pipeline.engines.bullet_wrench`) with these external forces and the contacts' (the
 step solves every contact itself: Bullet's own solver never sees one, module
@@ -23,7 +23,7 @@ from pipeline.engines.bullet_wrench import chain_wrench
 from pipeline.engines.common import start_rate
 from pipeline.model.array import WhiskerModel
 from pipeline.model.kinematics import ProtractionDrive
-from pipeline.model.loads import LinkState, total_link_forces
+from pipeline.model.effects.loads import LinkState, total_link_forces
 from pipeline.model.rotations import axis_rotation, matrix_from_xyzw, quat_xyzw, rot_z
 
 IDENTITY_QUAT = (0.0, 0.0, 0.0, 1.0)
@@ -193,7 +193,7 @@ class BulletWhisker:
         step's frames and external forces are kept for :meth:`base_wrench` (the step that
         starts at a sample's time).
 
-        ``loads`` (:mod:`pipeline.model.loads`) enter the implicit solve as the generalised force
+        ``loads`` (:mod:`pipeline.model.effects.loads`) enter the implicit solve as the generalised force
         Jᵀ·F and are applied to Bullet's bodies too, so the step Bullet takes is the implicit one.
         So do the forces at ``contacts`` (:class:`~pipeline.engines.bullet_contact.ContactPoint`),
         solved within the same implicit operator with Coulomb ``friction`` μ

@@ -121,7 +121,7 @@ leaves the plausible range (a contact pushed it deep between faces) is taken out
 others of its world are simulated again without it; the template then simulates it alone
 with half the step.
 
-Loads. The per-link forces of :mod:`pipeline.model.loads` (gravity, air drag, a tip force)
+Loads. The per-link forces of :mod:`pipeline.model.effects.loads` (gravity, air drag, a tip force)
 are computed every step from the links' current state (MuJoCo's kinematics and centre-of-mass
 velocities, recomputed before the step) and applied as ``xfrc_applied`` at the links' centres
 of mass, so the implicit step sees them.
@@ -157,7 +157,7 @@ from pipeline.errors import SimulationError
 from pipeline.model.array import ArrayModel, WhiskerModel
 from pipeline.model.head_motion import HeadMotion
 from pipeline.model.kinematics import Pose, ProtractionDrive
-from pipeline.model.loads import LinkState, total_link_forces
+from pipeline.model.effects.loads import LinkState, total_link_forces
 from pipeline.model.rotations import axis_rotation, euler_zyx, quat_wxyz, rot_z
 from pipeline.model.whisker import WhiskerChain, link_centres_of_mass
 from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
@@ -374,7 +374,7 @@ class MujocoWorld(World):
         option.noslip_iterations = NOSLIP_ITERATIONS
         option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
         option.impratio = FRICTION_IMPEDANCE_RATIO
-        option.gravity = [0.0, 0.0, 0.0]                 # gravity is a load (pipeline.model.loads)
+        option.gravity = [0.0, 0.0, 0.0]                 # gravity is a load (pipeline.model.effects.loads)
         option.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
         option.disableflags |= mujoco.mjtDisableBit.mjDSBL_MULTICCD     # one point per capsule–prism
         if not any(isinstance(p.obstacle, TriangleMesh) for p in parts):

@@ -56,7 +56,7 @@ class Session:
         drive = still(duration)
         start_trial(array, scene, pose, drive, duration, config.output_rate_hz)
         initial, rates = engine._drive_start(scene, pose, drive)
-        loads = tuple(w.physics.loads() for w in array.whiskers)
+        loads = tuple(w.physics.loads for w in array.whiskers)
         setup = TrialSetup(scene, pose, drive.continued(duration, self.interval_s), samples, tuple(initial),
                            tuple(rates), loads, head=HeadMotion.still(pose, duration + self.interval_s))
         self.samples, self.sample, self.whiskers = samples, 0, len(array.whiskers)

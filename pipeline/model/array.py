@@ -72,7 +72,7 @@ class ArrayModel:
 
 def build_array(morphology: Morphology, material: MaterialConfig, extensions=()) -> ArrayModel:
     """Every whisker of ``morphology`` with ``material`` and model ``extensions``
-    (:mod:`pipeline.model.extensions`); base points relative to the array origin."""
+    (:mod:`pipeline.model.effects`); base points relative to the array origin."""
     origin = morphology.origin_m
     whiskers = []
     for spec in morphology:

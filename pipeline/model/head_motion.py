@@ -38,7 +38,7 @@ import numpy as np
 
 from pipeline.errors import UserError
 from pipeline.model.kinematics import Pose
-from pipeline.model.loads import Load, LinkState
+from pipeline.model.effects.loads import LinkState, Load
 from pipeline.model.rotations import rot_y, rot_z, rotation_zyx, skew, yaw_pitch_roll
 from pipeline.model.spline import not_a_knot_spline
 

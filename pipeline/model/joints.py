@@ -104,6 +104,8 @@ def joint_layout(physics) -> JointLayout:
     chain = physics.chain
     frames = np.array([rot_z(a) for a in chain.link_angles_rad])
     joints = []
+    twist = None if physics.twist is None else (physics.twist.stiffness_nm_per_rad(chain),
+                                                physics.twist.damping_nms_per_rad(chain))
     if physics.follicle is not None:
         for axis in "zy":
             joints.append(Joint(f"follicle_{axis}", 0, axis, np.eye(3), chain.nodes_m[0], 0,
@@ -112,10 +114,8 @@ def joint_layout(physics) -> JointLayout:
         k, c = chain.stiffness_nm_per_rad[j - 1], chain.damping_nms_per_rad[j - 1]
         joints.append(Joint(f"z{j}", j, "z", frames[j], chain.nodes_m[j], j, k, c))
         joints.append(Joint(f"y{j}", j, "y", frames[j], chain.nodes_m[j], j, k, c))
-        if physics.twist_stiffness_nm_per_rad is not None:
-            joints.append(Joint(f"x{j}", j, "x", frames[j], chain.nodes_m[j], j,
-                                physics.twist_stiffness_nm_per_rad[j - 1],
-                                physics.twist_damping_nms_per_rad[j - 1]))
+        if twist is not None:
+            joints.append(Joint(f"x{j}", j, "x", frames[j], chain.nodes_m[j], j, twist[0][j - 1], twist[1][j - 1]))
     return JointLayout(tuple(joints), frames)
 
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from pipeline.config.physics import ModelConfig
 from pipeline.model.array import single_whisker
-from pipeline.model.extensions import model_parts
+from pipeline.model.effects.registry import model_parts
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.outputs import TrialOutput
 from pipeline.model.rotations import rot_z

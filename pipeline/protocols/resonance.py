@@ -7,7 +7,7 @@ from pipeline.signals.resonance import DURATION_S, MODES, ResonanceResult, analy
 from pipeline.config.physics import ModelConfig
 from pipeline.errors import UserError
 from pipeline.model.array import single_whisker
-from pipeline.model.extensions import model_parts
+from pipeline.model.effects.registry import model_parts
 from pipeline.model.kinematics import Pose
 from pipeline.model.whisker import WhiskerGeometry
 from pipeline.scenes import empty

@@ -8,7 +8,7 @@ from functools import cached_property
 from pipeline.config.physics import ModelConfig
 from pipeline.errors import UserError
 from pipeline.model.array import ArrayModel, build_array
-from pipeline.model.extensions import model_parts
+from pipeline.model.effects.registry import model_parts
 from pipeline.model.head_motion import HeadMotion
 from pipeline.model.kinematics import Pose, ProtractionDrive, sinusoidal_whisk, still
 from pipeline.model.morphology import load_morphology

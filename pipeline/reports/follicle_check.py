@@ -24,7 +24,8 @@ import numpy as np
 from pipeline.config.material import FollicleConfig
 from pipeline.config.physics import ModelConfig
 from pipeline.model.array import single_whisker
-from pipeline.model.extensions import CompliantFollicle, model_parts
+from pipeline.model.effects.follicle import CompliantFollicle
+from pipeline.model.effects.registry import model_parts
 from pipeline.model.kinematics import Pose, still
 from pipeline.model.morphology import load_morphology
 from pipeline.model.whisker import WhiskerGeometry

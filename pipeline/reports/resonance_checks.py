@@ -17,7 +17,7 @@ import numpy as np
 from pipeline.config.material import with_preset
 from pipeline.config.physics import ModelConfig
 from pipeline.diagnosis.material_fit import fit_material, paper_table_1, simulate_all, with_material
-from pipeline.model.extensions import model_parts
+from pipeline.model.effects.registry import model_parts
 from pipeline.model.physics import build_physics
 from pipeline.model.morphology import load_morphology
 from pipeline.model.whisker import WhiskerGeometry

@@ -3,7 +3,7 @@
 M is the whisker's in-plane mass matrix at rest, its base spring (compliant follicle, base
 segment) included (:meth:`pipeline.model.physics.WhiskerPhysics.planar_mass_matrix`), K and C
 the diagonal joint stiffness and damping (N·m/rad, N·m·s/rad), C plus α·M for mass-proportional
-damping (:class:`~pipeline.model.extensions.MassDamping`). The eigenvalues λ = −ζω ± iω√(1 − ζ²) of the first-order form
+damping (:class:`~pipeline.model.effects.mass_damping.MassDamping`). The eigenvalues λ = −ζω ± iω√(1 − ζ²) of the first-order form
 [[0, I], [−M⁻¹K, −M⁻¹C]] give each oscillating mode's damped frequency (Hz) and damping ratio:
 what a ring-down of the simulated chain must show, independently of any engine.
 """

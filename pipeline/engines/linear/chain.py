@@ -10,11 +10,14 @@ acceleration α = ω̇ about the pinned base point, linearised in q (not in the 
 
     M q̈ + (C_j + α_m·M + C_d) q̇ + K q = −M_qb·α − H_cf·p(ω) − D_d·ω + H_g·g_b(t) + Q_quad
 
-M, K, C_j: mass, joint stiffness and joint damping matrices at rest; α_m: mass-proportional
-damping of the motion relative to the base (:class:`~pipeline.model.loads.MassDampingLoad`); M_qb: inertial coupling
+M, K, C_j: mass, joint stiffness and joint damping matrices at rest; M_qb: inertial coupling
 of the chain to a base rotation; H_cf·p(ω): centrifugal and gyroscopic loads of the rest
-shape (p the six products ω_a·ω_b); C_d, D_d: linear air drag on the normal velocity
-(J_v·q̇ + ω × x); H_g·g_b: gravity g_b = g·R(t)ᵀ·d in the base frame; Q_quad: quadratic drag.
+shape (p the six products ω_a·ω_b); the loads' linear forms
+(:mod:`pipeline.model.effects.loads`, summed over the whisker's loads): α_m·M their
+mass-proportional damping of the motion relative to the base, C_d and D_d their damping and
+base-rate coupling (air drag on the normal velocity J_v·q̇ + ω × x), H_g·g_b their uniform
+acceleration g_b = g·R(t)ᵀ·d in the base frame (gravity), Q_quad their nonlinear part
+(quadratic drag).
 Dropped (second order in q·ω): Coriolis and centrifugal stiffness terms, e.g. ω²/ω₁² ≈ 0.4 %
 for the paper's resonance pulse on the α whisker.
 """
@@ -22,16 +25,15 @@ for the paper's resonance pulse on the α whisker.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import reduce
+from operator import add
 
 import numpy as np
 
 from pipeline.model.base_motion import BaseInertia, joint_jacobian, link_frames
+from pipeline.model.effects.loads import LinearForm, RestChain
 from pipeline.model.joints import JointLayout, bent_chain
-from pipeline.model.loads import AIR_DENSITY_KG_M3
 from pipeline.model.physics import WhiskerPhysics
-from pipeline.model.rotations import skew
-
-_GL_X, _GL_W = np.polynomial.legendre.leggauss(3)
 
 
 @dataclass(frozen=True)
@@ -46,13 +48,18 @@ class LinearWhisker:
     base_coupling: np.ndarray   # [n, 3] M_qb
     centrifugal: np.ndarray     # [n, 6] H_cf
     gravity: np.ndarray         # [n, 3] H_g (per unit g_b)
-    drag_base: np.ndarray       # [n, 3] D_d
-    drag_points: dict           # quadrature of the links for quadratic drag
+    rate_coupling: np.ndarray   # [n, 3] D_d
+    loads: tuple[LinearForm, ...]   # the loads' linear forms (nonlinear part, base wrench)
     cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     @property
     def n(self) -> int:
         return self.dofs.n
+
+    @property
+    def nonlinear(self) -> tuple:
+        """Q_quad: the loads' nonlinear parts (each with ``modal(Φ)``, :class:`LinearForm`)."""
+        return tuple(form.nonlinear for form in self.loads if form.nonlinear is not None)
 
     # -- kinematics ------------------------------------------------------------------------
     def jacobian(self, points: np.ndarray, links: np.ndarray) -> np.ndarray:
@@ -79,17 +86,10 @@ class LinearWhisker:
         return nodes[:, links] + frames[:, links][..., 0] * along[None, :, None]
 
 
-def _quadrature(physics: WhiskerPhysics, tangent: np.ndarray):
-    """Gauss points along every link chord: position, weight (m), diameter, link, tangent."""
-    chain = physics.chain
-    s = 0.5 * (_GL_X + 1)                                            # [3] in 0..1
-    links = np.repeat(np.arange(chain.links), len(s))
-    frac = np.tile(s, chain.links)
-    length = chain.link_lengths_m[links]
-    points = chain.nodes_m[links] + tangent[links] * (frac * length)[:, None]
-    weight = np.tile(0.5 * _GL_W, chain.links) * length
-    r0, r1 = chain.node_radii_m[links], chain.node_radii_m[links + 1]
-    return points, weight, 2 * (r0 + (r1 - r0) * frac), links, tangent[links]
+def _total(terms: list, shape: tuple[int, ...]) -> np.ndarray:
+    """The sum of the loads' terms (in their order; zeros without any)."""
+    terms = [t for t in terms if t is not None]
+    return reduce(add, terms) if terms else np.zeros(shape)
 
 
 def linearise(physics: WhiskerPhysics) -> LinearWhisker:
@@ -99,14 +99,10 @@ def linearise(physics: WhiskerPhysics) -> LinearWhisker:
     tangent, com, _ = link_frames(chain)
     inertial = BaseInertia.of(physics)
     gravity = np.einsum("l,lai->ia", chain.link_mass_kg, joint_jacobian(dofs, com, np.arange(chain.links)))
-    points, weight, diameter, plinks, ptangent = _quadrature(physics, tangent)
-    jp = joint_jacobian(dofs, points, plinks)                            # [P, 3, n]
-    normal = np.eye(3)[None] - ptangent[:, :, None] * ptangent[:, None, :]
-    c_lin = physics.drag_linear_ns_per_m2
-    drag_q = c_lin * np.einsum("p,pai,pab,pbj->ij", weight, jp, normal, jp)
-    drag_base = -c_lin * np.einsum("p,pai,pab,pbc->ic", weight, jp, normal, skew(points))
-    damping = np.diag(dofs.damping) + physics.mass_damping_per_s * inertial.mass + drag_q
-    drag_points = {"points": points, "jacobian": jp, "normal": normal, "weight": weight,
-                   "coefficient": 0.5 * AIR_DENSITY_KG_M3 * physics.drag_coefficient * diameter * weight}
+    rest = RestChain(chain, dofs, tangent, com)
+    forms = tuple(load.linear_form(rest) for load in physics.loads)
+    damping = np.diag(dofs.damping) + physics.mass_damping_per_s * inertial.mass \
+        + _total([f.damping for f in forms], (dofs.n, dofs.n))
+    rate_coupling = _total([f.rate_coupling for f in forms], (dofs.n, 3))
     return LinearWhisker(physics, dofs, inertial.mass, np.diag(dofs.stiffness), damping, inertial.coupling,
-                         inertial.centrifugal, gravity, drag_base, drag_points)
+                         inertial.centrifugal, gravity, rate_coupling, forms)

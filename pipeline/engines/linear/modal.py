@@ -10,14 +10,16 @@ the state y = [ω·η, η̇] of η = ΦᵀM·w obeys the linear system
 u = (Ω, ω, p(ω), g_b) as in :mod:`.chain` (:func:`.motion.inputs`). Between grid points u is
 taken as piecewise linear (first-order hold), and the system is advanced with the exact matrix
 exponential of the augmented matrix [[A, B, 0], [0, 0, I/h], [0, 0, 0]]·h: no step-size
-error beyond the input interpolation, stable for any stiffness. Quadratic drag, the one
-nonlinear force, is added per grid step as a constant (zero-order hold) generalised force.
+error beyond the input interpolation, stable for any stiffness. The loads' nonlinear
+forces (quadratic drag) are added per grid step as a constant (zero-order hold) generalised force.
 The joint angles are q(t) = Φ(η − g·Ω).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import reduce
+from operator import add
 
 import numpy as np
 
@@ -47,7 +49,7 @@ def modal(lin: LinearWhisker) -> Modal:
         shapes = scale[:, None] * vectors
         g = shapes.T @ lin.base_coupling
         c_m = shapes.T @ lin.damping @ shapes
-        inputs = np.hstack([lam[:, None] * g, c_m @ g - shapes.T @ lin.drag_base,
+        inputs = np.hstack([lam[:, None] * g, c_m @ g - shapes.T @ lin.rate_coupling,
                             -shapes.T @ lin.centrifugal,
                             lin.physics.gravity_m_s2 * (shapes.T @ lin.gravity)])
         lin.cache["modal"] = Modal(shapes, np.sqrt(lam), c_m, g, inputs)
@@ -120,7 +122,7 @@ def respond(lin: LinearWhisker, motion, u: np.ndarray, h: float, m: int, q0: np.
     quadratic drag exactly, else on the slow modes, :func:`slow_forcing`)."""
     mod = modal(lin)
     n = len(mod.omega)
-    quadratic = lin.physics.drag_coefficient > 0
+    quadratic = bool(lin.nonlinear)
     active = np.abs(u).max(axis=0) > 0
     active[GRAVITY_INPUTS] &= lin.physics.gravity_m_s2 != 0
     columns = tuple(int(c) for c in np.flatnonzero(active))
@@ -135,9 +137,9 @@ def respond(lin: LinearWhisker, motion, u: np.ndarray, h: float, m: int, q0: np.
     y[0] = np.concatenate([mod.omega * (mod.shapes.T @ lin.mass @ q0), rate0])
     rotating = RotatingLoads(lin, mod, motion, alpha) if alpha is not None else None
     if quadratic:
-        drag = QuadraticDrag(lin, mod)
+        nonlinear = [part.modal(mod.shapes) for part in lin.nonlinear]
         for j in range(len(y) - 1):
-            force = drag.modal_force(y[j, n:] - g @ motion.omega[j], motion.omega[j])
+            force = reduce(add, (f(y[j, n:] - g @ motion.omega[j], motion.omega[j]) for f in nonlinear))
             if rotating is not None:
                 force = force + rotating.modal_force(j, y[j])
             y[j + 1] = phi @ y[j] + g0 @ u[j] + g1 @ u[j + 1] + gf @ force
@@ -173,22 +175,6 @@ def compose(phi, g0, g1, u, m, samples):
         weights[j + 1] += powers[m - 1 - j] @ g1
     windows = np.stack([u[j:j + (samples - 1) * m:m] for j in range(m + 1)], axis=1)  # [T-1, m+1, nu]
     return powers[m], np.einsum("kju,jxu->kx", windows, weights)
-
-
-class QuadraticDrag:
-    """Modal force of f = −½ρ_air·C_d·d·|v_n|·v_n on the links' quadrature points."""
-
-    def __init__(self, lin: LinearWhisker, mod: Modal):
-        points = lin.drag_points
-        self.jac = np.einsum("pai,ij->paj", points["jacobian"], mod.shapes)   # J·Φ
-        self.points, self.normal = points["points"], points["normal"]
-        self.coefficient = points["coefficient"]
-
-    def modal_force(self, modal_rate: np.ndarray, omega: np.ndarray) -> np.ndarray:
-        velocity = self.jac @ modal_rate + np.cross(omega, self.points)
-        normal = np.einsum("pab,pb->pa", self.normal, velocity)
-        force = -self.coefficient[:, None] * np.linalg.norm(normal, axis=1)[:, None] * normal
-        return np.einsum("paj,pa->j", self.jac, force)
 
 
 class RotatingLoads:

@@ -12,14 +12,17 @@ in whisker-frame components,
     M = Σ (m·c × a + I·α_l + ω_l × I·ω_l) − M_air − M_md,
     ω_l = ω + J_ω·q̇,   α_l = α + J_ω·q̈ + ω × J_ω·q̇,
 
-F_air, M_air the air drag on the links' quadrature points (linear and quadratic in the normal
-velocity J·q̇ + ω × x, :mod:`.chain`), F_md, M_md the mass-proportional damping of the motion
-relative to the base (:class:`~pipeline.model.loads.MassDampingLoad`: −α·m·v on each link, −α·I·J_ω·q̇
+F_air, M_air the loads' own forces (their linear forms' ``wrench``,
+:mod:`pipeline.model.effects.loads`: air drag, linear and quadratic in the normal velocity
+J·q̇ + ω × x at the links' quadrature points), F_md, M_md the mass-proportional damping of the motion
+relative to the base (:class:`~pipeline.model.effects.mass_damping.MassDamping`: −α·m·v on each link, −α·I·J_ω·q̇
 on its rotation). Gravity is not included: the engines' free path, this
 wrench's user, is off for loads that depend on the head's pose.
 """
 
 from __future__ import annotations
+
+from functools import reduce
 
 import numpy as np
 
@@ -62,11 +65,11 @@ def base_wrench(lin: LinearWhisker, q: np.ndarray, shape: tuple[np.ndarray, np.n
     momentum_rate = (turned @ alpha_l[..., None])[..., 0] + np.cross(omega_l, (turned @ omega_l[..., None])[..., 0])
     force = np.einsum("l,tla->ta", m, a)
     moment = np.einsum("l,tla->ta", m, np.cross(c, a)) + momentum_rate.sum(axis=1)
-    air_force, air_moment = _air(lin, rate, omega)
+    load_force, load_moment = _loads(lin, rate, omega)
     damping = lin.physics.mass_damping_per_s      # the links' damping forces are −α·(their momentum terms)
-    force = force + damping * np.einsum("l,tla->ta", m, velocity) - air_force
+    force = force + damping * np.einsum("l,tla->ta", m, velocity) - load_force
     moment = moment + damping * (np.einsum("l,tla->ta", m, np.cross(c, velocity))
-                                 + (turned @ spin[..., None])[..., 0].sum(axis=1)) - air_moment
+                                 + (turned @ spin[..., None])[..., 0].sum(axis=1)) - load_moment
     return np.concatenate([force, moment], axis=1)
 
 
@@ -89,15 +92,10 @@ def _apply(jacobian: np.ndarray, values: np.ndarray) -> np.ndarray:
     return (values @ jacobian.reshape(-1, jacobian.shape[-1]).T).reshape(len(values), *jacobian.shape[:2])
 
 
-def _air(lin: LinearWhisker, rate: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """([T, 3] N, [T, 3] N·m about the base point) air drag on the links, whisker frame."""
-    physics, points = lin.physics, lin.drag_points
-    if not (physics.drag_linear_ns_per_m2 or physics.drag_coefficient):
+def _loads(lin: LinearWhisker, rate: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """([T, 3] N, [T, 3] N·m about the base point) the loads' own base wrench (their linear
+    forms' ``wrench``: air drag), whisker frame."""
+    parts = [form.wrench(rate, omega) for form in lin.loads if form.wrench is not None]
+    if not parts:
         return np.zeros((len(rate), 3)), np.zeros((len(rate), 3))
-    x = points["points"]
-    velocity = np.einsum("pai,ti->tpa", points["jacobian"], rate) + np.cross(omega[:, None, :], x)
-    normal = np.einsum("pab,tpb->tpa", points["normal"], velocity)
-    per_length = physics.drag_linear_ns_per_m2 * points["weight"][:, None] \
-        + points["coefficient"][:, None] * np.linalg.norm(normal, axis=2, keepdims=True)
-    force = -per_length * normal
-    return force.sum(axis=1), np.cross(x, force).sum(axis=1)
+    return reduce(lambda a, b: (a[0] + b[0], a[1] + b[1]), parts)
