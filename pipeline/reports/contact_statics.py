@@ -15,8 +15,8 @@ RMS of the moment and of the transverse force in % of the elastica's largest |va
 the axial force in % of the elastica's largest |F|; the slip-off angle difference (engine −
 elastica, degrees; the engine slips off at its last sample in contact when none follows within
 :data:`SLIP_HOLD_DEG`; where the elastica's tip turns parallel to the obstacle its path ends,
-without a slip-off, and so does the comparison); pass-through: a point of the centre line (sampled along the links)
-deeper than :data:`PASS_THROUGH_M` inside the peg.
+without a slip-off, and so does the comparison); pass-through: a point of the centre line
+(sampled along the links) deeper than :data:`PASS_THROUGH_M` inside the peg.
 
 The peg is a :class:`~pipeline.scenes.obstacles.Cylinder` (``facets`` 0), or a closed
 :class:`~pipeline.scenes.obstacles.TriangleMesh` with ``facets`` flat sides round (vertices on
