@@ -2,14 +2,15 @@
 
 Run: .venv/bin/python benchmarks/bench_contact_statics.py [--engines bullet,mujoco]
      [--whiskers RC1,RC3,RC5] [--fractions 0.3,0.6,0.85] [--frictions 0,0.5] [--facets 0,16,64,256] [--wall]
-     [--speed-check] [--step-check --speed 500]
+     [--tip-segment] [--speed-check] [--step-check --speed 500]
 
 Each case turns one whisker of the model rat slowly into a thin peg and compares the base
 moment and forces with the planar elastica (pipeline/reports/contact_statics.py). Printed: one
 row per whisker × contact position × μ × engine × peg (``--facets``: 0 the analytic
 cylinder, n a triangle mesh with n flat sides round; ``--wall``: a flat wall touched by the
 tip instead, 0 a Box, n > 0 the box as a triangle mesh; RMS errors in % of the elastica's largest
-value, slip-off angles, deepest point of the centre line inside the peg). ``--speed-check``
+value, slip-off angles, deepest point of the centre line inside the peg; ``--tip-segment``: the
+chain with the tip segment, pipeline.model.effects.tip_segment.TipSegment). ``--speed-check``
 instead runs each engine's RC3 60 % μ = 0 case at the drive speed and at half of it and prints
 the change of the base signals at the same angle (RMS and largest, in % of the elastica's
 largest value) and of the errors against the elastica: below 0.5 % the drive is quasi-static
@@ -81,10 +82,11 @@ def main() -> None:
     parser.add_argument("--facets", default="0", help="pegs: 0 the cylinder, n a mesh of n sides")
     parser.add_argument("--wall", action="store_true", help="a flat wall at the tip instead of pegs")
     parser.add_argument("--speed", type=float, default=C.SPEED_DEG_S, help="drive speed, °/s")
+    parser.add_argument("--tip-segment", action="store_true", help="the chain with the tip segment")
     parser.add_argument("--speed-check", action="store_true")
     parser.add_argument("--step-check", action="store_true")
     args = parser.parse_args()
-    config = ModelConfig()
+    config = ModelConfig(extensions={"tip_segment": {}} if args.tip_segment else {})
     engines = args.engines.split(",")
     facets = [int(n) for n in args.facets.split(",")]
     if args.step_check:

@@ -1,8 +1,11 @@
 """The base segment (pipeline.model.effects.base_segment.BaseSegment): the compliance of the base
-half-link, which the chain's joints leave out, as a spring at the base point."""
+half-link, which the chain's joints leave out, as a spring at the base point; and the tip
+segment (pipeline.model.effects.tip_segment.TipSegment): the tip half-link's compliance
+under a tip force, in the last joint."""
 
 import numpy as np
 import pytest
+from scipy.integrate import quad
 
 from beam_reference import cantilever_frequencies
 from pipeline.config.physics import MaterialConfig
@@ -13,6 +16,7 @@ from pipeline.diagnosis.parameters import ModelSpec
 from pipeline.model.effects.base_segment import BaseSegment
 from pipeline.model.effects.follicle import CompliantFollicle
 from pipeline.model.effects.integrated_density import IntegratedDensity
+from pipeline.model.effects.tip_segment import TipSegment
 from pipeline.model.physics import build_physics
 from pipeline.model.whisker import WhiskerGeometry
 
@@ -112,3 +116,29 @@ def test_richardson_estimate_of_the_modulus_error_matches_the_beam():
         actual = -2 * (_in_plane(ALPHA, spec.material, spec.extensions)[0] / reference - 1)
         assert modulus_discretisation(spec, ALPHA) == pytest.approx(actual, rel=0.15)
         assert 0.0002 < actual < 0.0025
+
+
+def tip_compliance(physics) -> float:
+    """Linear deflection per unit force (m/N) of the straight chain under a force at its tip:
+    Σ (S − s_n)²/k_n over the joints and the base segment's spring at the base point."""
+    chain = physics.chain
+    length = chain.geometry.arc_length_m
+    lever = length - chain.link_length_m * np.arange(1, chain.links)
+    return float(np.sum(lever ** 2 / chain.stiffness_nm_per_rad) + length ** 2 / physics.follicle.k_f)
+
+
+def test_tip_segment_gives_the_chain_the_beams_compliance_under_a_tip_force():
+    geometry = WhiskerGeometry(0.02, 5.1e-5, 1.5e-6)          # RC3's size and taper, straight
+    material = MaterialConfig()
+    modulus = material.youngs_modulus_gpa * 1e9
+
+    def radius(s):
+        return geometry.base_radius_m + (geometry.tip_radius_m - geometry.base_radius_m) * s / geometry.arc_length_m
+
+    beam = quad(lambda s: (geometry.arc_length_m - s) ** 2 / (modulus * np.pi * radius(s) ** 4 / 4),
+                0, geometry.arc_length_m, limit=200, points=[0.97 * geometry.arc_length_m])[0]
+    plain, tip = (build_physics(geometry, material, extensions) for extensions in ((), (TipSegment(),)))
+    assert tip_compliance(plain) / beam == pytest.approx(0.898, abs=0.002)    # the rigid tip half-link
+    assert tip_compliance(tip) / beam == pytest.approx(1.0, abs=0.002)
+    # only the last joint changes: contacts before its node see the same chain
+    np.testing.assert_array_equal(tip.chain.stiffness_nm_per_rad[:-1], plain.chain.stiffness_nm_per_rad[:-1])

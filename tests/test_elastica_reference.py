@@ -6,7 +6,7 @@ from scipy.integrate import quad
 from scipy.optimize import brentq
 from scipy.special import ellipe, ellipeinc, ellipk, ellipkinc
 
-from pipeline.references.elastica import Rod, dead_load, peg_touching, quasi_static_path, rest_shape
+from pipeline.references.elastica import Peg, Rod, dead_load, peg_touching, quasi_static_path, rest_shape
 
 E_PA = 3.4e9
 LENGTH_M = 0.02
@@ -31,9 +31,11 @@ def whisker_rod(points=401, length_m=LENGTH_M, base_m=5e-5, tip_m=2e-6, curvatur
     return Rod.from_radius(arc, radius, E_PA, 2 * a / (1 + (2 * a * x) ** 2) ** 1.5)
 
 
-def test_tapered_cantilever_small_load_matches_euler_bernoulli():
+@pytest.mark.parametrize("fraction", [0.6, 1.0])
+def test_tapered_cantilever_small_load_matches_euler_bernoulli(fraction):
+    # at the tip (r_base/r_tip = 25) the last 5 % of the arc holds 18 % of the compliance
     rod = whisker_rod(curvature_per_m=0.0)
-    a, load = 0.6 * LENGTH_M, 1e-9                       # a tiny load: linear theory holds
+    a, load = fraction * LENGTH_M, 1e-9                  # a tiny load: linear theory holds
 
     def stiffness(s):
         r = 5e-5 + (2e-6 - 5e-5) * s / LENGTH_M
@@ -145,3 +147,16 @@ def test_contact_runs_to_the_tip_and_slips_off():
     arcs = path.series("arc_contact_m")
     assert path.states[-1].state == "tip-slide" and arcs[-1] == pytest.approx(LENGTH_M)
     assert np.degrees(path.slip_off_angle_rad) < 60.0
+
+
+def test_tip_on_a_wall_ends_where_the_tip_turns_along_it_without_slipping_off():
+    # the wall: a circle of 1 m touching the rest shape's tip; the thin tip bends along it
+    rod = whisker_rod()
+    tip = rest_shape(rod)[-1]
+    wall = Peg((float(tip[0]), float(tip[1] + rod.radius_m[-1] + 1.0)), 1.0)
+    path = quasi_static_path(rod, wall, np.radians(np.arange(0.0, 6.01, 0.5)), friction=0.0)
+    assert all(s.state == "tip-slide" for s in path.states)
+    assert np.isnan(path.slip_off_angle_rad) and 0 < path.tip_tangent_angle_rad < np.radians(6.0)
+    shape = path.states[-1].shape_m
+    tangent = (shape[-1] - shape[-2]) / np.linalg.norm(shape[-1] - shape[-2])
+    assert abs(tangent[1]) < np.sin(np.radians(5.0))          # along the wall (x) at the tip

@@ -24,8 +24,9 @@ turning along ê; at the tip, φ stays), while |f_t| ≤ μ f_n.
 Solved with scipy's solve_bvp on τ = s/s_c ∈ [0, 1], states (x, y, θ, m), unknown parameters
 (s_c, F_x, F_y), lengths in S and forces in E I(0)/S². :func:`quasi_static_path` continues
 in ψ from the first touch (F = 0), stick or slide by return mapping, until the contact leaves
-the whisker (f_n ≤ 0, or no equilibrium with the tip on the peg: the slip-off angle) or the
-last angle.
+the whisker (f_n ≤ 0, or no equilibrium with the tip on the peg: the slip-off angle), the
+tip's tangent turns parallel to the peg's surface (t·n̂ → 0: the rod beside the tip would touch
+it too, a contact this one-point model does not follow; not a slip-off) or the last angle.
 
 Base wrench: what the clamp exerts on the rod, F_b = −F and M_b = −m(0) about the base
 point (N, N·m), F_b resolved along the base tangent (axial, toward the tip) and its normal
@@ -46,6 +47,7 @@ BC_TOL = 1e-10            # boundary conditions, in S and E I(0)/S²
 MAX_NODES = 1_000
 START_MESH = np.linspace(0.0, 1.0, 201)
 MIN_STEP_RAD = np.radians(0.002)   # continuation step below which an angle has no equilibrium
+TANGENT_TIP = np.sin(np.radians(0.5))   # |t·n̂| at the tip below which it lies along the peg
 
 
 @dataclass(frozen=True)
@@ -110,13 +112,16 @@ class Equilibrium:
 
 @dataclass
 class Path:
-    """:func:`quasi_static_path`: the states at the angles reached, the first-touch angle and
-    the slip-off angle (NaN if the contact held to the last angle)."""
+    """:func:`quasi_static_path`: the states at the angles reached, the first-touch angle, the
+    slip-off angle (NaN if the contact held to the last angle) and the angle at which the tip
+    turned parallel to the peg's surface (NaN if it did not; the path ends there, module
+    docstring)."""
 
     states: list[Equilibrium]
     touch_angle_rad: float
     touch_arc_m: float
     slip_off_angle_rad: float
+    tip_tangent_angle_rad: float = float("nan")
 
     def series(self, name: str) -> np.ndarray:
         return np.array([getattr(s, name) for s in self.states], float)
@@ -363,7 +368,7 @@ def quasi_static_path(rod: Rod, peg: Peg, angles_rad, friction: float = 0.0) -> 
     previous = (s0 / scaled.length_m, float(np.arctan2(n0[1], n0[0])))
     tip = False
     states: list[Equilibrium] = []
-    psi, slip_off = psi0, float("nan")
+    psi, slip_off, tangent = psi0, float("nan"), float("nan")
     for target in [a for a in np.asarray(angles_rad, float) if a > psi0]:
         while psi < target:
             step = target - psi
@@ -373,7 +378,10 @@ def quasi_static_path(rod: Rod, peg: Peg, angles_rad, friction: float = 0.0) -> 
                     break
                 step /= 2
             if found is None:
-                slip_off = psi
+                if tip and _tip_along_peg(current, centre):
+                    tangent = psi
+                else:
+                    slip_off = psi
                 break
             current, closure, tip = found
             psi += step
@@ -382,10 +390,16 @@ def quasi_static_path(rod: Rod, peg: Peg, angles_rad, friction: float = 0.0) -> 
             if (current.p[1:] @ n) <= 0:
                 slip_off = psi
                 break
-        if np.isfinite(slip_off):
+        if np.isfinite(slip_off) or np.isfinite(tangent):
             break
         states.append(_equilibrium(scaled, rod, psi, closure, current))
-    return Path(states, psi0, s0, slip_off)
+    return Path(states, psi0, s0, slip_off, tangent)
+
+
+def _tip_along_peg(current: _Solution, centre) -> bool:
+    """The tip of the state ``current`` lies along the peg's surface (|t·n̂| ≤ TANGENT_TIP)."""
+    _, n, _, t, _ = _geometry(current.y[:, -1], current.p, centre)
+    return abs(t @ n) <= TANGENT_TIP
 
 
 def _advance(rod: _Scaled, psi, centre, radius, friction, current, previous, tip):

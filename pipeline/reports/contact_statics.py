@@ -14,8 +14,9 @@ Errors, over the samples where both are in contact (from the touch to the earlie
 RMS of the moment and of the transverse force in % of the elastica's largest |value|, RMS of
 the axial force in % of the elastica's largest |F|; the slip-off angle difference (engine −
 elastica, degrees; the engine slips off at its last sample in contact when none follows within
-:data:`SLIP_HOLD_DEG`); pass-through: a point of the centre line (sampled along the links)
-deeper than :data:`PASS_THROUGH_M` inside the peg.
+:data:`SLIP_HOLD_DEG`; where the elastica's tip turns parallel to the obstacle its path ends,
+without a slip-off, and so does the comparison); pass-through: a point of the centre line
+(sampled along the links) deeper than :data:`PASS_THROUGH_M` inside the peg.
 
 The peg is a :class:`~pipeline.scenes.obstacles.Cylinder` (``facets`` 0), or a closed
 :class:`~pipeline.scenes.obstacles.TriangleMesh` with ``facets`` flat sides round (vertices on
@@ -232,6 +233,7 @@ def compare(case: Case, angle_deg: np.ndarray, output, path: Path, peg: Peg) -> 
               "moment_bias_pct": bias[0], "transverse_bias_pct": bias[1], "axial_bias_pct_of_f": bias[2],
               "slip_off_ref_deg": float(ref_slip), "slip_off_engine_deg": engine_slip,
               "slip_off_diff_deg": float(engine_slip - ref_slip),
+              "tip_tangent_ref_deg": float(np.degrees(path.tip_tangent_angle_rad)),
               "end_deg": float(end), "sweep_end_deg": float(angle_deg[-1]), "samples": int(inside.sum()),
               "deepest_mm": deepest * 1e3, "pass_through": bool(deepest > PASS_THROUGH_M),
               "max_moment_nm": float(scales[0]), "max_force_n": float(force_scale),
@@ -286,7 +288,9 @@ TABLE_COLUMNS = ("whisker", "position", "μ", "engine", "peg", "M rms %", "F⊥ 
 
 def table_rows(results: list[CaseResult]) -> list[list[str]]:
     """One row per case, the columns of TABLE_COLUMNS."""
-    def angle(value):
+    def angle(value, tangent=float("nan")):
+        if np.isfinite(tangent):
+            return f"tip ∥ at {tangent:.2f}"
         return "held" if not np.isfinite(value) else f"{value:.2f}"
 
     rows = []
@@ -294,7 +298,8 @@ def table_rows(results: list[CaseResult]) -> list[list[str]]:
         e, c = r.errors, r.case
         rows.append([c.whisker, f"{c.fraction:.0%}", f"{c.friction:g}", c.engine, c.obstacle,
                      f"{e['moment_rms_pct']:.1f}", f"{e['transverse_rms_pct']:.1f}", f"{e['axial_rms_pct_of_f']:.1f}",
-                     f"{e['moment_bias_pct']:+.1f}", angle(e["slip_off_ref_deg"]), angle(e["slip_off_engine_deg"]),
+                     f"{e['moment_bias_pct']:+.1f}", angle(e["slip_off_ref_deg"], e["tip_tangent_ref_deg"]),
+                     angle(e["slip_off_engine_deg"]),
                      f"{e['deepest_mm']:.3f}", "yes" if e["pass_through"] else "no"])
     return rows
 
@@ -308,9 +313,13 @@ QUICK_SWEEP_DEG = 8.0
 
 
 def slip_off_gap_deg(errors: dict) -> float:
-    """|engine − elastica| slip-off angle (°): 0 if neither slips off within the sweep; if only
-    one does, its distance to the end of the comparison (a lower bound)."""
+    """|engine − elastica| slip-off angle (°): 0 if neither slips off within the sweep (or the
+    engine not before the elastica's path ends with its tip along the obstacle); if only one
+    does, its distance to the end of the comparison (a lower bound)."""
     engine, ref = errors["slip_off_engine_deg"], errors["slip_off_ref_deg"]
+    tangent = errors["tip_tangent_ref_deg"]
+    if np.isfinite(tangent) and not engine < tangent:      # the elastica's path ended first
+        engine = float("nan")
     if np.isfinite(engine) and np.isfinite(ref):
         return abs(engine - ref)
     if np.isfinite(engine) or np.isfinite(ref):

@@ -17,6 +17,7 @@ from pipeline.model.effects.gravity import Gravity
 from pipeline.model.effects.integrated_density import IntegratedDensity
 from pipeline.model.effects.mass_damping import MassDamping
 from pipeline.model.effects.stiffness_gradient import StiffnessGradient
+from pipeline.model.effects.tip_segment import TipSegment
 from pipeline.model.effects.twist import Twist
 
 EFFECTS: dict[str, type[Effect]] = {
@@ -31,6 +32,7 @@ EFFECTS: dict[str, type[Effect]] = {
         Twist,
         MassDamping,
         BaseSegment,
+        TipSegment,
         IntegratedDensity,
     )
 }
