@@ -15,6 +15,8 @@ step solves every contact itself: Bullet's own solver never sees one, module
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from pipeline.engines import units as U
@@ -311,8 +313,9 @@ class BulletWhisker:
         """(M_FF + h·C + h²·K)⁻¹ at joint angles q (F: the free joints)."""
         import pybullet as p
 
-        rows = p.calculateMassMatrix(self.body, q, physicsClientId=self.client)[3:]
-        mass_free = np.array([row[3:] for row in rows])      # converting only M_FF: half the cost
+        rows = p.calculateMassMatrix(self.body, q, physicsClientId=self.client)
+        n = self.n_dof                                       # a flat iterator: a third of np.array's cost
+        mass_free = np.fromiter(itertools.chain.from_iterable(rows), float, n * n).reshape(n, n)[3:, 3:]
         self._factorised_at = np.array(q[3:])
         self._lhs_inverse = np.linalg.inv(mass_free + np.diag(h * self.damping[3:] + h * h * self.stiffness[3:]))
 
