@@ -41,8 +41,9 @@ per_step: dict[str, list] = collections.defaultdict(list)
 worlds: list[tuple[int, int, int]] = []               # per full world run: members, geoms, colliding links
 
 
-def timed(owner, name: str, label: str) -> None:
-    """Add the process time of ``owner.name`` to ``cpu[label]``."""
+def timed(owner, name: str, label: str, seconds: collections.Counter = cpu,
+          calls: collections.Counter | None = None) -> None:
+    """Add the process time of ``owner.name`` to ``seconds[label]`` (and count its calls in ``calls``)."""
     function = getattr(owner, name)
 
     def wrapper(*args, **kwargs):
@@ -50,7 +51,9 @@ def timed(owner, name: str, label: str) -> None:
         try:
             return function(*args, **kwargs)
         finally:
-            cpu[label] += time.process_time() - start
+            seconds[label] += time.process_time() - start
+            if calls is not None:
+                calls[label] += 1
 
     setattr(owner, name, wrapper)
 

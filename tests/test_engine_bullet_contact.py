@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from pipeline.config.physics import EngineConfig, ModelConfig
-from pipeline.engines.bullet_contact import ONE_SIDED_DEPTH_MM, OneSidedMesh, contact_frame, one_sided, solve_forces
+from pipeline.engines.bullet_contact import (MERGE_MM, ONE_SIDED_DEPTH_MM, OneSidedMesh, _distinct, contact_frame,
+                                             one_sided, solve_forces)
 from pipeline.model.kinematics import Pose
 from pipeline.protocols.peg_sweep import bend_angles_deg, friction_ratio, penetration_m, run_peg_sweep
 from pipeline.protocols.whisking import run_trial
@@ -68,6 +69,45 @@ def test_forces_solve_the_complementarity_problem():
     f = solve_forces(G, u0, gaps, h, 0.0, iterations=100)
     assert f[1] == 0.0
     assert (u0 + G @ f)[0] == pytest.approx(-gaps[0] / h)   # closes exactly its gap in the step
+
+
+def test_friction_forces_stay_in_the_cone_and_unloaded_points_carry_none():
+    """Coupled points with friction (random positive definite G, some pushed in, some pulled
+    away): normal forces ≥ 0 that stop the loaded points at their gaps, friction within
+    μ·f_n and none on a point without normal force, sticking points not sliding."""
+    rng = np.random.default_rng(3)
+    h, mu = 1e-4, 0.5
+    for _ in range(20):
+        points = rng.integers(2, 6)
+        a = rng.normal(size=(3 * points, 3 * points))
+        G = a @ a.T + 0.1 * np.eye(3 * points)
+        u0 = rng.normal(size=3 * points)
+        gaps = rng.uniform(-0.02, 0.02, points) * h
+        f = solve_forces(G, u0, gaps, h, mu, iterations=5000)
+        u = u0 + G @ f
+        normal, tangent = f[0::3], f.reshape(points, 3)[:, 1:]
+        bias = np.where(gaps >= 0, gaps, 0.2 * gaps) / h
+        size = np.linalg.norm(tangent, axis=1)
+        assert (normal >= 0).all() and (size <= mu * normal * (1 + 1e-9)).all()
+        assert (size[normal == 0] == 0).all()
+        scale = np.abs(u0).max()
+        assert np.allclose((u[0::3] + bias)[normal > 0], 0.0, atol=1e-4 * scale)
+        assert (u[0::3] + bias >= -1e-4 * scale).all()
+        sticking = (normal > 0) & (size < mu * normal * (1 - 1e-6))
+        assert np.allclose(u.reshape(points, 3)[sticking, 1:], 0.0, atol=1e-4 * scale)
+
+
+def test_a_links_near_copies_and_opposed_points_are_dropped():
+    """Deepest first; on the same link a point within MERGE_MM of a kept one, or whose normal
+    opposes a kept one's, is dropped; other links' points are kept."""
+    up, down = [0.0, 0.0, 1.0], [0.0, 0.0, -1.0]
+    where = np.array([[0, 0, 0], [0.5 * MERGE_MM, 0, 0], [5 * MERGE_MM, 0, 0], [9 * MERGE_MM, 0, 0],
+                      [0, 0, 0], [0, 0, 0]], float)
+    normals = np.array([up, up, up, down, up, up])
+    gaps = np.array([-0.01, -0.02, 0.0, 0.01, 0.0, 0.05])
+    kept = np.array([True, True, True, True, True, False])
+    points = _distinct(kept, np.array([2, 2, 2, 2, 3, 3]), where, normals, gaps, np.zeros(3))
+    assert [(p.link, p.gap_mm) for p in points] == [(2, -0.02), (2, 0.0), (3, 0.0)]
 
 
 def test_a_meshed_peg_meets_the_statics_target():

@@ -134,15 +134,29 @@ def find_contacts(client: int, obstacles, whisker_bodies: dict) -> dict[int, lis
                                        np.array([whisker.link_nodes(i) for i in touched]).reshape(-1, 3)])
                 link_of = np.concatenate([link_of, np.repeat(touched, 2)])
                 kept, where, normals, gaps = one_sided(axis, whisker.capsule_radii[link_of], mesh, offset)
-            candidates: list[ContactPoint] = []
-            for i in np.argsort(gaps, kind="stable"):                       # deepest first
-                if not kept[i] or any(other.link == link_of[i]
-                                      and (np.sum((other.point_mm - where[i]) ** 2) < MERGE_MM ** 2
-                                           or other.normal @ normals[i] < 0.0) for other in candidates):
-                    continue
-                candidates.append(ContactPoint(int(link_of[i]), where[i], normals[i], float(gaps[i]), velocity))
-            found.setdefault(body, []).extend(candidates)
+            found.setdefault(body, []).extend(_distinct(kept, link_of, where, normals, gaps, velocity))
     return {body: points for body, points in found.items() if points}
+
+
+def _distinct(kept: np.ndarray, link_of: np.ndarray, where: np.ndarray, normals: np.ndarray, gaps: np.ndarray,
+              velocity: np.ndarray) -> list[ContactPoint]:
+    """The ``kept`` points, deepest first, less those within :data:`MERGE_MM` of a deeper one of
+    the same link or with a normal opposing its (:func:`find_contacts`). Plain floats: a few
+    points compared pairwise, where numpy's per-call overhead dominated the contact search."""
+    chosen: list[tuple[int, float, float, float, float, float, float, int]] = []
+    points = where.tolist()
+    directions = normals.tolist()
+    links = link_of.tolist()
+    for i in np.argsort(gaps, kind="stable").tolist():
+        if not kept[i]:
+            continue
+        link, (px, py, pz), (nx, ny, nz) = links[i], points[i], directions[i]
+        if any(other == link and ((ox - px) ** 2 + (oy - py) ** 2 + (oz - pz) ** 2 < MERGE_MM ** 2
+                                  or mx * nx + my * ny + mz * nz < 0.0)
+               for other, ox, oy, oz, mx, my, mz, _ in chosen):
+            continue
+        chosen.append((link, px, py, pz, nx, ny, nz, i))
+    return [ContactPoint(link, where[i], normals[i], float(gaps[i]), velocity) for link, *_, i in chosen]
 
 
 def contact_frame(normal: np.ndarray, with_tangents: bool) -> np.ndarray:
@@ -173,33 +187,34 @@ def solve_forces(G: np.ndarray, u0: np.ndarray, gaps_mm: np.ndarray, h: float, m
     f = [0.0] * rows
     bias = [(g if g >= 0 else PENETRATION_ERP * g) / h for g in gaps_mm.tolist()]
     diagonal = [columns[j][j] for j in range(rows)]
-
-    def push(j: int, change: float) -> None:
-        f[j] += change
-        column = columns[j]
-        for k in range(rows):
-            u[k] += column[k] * change
-
+    # (normal row, bias) of the points a spring joint can move (not link 1 with a rigid follicle)
+    movable = [(per_point * i, b) for i, b in enumerate(bias) if diagonal[per_point * i] > 0.0]
     for _ in range(iterations):
         largest_change = 0.0
-        for i, b in enumerate(bias):
-            r = per_point * i
-            if diagonal[r] <= 0.0:      # a point no spring joint can move (link 1, rigid follicle)
-                continue
-            change = max(0.0, f[r] - (u[r] + b) / diagonal[r]) - f[r]
+        for r, b in movable:
+            normal = f[r]
+            change = max(0.0, normal - (u[r] + b) / diagonal[r]) - normal
             if change:
-                push(r, change)
+                f[r] = normal + change
+                u = [uk + ck * change for uk, ck in zip(u, columns[r])]
                 largest_change = max(largest_change, abs(change))
-            if per_point == 3:
-                t1 = f[r + 1] - u[r + 1] / diagonal[r + 1]
-                t2 = f[r + 2] - u[r + 2] / diagonal[r + 2]
-                size, bound = math.hypot(t1, t2), mu * f[r]
-                if size > bound:
-                    t1, t2 = (t1 * bound / size, t2 * bound / size) if size > 0 else (0.0, 0.0)
-                for j, value in ((r + 1, t1), (r + 2, t2)):
-                    if value != f[j]:
-                        largest_change = max(largest_change, abs(value - f[j]))
-                        push(j, value - f[j])
+            if per_point == 1:
+                continue
+            r1, r2 = r + 1, r + 2
+            bound = mu * f[r]
+            if bound == 0.0 and f[r1] == 0.0 and f[r2] == 0.0:    # stays unloaded: nothing changes
+                continue
+            t1 = f[r1] - u[r1] / diagonal[r1]
+            t2 = f[r2] - u[r2] / diagonal[r2]
+            size = math.hypot(t1, t2)
+            if size > bound:
+                t1, t2 = (t1 * bound / size, t2 * bound / size) if size > 0 else (0.0, 0.0)
+            for j, value in ((r1, t1), (r2, t2)):
+                if value != f[j]:
+                    change = value - f[j]
+                    largest_change = max(largest_change, abs(change))
+                    f[j] += change
+                    u = [uk + ck * change for uk, ck in zip(u, columns[j])]
         if largest_change <= TOLERANCE * max(map(abs, f), default=0.0):
             break
     return np.array(f)

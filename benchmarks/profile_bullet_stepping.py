@@ -1,0 +1,68 @@
+"""Where a Bullet dataset trial goes, without a profiler's overhead: a process-time clock around
+every pybullet call and around the engine's per-step functions.
+
+Run: .venv/bin/python benchmarks/profile_bullet_stepping.py [--trials 0-3]
+
+The trials are those of configs/simulate.yaml on Bullet (as `pipeline simulate` draws them; run
+`pipeline build-meshes` first), in one process. Prints CPU-s per trial and, per clocked function,
+CPU-s per trial, calls per trial and µs per call. Clocks nest: ``apply_implicit_torques``
+includes ``_contact_forces`` (which includes ``solve_forces``) and ``_factorise``; the stepping
+generator (``BulletWorld.run``) includes all of them; what a trial costs beyond it is the free
+path and the template. Each clock adds ≈ 1 µs per call.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import time
+from pathlib import Path
+
+import pybullet
+from profile_mujoco_stepping import timed
+
+from pipeline.config.loader import load_config
+from pipeline.config.simulate import SimulateConfig
+from pipeline.engines import bullet, bullet_whisker
+from pipeline.runner.scenes import scene_catalogue
+from pipeline.runner.simulate import _layout
+from pipeline.runner.trial import RunSpec, Simulator
+
+REPO = Path(__file__).resolve().parents[1]
+PYBULLET_CALLS = ("stepSimulation", "getJointStates", "calculateInverseDynamics", "calculateMassMatrix",
+                  "calculateJacobian", "setJointMotorControlArray", "getLinkStates", "getLinkState",
+                  "getClosestPoints", "getOverlappingObjects", "applyExternalForce", "getBasePositionAndOrientation")
+ENGINE_CALLS = ((bullet_whisker, "solve_forces"), (bullet, "find_contacts"),
+                *((bullet_whisker.BulletWhisker, name) for name in
+                  ("apply_implicit_torques", "_contact_forces", "_factorise", "_record_wrench", "base_wrench", "build")),
+                (bullet.BulletWorld, "_flag_contacts"), (bullet.BulletWorld, "run"))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--trials", default="0-3", help="first-last trial index")
+    args = parser.parse_args()
+    first, last = (int(v) for v in args.trials.split("-"))
+    seconds, calls = collections.Counter(), collections.Counter()
+    for name in PYBULLET_CALLS:
+        timed(pybullet, name, f"pybullet.{name}", seconds, calls)
+    for owner, name in ENGINE_CALLS:
+        timed(owner, name, name, seconds, calls)
+    config, _ = load_config(SimulateConfig, REPO / "configs" / "simulate.yaml", env_prefix="PIPELINE_SIMULATE_",
+                            overrides={"model": {"engine": {"name": "bullet"}},
+                                       "scenes": {"folder": str(REPO / "outputs" / "meshes")}})
+    simulator = Simulator(RunSpec(config, scene_catalogue(config.scenes), _layout(config)))
+    total, n = 0.0, last - first + 1
+    for index in range(first, last + 1):
+        start = time.process_time()
+        status = simulator.run(index).record.status
+        total += time.process_time() - start
+        print(f"trial {index}: {time.process_time() - start:.2f} CPU-s ({status})", flush=True)
+    print(f"{total / n:.2f} CPU-s per trial over {n}")
+    for label, spent in sorted(seconds.items(), key=lambda item: -item[1]):
+        print(f"{label:40s} {spent / n:7.3f} CPU-s/trial {calls[label] / n:9.0f} calls/trial "
+              f"{1e6 * spent / calls[label]:8.1f} µs/call")
+
+
+if __name__ == "__main__":
+    main()
