@@ -34,11 +34,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.engines.one_sided import one_sided
+from pipeline.engines.one_sided import MERGE_MM, one_sided
 
 CONTACT_REACH_MM = 0.25      # speculative contact distance (a tip moves ≲ 0.15 mm per step)
 PENETRATION_ERP = 0.2        # fraction of a penetration removed per step
-MERGE_MM = 0.1               # a link's points closer than this to a deeper one are dropped
 TOLERANCE = 1e-6             # Gauss–Seidel stops when no force changes by more than this × the largest
 
 

@@ -149,6 +149,8 @@ import numpy as np
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, TrialSetup, World, WorldResult
+from pipeline.engines.mujoco_faces import FaceContacts
+from pipeline.engines.one_sided import OneSidedMesh
 from pipeline.engines.common import (CLEARANCE_MARGIN_M, ContactFlags, implausible, jam_message, link_reach_m,
                                      node_arc_fractions, node_padding_m, path_distance_m, start_rate)
 from pipeline.engines.stepping import damping_folds, folded_refinement_levels
@@ -550,6 +552,7 @@ class MujocoWorld(World):
             self.dof_member[np.concatenate([self.kinematic[3 * j:3 * j + 3], qpos])] = j
         self.link_of_geom = np.full(m.ngeom + 1, -1, np.int64)    # last entry: geom −1 (a flex)
         self.link_of_geom[self.whisker_geoms] = np.arange(len(self.whisker_geoms))
+        self.faces = self._face_contacts(parts)
         stiffness = np.zeros(m.nv)
         springs = m.jnt_stiffness > 0
         stiffness[m.jnt_dofadr[springs]] = m.jnt_stiffness[springs]
@@ -558,6 +561,22 @@ class MujocoWorld(World):
             if damping_folds(self.whiskers[k], self.dt_s):
                 m.dof_damping[qpos] -= self.spring_rate[qpos]
                 self.spring_rate[qpos] = 0.0
+
+    def _face_contacts(self, parts: list[_Part]) -> FaceContacts | None:
+        """The rewrite of the static meshes' prism contacts as triangle contacts
+        (:mod:`pipeline.engines.mujoco_faces`), or None without a static mesh."""
+        import mujoco
+
+        m = self.model
+        static = [p for p in parts if isinstance(p.obstacle, TriangleMesh) and not p.velocity_mm_s.any()]
+        if not static:
+            return None
+        prisms = np.flatnonzero((m.geom_type[:m.ngeom] == mujoco.mjtGeom.mjGEOM_MESH) & (m.geom_bodyid == 0))
+        mesh_of_geom = np.full(m.ngeom + 1, -1, np.int64)        # the world body's prisms, in the parts' order
+        mesh_of_geom[prisms] = np.repeat(np.arange(len(static)), [len(p.prisms) for p in static])
+        meshes = [(OneSidedMesh(p.obstacle), np.asarray(p.obstacle.position_m, float) * U.LENGTH) for p in static]
+        return FaceContacts(mesh_of_geom, meshes, self.link_of_geom, self.link_bodies.ravel(),
+                            self.link_lengths_mm.ravel(), m.geom_size[self.whisker_geoms, 0].copy())
 
     # -- scene ---------------------------------------------------------------------------
     def _mesh_prisms(self, scene: Scene, index: int) -> MeshPrisms:
@@ -743,7 +762,7 @@ class MujocoWorld(World):
         bad_acceleration = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
         qpos, qvel, qfrc = d.qpos, d.qvel, d.qfrc_applied
         kinematic, armature, spring_rate = self.kinematic, self.armature, self.spring_rate
-        step_function = mujoco.mj_step
+        step_function = mujoco.mj_step if self.faces is None else self.faces.step
         loads = setup.loads
         yield plan
         for step in range(n_steps + 1):
@@ -763,7 +782,7 @@ class MujocoWorld(World):
                                     park, result)
             if d.ncon:
                 flags.add(*self._touched())
-                links = self.link_of_geom[d.contact.geom]
+                links = self.link_of_geom[d.contact.geom[d.contact.exclude == 0]]
                 result.touched[links[links >= 0] // self.links] = True
                 if setup.hold_on_contact:
                     newly = flags.touching.any(axis=1) & ~held
@@ -819,7 +838,7 @@ class MujocoWorld(World):
         distal nodes (mm; MuJoCo's contacts and positions are both those at the step's start)."""
         d = self.data
         contact = d.contact
-        pressed = contact.dist <= 0.0
+        pressed = (contact.dist <= 0.0) & (contact.exclude == 0)
         links = self.link_of_geom[contact.geom[pressed]].max(axis=1)   # the pair's whisker link, or −1
         mine = links >= 0
         links = links[mine]

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 ONE_SIDED_DEPTH_MM = 0.25   # a capsule axis farther behind a mesh face than this does not touch it
+MERGE_MM = 0.1              # a link's contact points closer than this to a deeper one are dropped
 
 
 class OneSidedMesh:
