@@ -8,14 +8,15 @@ as deep as the step let it sink. Here the prisms only *find* which link touches 
 MuJoCo's collision, every link–prism contact is rewritten before the constraints are built
 (:meth:`FaceContacts.step`), and the step goes on as ``mj_step`` does.
 
-Each link–prism contact is read at its capsule axis point (the axis point under MuJoCo's
-witness, ``pos − n·(dist/2 + r)`` from the link's side): its contact with the surface (nearest
-face, edge or vertex; an axis that has crossed a face pushed back out along the face's normal,
-:func:`~pipeline.engines.one_sided.one_sided`), kept where it penetrates (gap ≤ 0). Per link,
-deepest first, a contact within :data:`~pipeline.engines.one_sided.MERGE_MM` of a kept one, or
-whose normal opposes one (a link between two faces: the deeper pushes it out), is dropped.
-A kept contact takes the new position, normal and tangents, and distance in MuJoCo's list; the
-others are excluded (``exclude`` 1, no constraint row), so the contact count never grows.
+Per link with prism contacts, the candidates are each contact's capsule axis point (the axis
+point under MuJoCo's witness, ``pos − n·(dist/2 + r)`` from the link's side) and the link's two
+nodes; each reads its contact with the surface (nearest face, edge or vertex; a crossed axis
+pushed back out along the face normal), kept where it penetrates (gap ≤ 0). Deepest first, a
+candidate within :data:`~pipeline.engines.one_sided.MERGE_MM` of a kept one of the same link,
+or whose normal opposes one (a link between two faces: the deeper pushes it out), is dropped.
+The kept ones take the link's contact slots in MuJoCo's list (deepest first: position, normal
+and tangents, distance); slots left over are excluded (``exclude`` 1, no constraint row) and
+candidates beyond the slots dropped, so the contact count never grows.
 Internal units mm.
 """
 
@@ -28,14 +29,12 @@ from pipeline.engines.one_sided import MERGE_MM, OneSidedMesh, one_sided
 
 def contact_frames(normals: np.ndarray) -> np.ndarray:
     """[C, 9] MuJoCo contact frames: each unit normal [C, 3] then two unit tangents (rows,
-    right-handed)."""
+    right-handed; Duff et al. 2017's branchless orthonormal basis)."""
     x, y, z = normals.T
-    along_x = np.abs(x) >= np.abs(y)          # a tangent ⟂ n: n × y when n is nearer x than y, else n × x
-    t1 = np.where(along_x[:, None], np.stack([-z, np.zeros_like(x), x], 1), np.stack([np.zeros_like(x), z, -y], 1))
-    t1 /= np.sqrt(np.einsum("ij,ij->i", t1, t1))[:, None]
-    a, b, c = t1.T
-    t2 = np.stack([y * c - z * b, z * a - x * c, x * b - y * a], 1)
-    return np.concatenate([normals, t1, t2], axis=1)
+    s = np.copysign(1.0, z)
+    a = -1.0 / (s + z)
+    b = x * y * a
+    return np.stack([x, y, z, 1.0 + s * x * x * a, s * b, -s * x, b, s + y * y * a, -y], axis=1)
 
 
 def _first_free(conflicts: np.ndarray) -> np.ndarray:
@@ -52,13 +51,15 @@ class FaceContacts:
 
     ``mesh_of_geom`` [ngeom + 1]: per geom, the index into ``meshes`` of the static mesh whose
     prism it is, or −1; ``meshes``: (:class:`OneSidedMesh`, its origin in the world, mm);
-    ``link_of_geom`` [ngeom + 1] the flat whisker link of a geom or −1; ``link_radii_mm``
-    [flat links] each link's capsule radius."""
+    ``link_of_geom`` [ngeom + 1] the flat whisker link of a geom or −1; ``link_bodies``,
+    ``link_lengths_mm``, ``link_radii_mm`` [flat links] each link's body, length and capsule
+    radius."""
 
     def __init__(self, mesh_of_geom: np.ndarray, meshes: list[tuple[OneSidedMesh, np.ndarray]],
-                 link_of_geom: np.ndarray, link_radii_mm: np.ndarray):
-        self.mesh_of_geom, self.meshes = mesh_of_geom, meshes
-        self.link_of_geom, self.link_radii_mm = link_of_geom, link_radii_mm
+                 link_of_geom: np.ndarray, link_bodies: np.ndarray, link_lengths_mm: np.ndarray,
+                 link_radii_mm: np.ndarray):
+        self.mesh_of_geom, self.meshes, self.link_of_geom = mesh_of_geom, meshes, link_of_geom
+        self.link_bodies, self.link_lengths_mm, self.link_radii_mm = link_bodies, link_lengths_mm, link_radii_mm
 
     def step(self, m, d) -> None:
         """One ``mj_step`` of the discrete integrator with the prism contacts rewritten
@@ -89,33 +90,52 @@ class FaceContacts:
         rows = np.flatnonzero((mesh >= 0) & (pair_links.max(axis=1) >= 0))
         if not rows.size:
             return False
-        pair_links = pair_links[rows]
+        mesh, pair_links = mesh[rows], pair_links[rows]
         links = pair_links.max(axis=1)
-        sign = np.where(pair_links[:, 0] >= 0, -1.0, 1.0)[:, None]    # normals point from geom 0 to geom 1
+        link_first = pair_links[:, 0] >= 0                          # normals point from geom 0 to geom 1
+        toward_link = contact.frame[rows, :3] * np.where(link_first, -1.0, 1.0)[:, None]
         radii = self.link_radii_mm[links]
-        axis = contact.pos[rows] + sign * contact.frame[rows, :3] * (0.5 * contact.dist[rows] + radii)[:, None]
-        if len(self.meshes) == 1:
-            kept, points, normals, gaps = one_sided(axis, radii, *self.meshes[0], 0.0)
-        else:
-            mesh = mesh[rows]
-            kept = np.zeros(len(axis), bool)
-            points, normals, gaps = np.zeros_like(axis), np.zeros_like(axis), np.zeros(len(axis))
-            for k in np.unique(mesh):
-                on = mesh == k
-                kept[on], points[on], normals[on], gaps[on] = one_sided(axis[on], radii[on], *self.meshes[k], 0.0)
-        candidates = np.flatnonzero(kept)
-        order = candidates[np.lexsort((gaps[candidates], links[candidates]))]   # per link, deepest first
-        ordered_points, ordered_normals = points[order], normals[order]
-        conflicts = (links[order, None] == links[None, order]) & (
-            (np.sum((ordered_points[:, None] - ordered_points[None]) ** 2, axis=2) < MERGE_MM ** 2)
-            | (ordered_normals @ ordered_normals.T < 0.0))
-        chosen = np.zeros(len(rows), bool)
-        chosen[order[_first_free(conflicts)]] = True
-        contact.exclude[rows[~chosen]] = 1
-        contact.efc_address[rows[~chosen]] = -1                        # read as no force after the solve
-        rows, normals, gaps, sign = rows[chosen], normals[chosen], gaps[chosen], sign[chosen]
-        contact.frame[rows] = contact_frames(sign * normals)
-        contact.pos[rows] = points[chosen] - 0.5 * gaps[:, None] * normals     # midway between the surfaces
-        contact.dist[rows] = gaps
+        witness = contact.pos[rows] + toward_link * (0.5 * contact.dist[rows] + radii)[:, None]
+        touched, first = np.unique(links, return_index=True)
+        bodies = self.link_bodies[touched]
+        proximal = d.xpos[bodies]
+        distal = proximal + d.xmat[bodies][:, 0::3] * self.link_lengths_mm[touched, None]
+        link_of = np.concatenate([links, touched, touched])
+        mesh_of = np.concatenate([mesh, mesh[first], mesh[first]])
+        axis = np.concatenate([witness, proximal, distal])
+        kept = np.zeros(len(axis), bool)
+        points, normals, gaps = np.zeros_like(axis), np.zeros_like(axis), np.zeros(len(axis))
+        for k in np.unique(mesh_of):
+            on = mesh_of == k
+            surface, origin = self.meshes[k]
+            kept[on], points[on], normals[on], gaps[on] = one_sided(axis[on], self.link_radii_mm[link_of[on]],
+                                                                    surface, origin, 0.0)
+        order = np.flatnonzero(kept)[np.lexsort((gaps[kept], link_of[kept]))]   # per link, deepest first
+        link_of, points, normals, gaps = link_of[order], points[order], normals[order], gaps[order]
+        near = np.sum((points[:, None] - points[None]) ** 2, axis=2) < MERGE_MM ** 2
+        opposed = normals @ normals.T < 0.0
+        chosen = _first_free((link_of[:, None] == link_of[None]) & (near | opposed))
+        link_of, points, normals, gaps = link_of[chosen], points[chosen], normals[chosen], gaps[chosen]
+        slot_key = self._ranked(links)
+        chosen_key = self._ranked(link_of)                           # ascending: sorted by link, then rank
+        at = np.minimum(np.searchsorted(chosen_key, slot_key), max(chosen_key.size - 1, 0))
+        filled = chosen_key[at] == slot_key if chosen_key.size else np.zeros(rows.size, bool)
+        empty = rows[~filled]
+        contact.exclude[empty] = 1
+        contact.efc_address[empty] = -1                                # read as no force after the solve
+        rows, at, link_first = rows[filled], at[filled], link_first[filled]
+        normal = normals[at] * np.where(link_first, -1.0, 1.0)[:, None]
+        contact.frame[rows] = contact_frames(normal)
+        contact.pos[rows] = points[at] - 0.5 * gaps[at, None] * normals[at]    # midway between the surfaces
+        contact.dist[rows] = gaps[at]
         return True
 
+    @staticmethod
+    def _ranked(links: np.ndarray) -> np.ndarray:
+        """[C] a key per entry: its link, then its rank among the entries of that link, as
+        ``link·C' + rank`` (C' larger than any rank)."""
+        order = np.argsort(links, kind="stable")
+        sorted_links = links[order]
+        rank = np.empty(len(links), np.int64)
+        rank[order] = np.arange(len(links)) - np.searchsorted(sorted_links, sorted_links)
+        return links.astype(np.int64) * (1 << 20) + rank
