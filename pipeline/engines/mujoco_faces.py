@@ -9,14 +9,15 @@ MuJoCo's collision, every link–prism contact is rewritten before the constrain
 (:meth:`FaceContacts.step`), and the step goes on as ``mj_step`` does.
 
 Per link with prism contacts, the candidates are each contact's capsule axis point (the axis
-point under MuJoCo's witness, ``pos − n·(dist/2 + r)`` from the link's side) and the link's two
-nodes; each reads its contact with the surface (nearest face, edge or vertex; a crossed axis
-pushed back out along the face normal), kept where it penetrates (gap ≤ 0). Deepest first, a
-candidate within :data:`~pipeline.engines.one_sided.MERGE_MM` of a kept one of the same link,
-or whose normal opposes one (a link between two faces: the deeper pushes it out), is dropped.
-The kept ones take the link's contact slots in MuJoCo's list (deepest first: position, normal
-and tangents, distance); slots left over are excluded (``exclude`` 1, no constraint row) and
-candidates beyond the slots dropped, so the contact count never grows.
+point under MuJoCo's witness, ``pos − n·(dist/2 + r)`` from the link's side) and those of the
+link's two nodes that have crossed the surface; each reads its contact with the surface
+(nearest face, edge or vertex; a crossed axis pushed back out along the face normal), kept
+where it penetrates (gap ≤ 0). Deepest first, a candidate within :data:`DUPLICATE_MM` of a kept
+one of the same link (two prisms read at their shared edge), or whose normal opposes one (a
+link between two faces: the deeper pushes it out), is dropped. The kept ones take the link's
+contact slots in MuJoCo's list (deepest first: position, normal and tangents, distance); slots
+left over are excluded (``exclude`` 1, no constraint row) and candidates beyond the slots
+dropped, so the contact count never grows.
 Internal units mm.
 """
 
@@ -24,7 +25,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.engines.one_sided import MERGE_MM, OneSidedMesh, one_sided
+from pipeline.engines.one_sided import OneSidedMesh, one_sided
+
+DUPLICATE_MM = 1e-3         # a link's contacts this close are one (two prisms' faces read at their shared edge)
 
 
 def contact_frames(normals: np.ndarray) -> np.ndarray:
@@ -110,9 +113,10 @@ class FaceContacts:
             surface, origin = self.meshes[k]
             kept[on], points[on], normals[on], gaps[on] = one_sided(axis[on], self.link_radii_mm[link_of[on]],
                                                                     surface, origin, 0.0)
+        kept[len(rows):] &= gaps[len(rows):] < -self.link_radii_mm[link_of[len(rows):]]   # nodes: crossed only
         order = np.flatnonzero(kept)[np.lexsort((gaps[kept], link_of[kept]))]   # per link, deepest first
         link_of, points, normals, gaps = link_of[order], points[order], normals[order], gaps[order]
-        near = np.sum((points[:, None] - points[None]) ** 2, axis=2) < MERGE_MM ** 2
+        near = np.sum((points[:, None] - points[None]) ** 2, axis=2) < DUPLICATE_MM ** 2
         opposed = normals @ normals.T < 0.0
         chosen = _first_free((link_of[:, None] == link_of[None]) & (near | opposed))
         link_of, points, normals, gaps = link_of[chosen], points[chosen], normals[chosen], gaps[chosen]

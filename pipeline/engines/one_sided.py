@@ -18,16 +18,49 @@ MERGE_MM = 0.1              # a link's contact points closer than this to a deep
 
 class OneSidedMesh:
     """A triangle mesh as the surface of the solid behind it (faces wound outward): the point of
-    the surface nearest to given points and the outward normal of its face (Open3D's
-    closest-point query; mm, the mesh's frame)."""
+    the surface nearest to given points and the outward normal of its face (mm, the mesh's
+    frame). Open3D finds the nearest face (single precision); the point on it is computed in
+    double precision, so that a contact's gap and normal change smoothly with the axis point."""
 
     def __init__(self, mesh):
         self.surface = mesh.surface                 # metres, built once per mesh
+        self.vertices_mm = np.asarray(mesh.vertices_m, float) * 1e3
+        self.faces = np.asarray(mesh.faces, np.int64)
 
     def nearest(self, points_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """([P, 3] nearest surface point, [P, 3] its face's outward unit normal) of ``points_mm``."""
-        nearest_m, normals = self.surface.closest_points(points_mm / 1e3)
-        return nearest_m * 1e3, normals
+        a, b, c = np.moveaxis(self.vertices_mm[self.faces[self.surface.closest_faces(points_mm / 1e3)]], 1, 0)
+        normals = _cross(b - a, c - a)
+        normals /= np.sqrt(_dot(normals, normals))[:, None]
+        return closest_on_triangles(points_mm, a, b, c, normals), normals
+
+
+def _dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    return np.einsum("ij,ij->i", u, v)
+
+
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    return np.stack([u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1], u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2],
+                     u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]], axis=1)
+
+
+def closest_on_triangles(points: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray,
+                         normals: np.ndarray) -> np.ndarray:
+    """[P, 3] the point of triangle (a, b, c) [P, 3] each (unit ``normals`` by their winding)
+    nearest each point: its projection on the plane when that lies inside, else the nearest
+    point of the three edges."""
+    projected = points - _dot(points - a, normals)[:, None] * normals
+    inside = np.ones(len(points), bool)
+    nearest, best = projected.copy(), np.full(len(points), np.inf)
+    for u, v in ((a, b), (b, c), (c, a)):
+        edge = v - u
+        inside &= _dot(_cross(edge, projected - u), normals) >= 0.0
+        along = np.clip(_dot(points - u, edge) / np.maximum(_dot(edge, edge), 1e-30), 0.0, 1.0)
+        on_edge = u + along[:, None] * edge
+        distance = _dot(points - on_edge, points - on_edge)
+        closer = distance < best
+        nearest[closer], best[closer] = on_edge[closer], distance[closer]
+    return np.where(inside[:, None], projected, nearest)
 
 
 def one_sided(axis_mm: np.ndarray, radii_mm: np.ndarray, mesh: OneSidedMesh, offset_mm: np.ndarray,
