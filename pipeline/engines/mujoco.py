@@ -574,7 +574,8 @@ class MujocoWorld(World):
         prisms = np.flatnonzero((m.geom_type[:m.ngeom] == mujoco.mjtGeom.mjGEOM_MESH) & (m.geom_bodyid == 0))
         mesh_of_geom = np.full(m.ngeom + 1, -1, np.int64)        # the world body's prisms, in the parts' order
         mesh_of_geom[prisms] = np.repeat(np.arange(len(static)), [len(p.prisms) for p in static])
-        meshes = [(OneSidedMesh(p.obstacle), np.asarray(p.obstacle.position_m, float) * U.LENGTH) for p in static]
+        meshes = [(OneSidedMesh(p.obstacle, double_precision=True), np.asarray(p.obstacle.position_m, float) * U.LENGTH)
+                  for p in static]
         return FaceContacts(mesh_of_geom, meshes, self.link_of_geom, self.link_bodies.ravel(),
                             self.link_lengths_mm.ravel(), m.geom_size[self.whisker_geoms, 0].copy())
 
