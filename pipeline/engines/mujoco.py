@@ -97,7 +97,10 @@ Triangle meshes. MuJoCo collides a mesh geom as its convex hull, so a concave sc
 convex prism per face: the triangle and its copy moved along the inward normal (the winding's
 normal points out, as the pose sampler assumes) by half the distance to the next surface
 behind, clamped to :data:`PRISM_DEPTH_MM`; one contact point per capsule–prism pair (MuJoCo's
-multi-point convex contacts made whiskers jam between prisms). Only the faces some link can
+multi-point convex contacts made whiskers jam between prisms). The prisms only find the
+contacts: before the constraints are built, each link–prism contact is rewritten as the link's
+contact with the mesh's triangles, read one-sided as Bullet reads them
+(:mod:`pipeline.engines.mujoco_faces`), so no link is squeezed between two prisms' side walls. Only the faces some link can
 reach at the trial's pose are built, and the model is recompiled when that set changes
 (~0.05 ms per face); a world crops to the reach of the whiskers it simulates in the trial,
 not of all its whiskers (the others take the free path, :mod:`pipeline.engines.free_path`),
@@ -137,7 +140,8 @@ bit, for pegs and edges; with a mesh the cropped face set, hence the order of a 
 contacts, depends on the world's whiskers; the converged solve leaves that order a trace of
 ≤ 4·10⁻⁴ of a whisker's peak in one sample, ~10⁻¹³ typically: 6 dataset trials, right side
 alone against the full array: peak |M| the same, peak F_t within 6·10⁻⁵; with a pyramidal cone
-and 100 sweeps up to 5 % and 8 %), which the template's reuse of free motion relies on.
+and 100 sweeps up to 5 % and 8 %; with the triangle contacts up to 8·10⁻⁵ of the peak on a wavy
+wall, tests/test_engine_mujoco_contact.py), which the template's reuse of free motion relies on.
 """
 
 from __future__ import annotations
@@ -149,10 +153,10 @@ import numpy as np
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, TrialSetup, World, WorldResult
-from pipeline.engines.mujoco_faces import FaceContacts
-from pipeline.engines.one_sided import OneSidedMesh
 from pipeline.engines.common import (CLEARANCE_MARGIN_M, ContactFlags, implausible, jam_message, link_reach_m,
                                      node_arc_fractions, node_padding_m, path_distance_m, start_rate)
+from pipeline.engines.mujoco_faces import FaceContacts
+from pipeline.engines.one_sided import OneSidedMesh
 from pipeline.engines.stepping import damping_folds, folded_refinement_levels
 from pipeline.engines.swept_crop import SWEPT_RUNS, PrismSpheres, SweptCrop
 from pipeline.errors import SimulationError
