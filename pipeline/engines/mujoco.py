@@ -100,8 +100,8 @@ behind, clamped to :data:`PRISM_DEPTH_MM`; one contact point per capsule–prism
 multi-point convex contacts made whiskers jam between prisms). The prisms only find the
 contacts: before the constraints are built, each link–prism contact is rewritten as the link's
 contact with the mesh's triangles, read one-sided as Bullet reads them
-(:mod:`pipeline.engines.mujoco_faces`), so no link is squeezed between two prisms' side walls. Only the faces some link can
-reach at the trial's pose are built, and the model is recompiled when that set changes
+(:mod:`pipeline.engines.mujoco_faces`), so no link is squeezed between two prisms' side walls.
+Only the faces some link can reach at the trial's pose are built, and the model is recompiled when that set changes
 (~0.05 ms per face); a world crops to the reach of the whiskers it simulates in the trial,
 not of all its whiskers (the others take the free path, :mod:`pipeline.engines.free_path`),
 and where the coarse path ran, to the faces near each whisker's coarse node paths, checked
