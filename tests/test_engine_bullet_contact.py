@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from pipeline.config.physics import EngineConfig, ModelConfig
-from pipeline.engines.bullet_contact import (MERGE_MM, ONE_SIDED_DEPTH_MM, OneSidedMesh, _distinct, contact_frame,
-                                             one_sided, solve_forces)
+from pipeline.engines.bullet_contact import CONTACT_REACH_MM, _distinct, contact_frame, solve_forces
+from pipeline.engines.one_sided import MERGE_MM, ONE_SIDED_DEPTH_MM, OneSidedMesh, one_sided
 from pipeline.model.kinematics import Pose
 from pipeline.protocols.peg_sweep import bend_angles_deg, friction_ratio, penetration_m, run_peg_sweep
 from pipeline.protocols.whisking import run_trial
@@ -163,7 +163,7 @@ def test_a_mesh_is_read_one_sided():
                          np.array([[0, 1, 2], [0, 2, 3]]), "unit-sheet")
     axis = np.array([[0.2, 0.2, 0.1], [0.2, 0.2, -0.1], [1.2, 0.5, 0.1], [0.5, 0.5, -ONE_SIDED_DEPTH_MM - 0.1]])
     radius = np.full(4, 0.05)
-    kept, points, normals, gaps = one_sided(axis, radius, OneSidedMesh(sheet), np.zeros(3))
+    kept, points, normals, gaps = one_sided(axis, radius, OneSidedMesh(sheet), np.zeros(3), CONTACT_REACH_MM)
     assert kept.tolist() == [True, True, True, False]
     assert np.allclose(normals[:2], [0, 0, 1], atol=1e-6) and np.allclose(gaps[:2], [0.05, -0.15], atol=1e-5)
     assert np.allclose(points[1], [0.2, 0.2, -0.15], atol=1e-5)               # the capsule's deepest point

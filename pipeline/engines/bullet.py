@@ -52,7 +52,7 @@ be resolved, e.g. a bent start held against a surface) is taken out of the world
 its world goes on); the template simulates it again alone with half the step.
 
 Triangle meshes (scans) are the scanned surface itself, read as the surface of the solid
-behind their outward-wound faces (:func:`~pipeline.engines.bullet_contact.one_sided`): a link's
+behind their outward-wound faces (:func:`~pipeline.engines.one_sided.one_sided`): a link's
 contact is its axis points' distance to the nearest face, edge or vertex, and a link whose
 axis has crossed a face (which has no thickness) is pushed back out along that face's
 normal. Bullet's own solver on meshes (before issue 24's round 3) saw the links' inertia but
@@ -79,9 +79,10 @@ import numpy as np
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, TrialSetup, World, WorldResult
-from pipeline.engines.bullet_contact import OneSidedMesh, find_contacts
+from pipeline.engines.bullet_contact import find_contacts
 from pipeline.engines.bullet_whisker import BulletWhisker, quat
 from pipeline.engines.common import ContactFlags, implausible, jam_message, node_arc_fractions
+from pipeline.engines.one_sided import OneSidedMesh
 from pipeline.errors import UserError
 from pipeline.model.array import WhiskerModel
 from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh

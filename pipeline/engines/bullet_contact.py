@@ -34,10 +34,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.engines.one_sided import MERGE_MM, one_sided
+
 CONTACT_REACH_MM = 0.25      # speculative contact distance (a tip moves ≲ 0.15 mm per step)
 PENETRATION_ERP = 0.2        # fraction of a penetration removed per step
-ONE_SIDED_DEPTH_MM = 0.25   # a capsule axis farther behind a mesh face than this does not touch it
-MERGE_MM = 0.1               # a link's points closer than this to a deeper one are dropped
 TOLERANCE = 1e-6             # Gauss–Seidel stops when no force changes by more than this × the largest
 
 
@@ -52,55 +52,15 @@ class ContactPoint:
     surface_velocity: np.ndarray   # [3] mm/s, the obstacle's (friction acts on the relative sliding)
 
 
-class OneSidedMesh:
-    """A triangle mesh as the surface of the solid behind it (faces wound outward): the point of
-    the surface nearest to given points and the outward normal of its face (Open3D's
-    closest-point query; mm, the mesh's frame)."""
-
-    def __init__(self, mesh):
-        self.surface = mesh.surface                 # metres, built once per mesh
-
-    def nearest(self, points_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """([P, 3] nearest surface point, [P, 3] its face's outward unit normal) of ``points_mm``."""
-        nearest_m, normals = self.surface.closest_points(points_mm / 1e3)
-        return nearest_m * 1e3, normals
-
-
-def one_sided(axis_mm: np.ndarray, radii_mm: np.ndarray, mesh: OneSidedMesh,
-              offset_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Contacts of capsule axis points ``axis_mm`` [P, 3] (capsule ``radii_mm`` [P]) with the
-    solid behind a mesh's faces (the mesh at ``offset_mm``): (kept [P] bool, points on the
-    capsules, normals toward them, gaps).
-
-    The contact is the axis point c's distance d to the nearest point q of the surface: in
-    front of q's face, normal (c − q)/d (a face's own normal, or an edge's or vertex's
-    direction) and gap d − r; behind it (the axis has crossed the surface), the face's outward
-    normal and gap −(d + r), or no contact beyond :data:`ONE_SIDED_DEPTH_MM` (behind the
-    scanned surface, where nothing is). Bullet's own reading of a capsule against one triangle
-    of no thickness, once they overlap, is a penetration direction: sideways across the
-    triangle's edge, or inward once the axis has crossed, pushing the link on through; with the
-    faces around a link pushing it from opposite sides the step's problem had no bounded
-    solution (the jam)."""
-    nearest, outward = mesh.nearest(axis_mm - offset_mm)
-    away = axis_mm - offset_mm - nearest
-    distance = np.sqrt(np.einsum("ij,ij->i", away, away))
-    behind = np.einsum("ij,ij->i", away, outward) < 0.0
-    along = np.where((distance > 1e-9)[:, None], away / np.maximum(distance, 1e-9)[:, None], outward)
-    normals = np.where(behind[:, None], outward, along)
-    gaps = np.where(behind, -distance, distance) - radii_mm
-    kept = (gaps <= CONTACT_REACH_MM) & (~behind | (distance <= ONE_SIDED_DEPTH_MM))
-    return kept, axis_mm - radii_mm[:, None] * normals, normals, gaps
-
-
 def find_contacts(client: int, obstacles, whisker_bodies: dict) -> dict[int, list[ContactPoint]]:
     """Contact points within :data:`CONTACT_REACH_MM` of the obstacles, per whisker body id.
 
-    ``obstacles``: (body id, velocity [3] mm/s, :class:`OneSidedMesh` or None, offset [3] mm of
+    ``obstacles``: (body id, velocity [3] mm/s, :class:`~pipeline.engines.one_sided.OneSidedMesh` or None, offset [3] mm of
     the mesh frame) of each; ``whisker_bodies``: body id → its
     :class:`~pipeline.engines.bullet_whisker.BulletWhisker`.
     A broadphase query per obstacle selects the candidate whiskers (cheap; the whiskers' boxes
     there are a step old, hence twice the reach), then ``getClosestPoints`` gives the points.
-    On a mesh they only name the links near it: the contacts are those of :func:`one_sided` at
+    On a mesh they only name the links near it: the contacts are those of :func:`~pipeline.engines.one_sided.one_sided` at
     the capsule axis points Bullet found and at both nodes of each such link (the deepest
     point of a link that crosses a face is an end, where Bullet's witness point is not).
     A mesh gives one point per triangle near a link: a link's points within :data:`MERGE_MM`
@@ -133,7 +93,8 @@ def find_contacts(client: int, obstacles, whisker_bodies: dict) -> dict[int, lis
                 axis = np.concatenate([where + whisker.capsule_radii[link_of, None] * normals,
                                        np.array([whisker.link_nodes(i) for i in touched]).reshape(-1, 3)])
                 link_of = np.concatenate([link_of, np.repeat(touched, 2)])
-                kept, where, normals, gaps = one_sided(axis, whisker.capsule_radii[link_of], mesh, offset)
+                kept, where, normals, gaps = one_sided(axis, whisker.capsule_radii[link_of], mesh, offset,
+                                                       CONTACT_REACH_MM)
             found.setdefault(body, []).extend(_distinct(kept, link_of, where, normals, gaps, velocity))
     return {body: points for body, points in found.items() if points}
 

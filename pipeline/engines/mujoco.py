@@ -97,8 +97,11 @@ Triangle meshes. MuJoCo collides a mesh geom as its convex hull, so a concave sc
 convex prism per face: the triangle and its copy moved along the inward normal (the winding's
 normal points out, as the pose sampler assumes) by half the distance to the next surface
 behind, clamped to :data:`PRISM_DEPTH_MM`; one contact point per capsule–prism pair (MuJoCo's
-multi-point convex contacts made whiskers jam between prisms). Only the faces some link can
-reach at the trial's pose are built, and the model is recompiled when that set changes
+multi-point convex contacts made whiskers jam between prisms). The prisms only find the
+contacts: before the constraints are built, each link–prism contact is rewritten as the link's
+contact with the mesh's triangles, read one-sided as Bullet reads them
+(:mod:`pipeline.engines.mujoco_faces`), so no link is squeezed between two prisms' side walls.
+Only the faces some link can reach at the trial's pose are built, and the model is recompiled when that set changes
 (~0.05 ms per face); a world crops to the reach of the whiskers it simulates in the trial,
 not of all its whiskers (the others take the free path, :mod:`pipeline.engines.free_path`),
 and where the coarse path ran, to the faces near each whisker's coarse node paths, checked
@@ -137,7 +140,8 @@ bit, for pegs and edges; with a mesh the cropped face set, hence the order of a 
 contacts, depends on the world's whiskers; the converged solve leaves that order a trace of
 ≤ 4·10⁻⁴ of a whisker's peak in one sample, ~10⁻¹³ typically: 6 dataset trials, right side
 alone against the full array: peak |M| the same, peak F_t within 6·10⁻⁵; with a pyramidal cone
-and 100 sweeps up to 5 % and 8 %), which the template's reuse of free motion relies on.
+and 100 sweeps up to 5 % and 8 %; with the triangle contacts up to 8·10⁻⁵ of the peak on a wavy
+wall, tests/test_engine_mujoco_contact.py), which the template's reuse of free motion relies on.
 """
 
 from __future__ import annotations
@@ -151,6 +155,8 @@ from pipeline.engines import units as U
 from pipeline.engines.base import Engine, TrialSetup, World, WorldResult
 from pipeline.engines.common import (CLEARANCE_MARGIN_M, ContactFlags, implausible, jam_message, link_reach_m,
                                      node_arc_fractions, node_padding_m, path_distance_m, start_rate)
+from pipeline.engines.mujoco_faces import FaceContacts
+from pipeline.engines.one_sided import OneSidedMesh
 from pipeline.engines.stepping import damping_folds, folded_refinement_levels
 from pipeline.engines.swept_crop import SWEPT_RUNS, PrismSpheres, SweptCrop
 from pipeline.errors import SimulationError
@@ -555,6 +561,7 @@ class MujocoWorld(World):
             self.dof_member[np.concatenate([self.kinematic[3 * j:3 * j + 3], qpos])] = j
         self.link_of_geom = np.full(m.ngeom + 1, -1, np.int64)    # last entry: geom −1 (a flex)
         self.link_of_geom[self.whisker_geoms] = np.arange(len(self.whisker_geoms))
+        self.faces = self._face_contacts(parts)
         stiffness = np.zeros(m.nv)
         springs = m.jnt_stiffness > 0
         stiffness[m.jnt_dofadr[springs]] = m.jnt_stiffness[springs]
@@ -563,6 +570,23 @@ class MujocoWorld(World):
             if damping_folds(self.whiskers[k], self.dt_s):
                 m.dof_damping[qpos] -= self.spring_rate[qpos]
                 self.spring_rate[qpos] = 0.0
+
+    def _face_contacts(self, parts: list[_Part]) -> FaceContacts | None:
+        """The rewrite of the static meshes' prism contacts as triangle contacts
+        (:mod:`pipeline.engines.mujoco_faces`), or None without a static mesh."""
+        import mujoco
+
+        m = self.model
+        static = [p for p in parts if isinstance(p.obstacle, TriangleMesh) and not p.velocity_mm_s.any()]
+        if not static:
+            return None
+        prisms = np.flatnonzero((m.geom_type[:m.ngeom] == mujoco.mjtGeom.mjGEOM_MESH) & (m.geom_bodyid == 0))
+        mesh_of_geom = np.full(m.ngeom + 1, -1, np.int64)        # the world body's prisms, in the parts' order
+        mesh_of_geom[prisms] = np.repeat(np.arange(len(static)), [len(p.prisms) for p in static])
+        meshes = [(OneSidedMesh(p.obstacle, double_precision=True), np.asarray(p.obstacle.position_m, float) * U.LENGTH)
+                  for p in static]
+        return FaceContacts(mesh_of_geom, meshes, self.link_of_geom, self.link_bodies.ravel(),
+                            self.link_lengths_mm.ravel(), m.geom_size[self.whisker_geoms, 0].copy())
 
     # -- scene ---------------------------------------------------------------------------
     def _mesh_prisms(self, scene: Scene, index: int) -> MeshPrisms:
@@ -748,7 +772,7 @@ class MujocoWorld(World):
         bad_acceleration = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
         qpos, qvel, qfrc = d.qpos, d.qvel, d.qfrc_applied
         kinematic, armature, spring_rate = self.kinematic, self.armature, self.spring_rate
-        step_function = mujoco.mj_step
+        step_function = mujoco.mj_step if self.faces is None else self.faces.step
         loads = setup.loads
         yield plan
         for step in range(n_steps + 1):
@@ -768,7 +792,7 @@ class MujocoWorld(World):
                                     park, result)
             if d.ncon:
                 flags.add(*self._touched())
-                links = self.link_of_geom[d.contact.geom]
+                links = self.link_of_geom[d.contact.geom[d.contact.exclude == 0]]
                 result.touched[links[links >= 0] // self.links] = True
                 if setup.hold_on_contact:
                     newly = flags.touching.any(axis=1) & ~held
@@ -824,7 +848,7 @@ class MujocoWorld(World):
         distal nodes (mm; MuJoCo's contacts and positions are both those at the step's start)."""
         d = self.data
         contact = d.contact
-        pressed = contact.dist <= 0.0
+        pressed = (contact.dist <= 0.0) & (contact.exclude == 0)
         links = self.link_of_geom[contact.geom[pressed]].max(axis=1)   # the pair's whisker link, or −1
         mine = links >= 0
         links = links[mine]

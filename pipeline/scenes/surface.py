@@ -35,6 +35,11 @@ class SurfaceQueries:
         found = self.scene.compute_closest_points(query, nthreads=1)
         return found["points"].numpy().astype(float), found["primitive_normals"].numpy().astype(float)
 
+    def closest_faces(self, points: np.ndarray) -> np.ndarray:
+        """[n] the index of the face nearest each point (found in single precision)."""
+        query = self._o3d.core.Tensor(np.asarray(points, np.float32).reshape(-1, 3))
+        return self.scene.compute_closest_points(query, nthreads=1)["primitive_ids"].numpy().astype(np.int64)
+
     def cast(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """First hit of rays o + t·d: t in units of |d| (inf if none) and the face normals."""
         rays = np.hstack([np.reshape(origins, (-1, 3)), np.reshape(directions, (-1, 3))])
