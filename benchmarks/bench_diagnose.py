@@ -75,7 +75,8 @@ def run(draws: int, seed0: int, first: int = 0, rows: list[dict] | None = None, 
         rows.append({"cause": cause, "seed": seed, "named": result.cause, "key_error": error, "recovered": ok,
                      "noise_mm": scenario.config.tracking.noise_mm, "truth": scenario.truth,
                      "before_m": result.baseline_heldout, "after_m": result.gain_after,
-                     "cpu_s": time.process_time() - start, "effect_rms_m": effect_rms_m(scenario)})
+                     "cpu_s": time.process_time() - start, "effect_rms_m": effect_rms_m(scenario),
+                     "decision": result.evidence})
         progress(f"{k + 1:4d} {cause:>18} → {result.cause:<18} key error {error:+.3f} "
                  f"effect/noise {rows[-1]['effect_rms_m'] / (rows[-1]['noise_mm'] * 1e-3):.2f} "
                  f"({rows[-1]['cpu_s']:.1f} s)")
