@@ -52,11 +52,15 @@ def _noise_m(d) -> float:
     return float(np.sqrt((0.25 * (top ** 2 + side ** 2) + top ** 2 + side ** 2) / 3))
 
 
-def _effect_rms_m(d, clean) -> float:
-    """RMS of the clean tracked positions with minus without the draw's effects (same drives)."""
+def _effect_rms_m(d, clean, first_mode_zeta: float) -> float:
+    """RMS of the clean tracked positions with minus without the draw's effects (same drives).
+    Without a damping law means Kelvin–Voigt at the truth's first in-plane damping ratio
+    ``first_mode_zeta``: a fitted ζ takes that up, and the law's ``zeta1`` is not it for eq. 3
+    (θ_ζ, ζ1 ≈ 0.23·θ_ζ), so the effect of a law is what it does beyond its first mode's damping."""
     if d.label == "none":
         return 0.0
-    neutral = replace(d, whisker=Whisker(**{**d.whisker.__dict__, **NEUTRAL}))
+    law = {"zeta1": first_mode_zeta} if d.whisker.law != NEUTRAL["law"] else {}
+    neutral = replace(d, whisker=Whisker(**{**d.whisker.__dict__, **NEUTRAL, **law}))
     if d.whisker.length_scale != 1.0:     # trimmed: the same material points of the untrimmed whisker
         neutral = replace(neutral, whisker=replace(neutral.whisker, length_scale=1.0))
     other = clean_positions(neutral)
@@ -69,11 +73,11 @@ def prepare(k: int, seed0: int, workdir: Path, elements: int) -> tuple[Path, dic
     if path.is_file() and meta_path.is_file():
         return path, json.loads(meta_path.read_text())
     d = draw(label, seed, elements)
-    clean = clean_positions(d)
+    clean, modes = clean_positions(d), true_modes(d)
     write_timeseries(path, measurement(d, clean))
     meta = {"label": label, "seed": seed, "expected": sorted(d.expected), "truth": d.truth,
-            "noise_m": _noise_m(d), "effect_rms_m": _effect_rms_m(d, clean), "bend": bend(d, clean),
-            "modes": true_modes(d), "curved": d.whisker.curvature_per_m > 0, "length_m": d.whisker.length_m}
+            "noise_m": _noise_m(d), "effect_rms_m": _effect_rms_m(d, clean, modes["zeta"][0]), "bend": bend(d, clean),
+            "modes": modes, "curved": d.whisker.curvature_per_m > 0, "length_m": d.whisker.length_m}
     meta_path.write_text(json.dumps(meta, default=float))
     return path, meta
 
