@@ -3,7 +3,7 @@
 One module per command group registers its commands on :data:`pipeline.cli.app.app` when
 imported; the order of the imports below is the order of ``pipeline --help``. A command imports
 the library module it calls inside its body when that module loads numpy or a heavier library,
-so that ``pipeline --help`` and a short trial start fast (tests/test_startup.py); cheap modules
+so that ``pipeline --help`` and a short trial start fast (tests/cli/test_startup.py); cheap modules
 (configs, provenance) are imported at module top.
 """
 

@@ -45,7 +45,7 @@ MuJoCo's: sample k is recorded after the step that starts at t_k (one extra step
 a trial), its node positions before it.
 pybullet's force/torque sensor (on the fixed joint to link 1) is not used: it reads the step
 before and misses much of the centripetal load (on free RA0 at 12 Hz its axial force was 7 % of
-|F| off Σ m·a of the links' paths, Newton–Euler 0.2 %: ``tests/test_bullet_wrench.py``).
+|F| off Σ m·a of the links' paths, Newton–Euler 0.2 %: ``tests/engines/test_bullet_wrench.py``).
 
 Contact jams. A whisker whose base moment leaves the plausible range (a contact that cannot
 be resolved, e.g. a bent start held against a surface) is taken out of the world (the rest of

@@ -11,7 +11,7 @@ at t = 0) and the drive seen from then (:func:`started_at`); the samples before 
 free path. A world's whiskers step together, so a world starts at the earliest start of its
 simulated whiskers (pipeline/engines/base.py).
 
-Accuracy, a peg across RC1's path at 6 and 12 Hz (tests/test_late_start.py): onsets identical,
+Accuracy, a peg across RC1's path at 6 and 12 Hz (tests/engines/test_late_start.py): onsets identical,
 peaks |F| and |M| within 1.4 % of the run from t = 0 when started from the coarse run, 0.03 %
 from the linear chain, whose state is closer to the full engine's.
 """

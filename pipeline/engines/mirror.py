@@ -9,7 +9,7 @@ motion is its twin's reflected: node positions M·x (head frame), base force D·
 (whisker frame: :data:`WRENCH_SIGNS`), and each spring joint's angle and rate negated unless its
 axis is the frame's z axis (a reflection P turns R_a(φ) into R_{P·a}(−φ)). On the linear chain
 the reflected twin equals the whisker's own free motion to 10⁻¹² of the wrench and 4·10⁻¹⁵ m
-(tests/test_free_path.py), so the free paths compute one whisker of each pair.
+(tests/engines/test_free_path.py), so the free paths compute one whisker of each pair.
 """
 
 from __future__ import annotations

@@ -141,7 +141,7 @@ contacts, depends on the world's whiskers; the converged solve leaves that order
 ≤ 4·10⁻⁴ of a whisker's peak in one sample, ~10⁻¹³ typically: 6 dataset trials, right side
 alone against the full array: peak |M| the same, peak F_t within 6·10⁻⁵; with a pyramidal cone
 and 100 sweeps up to 5 % and 8 %; with the triangle contacts up to 8·10⁻⁵ of the peak on a wavy
-wall, tests/test_engine_mujoco_contact.py), which the template's reuse of free motion relies on.
+wall, tests/engines/test_engine_mujoco_contact.py), which the template's reuse of free motion relies on.
 """
 
 from __future__ import annotations

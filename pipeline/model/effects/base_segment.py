@@ -37,7 +37,7 @@ class BaseSegment(Effect):
     (the series dashpot to first order in frequency), so its hooks run after every other
     effect's (``order``). The chain then converges at second order (uniform beam, N = 20:
     −0.12 %); on tapered whiskers ≈ +0.25 % is left, the first-order error of the proximal-node
-    density per link (tests/test_base_segment.py). No parameters; a material config's
+    density per link (tests/model/test_base_segment.py). No parameters; a material config's
     ``base_segment: true`` switches it on; ``pipeline diagnose`` fits with it
     (docs/measurements.md §9)."""
 
