@@ -199,7 +199,7 @@ def test_failed_write_leaves_no_file(tmp_path, monkeypatch):
 def test_killed_writer_leaves_no_final_file(tmp_path):
     """A writer killed mid-trial leaves at most a hidden .partial file, never the final name."""
     code = ("import sys, os, signal, numpy as np; sys.path.insert(0, %r); "
-            "import tests.test_recordings as t; from pipeline.recordings import writer as w; "
+            "import tests.recordings.test_recordings as t; from pipeline.recordings import writer as w; "
             "w._log_signals = lambda rec, out: os.kill(os.getpid(), signal.SIGKILL); "
             "w.write_recording(sys.argv[1], t.small_trial(), t.small_scene(), t.POSE, 'k')"
             % str(REPO))
