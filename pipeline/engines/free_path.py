@@ -27,8 +27,8 @@ moment. MuJoCo at 2.5·10⁻⁴ s: ≤ 0.23, 0.34, 0.67 % at 6, 9, 12 Hz (every 
 ≤ 0.11 %; over the component's own RMS ≤ 1.33 %), 2.0–2.7× less CPU than the full step. Bullet
 missed 1 % on its longest whisker (RA0's Mz) at 2.5·10⁻⁴ s (0.83 % at 6 Hz, 1.40 % at 9 Hz)
 and at 2·10⁻⁴ s (1.60 % at 12 Hz) for 1.6× less CPU: Bullet has no coarse path (with
-``free_whiskers: coarse`` its free whiskers take the full step; parked ones sleep,
-pipeline/engines/bullet.py); ``auto`` gives them the linear chain (:data:`AUTO_PATH`).
+``free_whiskers: coarse`` its free whiskers take the full step; a whisker a trial does not
+simulate has no body in Bullet's world, pipeline/engines/bullet.py); ``auto`` gives them the linear chain (:data:`AUTO_PATH`).
 """
 
 from __future__ import annotations
