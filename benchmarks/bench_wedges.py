@@ -3,7 +3,7 @@ the prisms of a scan (MuJoCo).
 
 Run: .venv/bin/python benchmarks/bench_wedges.py [--trials 0-11] [--depth-um 10] [--json out.json]
 
-MuJoCo collides a scan as one convex prism per face (pipeline/engines/mujoco.py, Triangle
+MuJoCo collides a scan as one convex prism per face (pipeline/engines/mujoco/, Triangle
 meshes). A link pressed into the surface near an edge between two faces can be nearer the
 slanted side walls of both prisms than their faces: the two contacts then push it sideways in
 opposite directions (normals more than 90° apart), and with friction the squeeze holds it — a

@@ -91,26 +91,3 @@ class ModelConfig(StrictModel):
     def model_file(self) -> Optional[LoadedModelFile]:
         """The model file ``file`` as read when the config was validated (None without one)."""
         return self._model_file
-
-    @model_validator(mode="after")
-    def _fits_engine(self) -> "ModelConfig":
-        compliant = (self.material.follicle.kind == "compliant" or self.material.base_segment
-                     or "follicle" in self.extensions or "base_segment" in self.extensions)
-        hinges = 3 if "twist" in self.extensions else 2
-        limit = bullet_max_links(compliant, hinges)
-        if self.engine.name == "bullet" and self.material.links > limit:
-            raise ValueError(f"material.links = {self.material.links} is more than engine bullet can hold "
-                             f"({limit} with a {'compliant' if compliant else 'rigid'} follicle"
-                             f"{' and twist' if hinges == 3 else ''}); use fewer links or engine mujoco")
-        return self
-
-
-BULLET_MAX_MULTIBODY_LINKS = 127    # pybullet: joint indices of one multibody stop at 126
-
-
-def bullet_max_links(compliant_follicle: bool, hinges_per_node: int = 2) -> int:
-    """Most whisker links N a Bullet multibody holds: 3 drive links, 2 follicle links if
-    compliant, link 1 fixed to them, then per further whisker link one Bullet link per hinge of
-    its node (2, or 3 with twist; pipeline.model.joints)."""
-    fixed = 3 + (2 if compliant_follicle else 0) + 1
-    return (BULLET_MAX_MULTIBODY_LINKS - fixed) // hinges_per_node + 1

@@ -1,11 +1,17 @@
-"""How a model moves in a scene: one small interface, one module per physics engine."""
+"""How a model moves in a scene: one small interface (:mod:`.base`), one subpackage per physics
+engine (:mod:`.bullet`, :mod:`.mujoco`), the linear chain (:mod:`.linear`)."""
 
 from __future__ import annotations
 
+import importlib
 import os
 import sys
+from typing import get_args
 
+from pipeline.config.physics import EngineName
 from pipeline.engines.base import Engine
+
+ENGINE_NAMES: tuple[str, ...] = get_args(EngineName)     # the one list: config/physics.py
 
 
 def import_quietly(module: str) -> None:
@@ -28,19 +34,18 @@ def import_quietly(module: str) -> None:
         os.close(devnull)
 
 
+def engine_class(name: str) -> type[Engine]:
+    """The engine called ``name``: one of the names ``EngineConfig.name`` accepts, each a
+    subpackage ``pipeline.engines.<name>`` that exports its class as ``ENGINE``."""
+    if name not in ENGINE_NAMES:
+        raise ValueError(f"unknown engine {name}")
+    return importlib.import_module(f"pipeline.engines.{name}").ENGINE
+
+
 def create_engine(model_config, array) -> Engine:
-    """The engine named in ``model_config.engine.name``, built for ``array``."""
-    name = model_config.engine.name
-    if name == "bullet":
-        import_quietly("pybullet")
-        from pipeline.engines.bullet import BulletEngine
-
-        return BulletEngine(array, model_config.engine)
-    if name == "mujoco":
-        from pipeline.engines.mujoco import MujocoEngine
-
-        return MujocoEngine(array, model_config.engine)
-    raise ValueError(f"unknown engine {name}")
+    """The engine named in ``model_config.engine.name``, built for ``array`` (a UserError when
+    the engine cannot hold it: :meth:`Engine.check`)."""
+    return engine_class(model_config.engine.name)(array, model_config.engine)
 
 
-__all__ = ["Engine", "create_engine"]
+__all__ = ["ENGINE_NAMES", "Engine", "create_engine", "engine_class"]

@@ -160,6 +160,7 @@ class Engine(ABC):
     fraction done, a few times per trial at no cost per step."""
 
     def __init__(self, array: ArrayModel, config: EngineConfig):
+        self.check(array)
         self.array, self.config = array, config
         steps_per_sample(config)                      # validates dt_s against the output rate
         self.levels = self.step_levels(array, config)
@@ -171,6 +172,10 @@ class Engine(ABC):
         self.free = FreeMotion(array.whiskers)
         self.free_path = FreePath.of(type(self), array, config)
         self.inertia = [w.physics.base_inertia for w in array.whiskers]
+
+    @classmethod
+    def check(cls, array: ArrayModel) -> None:
+        """Raise a UserError naming the setting when this engine cannot simulate ``array``."""
 
     def step_levels(self, array: ArrayModel, config: EngineConfig) -> np.ndarray:
         """[W] j per whisker: it steps at ``dt_s / 2**j`` (:mod:`pipeline.engines.stepping`)."""

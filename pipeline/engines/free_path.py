@@ -28,7 +28,7 @@ moment. MuJoCo at 2.5·10⁻⁴ s: ≤ 0.23, 0.34, 0.67 % at 6, 9, 12 Hz (every 
 missed 1 % on its longest whisker (RA0's Mz) at 2.5·10⁻⁴ s (0.83 % at 6 Hz, 1.40 % at 9 Hz)
 and at 2·10⁻⁴ s (1.60 % at 12 Hz) for 1.6× less CPU: Bullet has no coarse path (with
 ``free_whiskers: coarse`` its free whiskers take the full step; a whisker a trial does not
-simulate has no body in Bullet's world, pipeline/engines/bullet.py); ``auto`` gives them the linear chain (:data:`AUTO_PATH`).
+simulate has no body in Bullet's world, pipeline/engines/bullet/); ``auto`` gives them the linear chain (:data:`AUTO_PATH`).
 """
 
 from __future__ import annotations

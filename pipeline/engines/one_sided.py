@@ -1,6 +1,6 @@
 """A triangle mesh read one-sided: the surface of the solid behind its faces (faces wound
-outward), as both engines' contacts with scans see it (:mod:`pipeline.engines.bullet_contact`,
-:mod:`pipeline.engines.mujoco_faces`).
+outward), as both engines' contacts with scans see it (:mod:`pipeline.engines.bullet.contact`,
+:mod:`pipeline.engines.mujoco.faces`).
 
 A capsule axis point c touches the surface at its nearest point q: in front of q's face, along
 (c − q)/|c − q| (a face's own normal, or an edge's or vertex's direction), so two faces meeting

@@ -28,7 +28,10 @@ from pipeline.datasets.schema import DATA_FILE, FAILED, TrialRecord
 from pipeline.datasets.shards import Shard
 from pipeline.datasets.versions import VersionLock
 from pipeline.datasets.writer import DatasetWriter, Layout, whisker_table
+from pipeline.engines import engine_class
 from pipeline.errors import RunAborted, UserError
+from pipeline.model.array import build_array
+from pipeline.model.effects.registry import model_parts
 from pipeline.runner.progress import progress as run_progress, trials_per_hour
 from pipeline.runner.scenes import SceneEntry, copy_meshes, scene_catalogue
 from pipeline.runner.trial import RunSpec, TrialResult, load_whisk_table
@@ -46,6 +49,7 @@ def _layout(config: SimulateConfig) -> Layout:
     morphology = load_morphology(model.morphology).select(model.whiskers)
     if len(morphology) == 0:
         raise UserError(f"model.whiskers '{model.whiskers}' selects no whisker")
+    engine_class(model.engine.name).check(build_array(morphology, *model_parts(model)))   # before any worker
     rate = model.engine.output_rate_hz
     return Layout(trials=config.trials, samples=int(round(config.whisk.duration_s.high * rate)),
                   sampling_rate_hz=rate, links=model.material.links,

@@ -1,4 +1,4 @@
-"""Bullet's base wrench (pipeline/engines/bullet_wrench.py): on a free whisk its force equals
+"""Bullet's base wrench (pipeline/engines/bullet/wrench.py): on a free whisk its force equals
 Σ m·a of the link centres of mass along Bullet's own node paths, rotated into the whisker frame."""
 
 import numpy as np

@@ -7,7 +7,7 @@ import pytest
 
 from pipeline.config.physics import EngineConfig, ModelConfig
 from pipeline.engines import create_engine
-from pipeline.engines.mujoco import MujocoWorld
+from pipeline.engines.mujoco.world import MujocoWorld
 from pipeline.model.array import build_array
 from pipeline.model.base_motion import BaseInertia
 from pipeline.model.kinematics import Pose, sinusoidal_whisk

@@ -1,4 +1,4 @@
-"""Bullet's contact solved in the implicit step (pipeline.engines.bullet_contact, issue 24):
+"""Bullet's contact solved in the implicit step (pipeline.engines.bullet.contact, issue 24):
 quasi-static peg sweeps (pipeline.protocols.peg_sweep) of model-rat whiskers, a meshed peg
 against the elastica, a rough open sheet under a turned head."""
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from pipeline.config.physics import EngineConfig, ModelConfig
-from pipeline.engines.bullet_contact import CONTACT_REACH_MM, _distinct, contact_frame, solve_forces
+from pipeline.engines.bullet.contact import CONTACT_REACH_MM, _distinct, contact_frame, solve_forces
 from pipeline.engines.one_sided import MERGE_MM, ONE_SIDED_DEPTH_MM, OneSidedMesh, one_sided
 from pipeline.model.kinematics import Pose
 from pipeline.protocols.peg_sweep import bend_angles_deg, friction_ratio, penetration_m, run_peg_sweep

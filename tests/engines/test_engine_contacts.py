@@ -53,7 +53,7 @@ def test_step_per_whisker_follows_its_first_mode():
 def test_a_tip_on_a_rough_sheet_no_longer_jams_at_the_coarse_step():
     """The RD3 tip that once jammed in this sheet at one coarse step (Bullet's contact solver saw
     no joint springs; issue 24) stays physical without re-simulation: contact is solved in the
-    implicit step on meshes too (pipeline.engines.bullet_contact). Re-simulating a jammed whisker alone is
+    implicit step on meshes too (pipeline.engines.bullet.contact). Re-simulating a jammed whisker alone is
     tested from a bent start (test_engine_release)."""
     scene = Scene("bumpy-sheet", (beside_right_array(bumpy_sheet(), 0.023),))   # clear at the start
     coarse = with_engine(f1_tolerance=0.0, jam_refinements=0)       # one 0.1 ms step, no second chance
@@ -71,7 +71,6 @@ def test_a_tip_on_a_rough_sheet_no_longer_jams_at_the_coarse_step():
 
 def test_switching_scenes_reuses_their_bodies():
     """pybullet cannot free a mesh shape, so each scene is built once per world and parked."""
-    import pybullet as p
 
     from pipeline.engines import create_engine
     from pipeline.model.kinematics import sinusoidal_whisk
@@ -83,7 +82,7 @@ def test_switching_scenes_reuses_their_bodies():
         counts = []
         for k in range(6):
             engine.run(scenes[k % 2], Pose(), sinusoidal_whisk(duration_s=0.002), 0.002)
-            counts.append([p.getNumBodies(physicsClientId=world.client) for _, world in engine.worlds])
+            counts.append([world.client.getNumBodies() for _, world in engine.worlds])
     assert counts[1] == counts[-1]          # built once per scene, then reused
     assert len(counts[0]) == 2               # RA0 and RE4 step at different sizes: two worlds
 

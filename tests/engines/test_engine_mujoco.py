@@ -277,7 +277,7 @@ def test_whisker_tips_barely_sink_into_a_closed_surface(engine_name):
 def test_static_obstacles_lie_on_the_world_body(moving):
     """A static obstacle's geoms are the world body's (MuJoCo's broadphase then leaves them to the
     midphase instead of going over each of them every step); a moving one has a body on slides."""
-    from pipeline.engines.mujoco import OBSTACLE_CONAFFINITY
+    from pipeline.engines.mujoco.spec import OBSTACLE_CONAFFINITY
     from pipeline.scenes import passive_peg
 
     scene = passive_peg(lateral_m=0.012, start_y_m=0.005) if moving else active_pegs(lateral_m=0.025, y_m=-0.012)

@@ -118,6 +118,6 @@ def test_whisker_against_a_mesh_is_independent_of_its_world(tmp_path):
     assert alone.contact.any()
     scale = np.abs(alone.base_wrench).max()
     # PGS converged to MuJoCo's tolerance: measured 2.5e-6 of the peak on the prisms (a PGS stopped at 100
-    # sweeps: 5 %); 7.8e-5 with the contacts read as the triangles (pipeline.engines.mujoco_faces)
+    # sweeps: 5 %); 7.8e-5 with the contacts read as the triangles (pipeline.engines.mujoco.faces)
     np.testing.assert_allclose(group.base_wrench[:, k], alone.base_wrench[:, 0], rtol=0, atol=2e-4 * scale)
     np.testing.assert_array_equal(group.contact[:, k], alone.contact[:, 0])

@@ -1,11 +1,11 @@
-"""MuJoCo's scan contacts read as the triangles' (pipeline.engines.mujoco_faces, issue 24): no
+"""MuJoCo's scan contacts read as the triangles' (pipeline.engines.mujoco.faces, issue 24): no
 wedge between the prisms of two faces, and the split step is mj_step's when nothing is rewritten."""
 
 import numpy as np
 
 from pipeline.config.physics import EngineConfig, ModelConfig
-from pipeline.engines import mujoco as engine
-from pipeline.engines.mujoco_faces import FaceContacts, contact_frames
+from pipeline.engines.mujoco import world as engine
+from pipeline.engines.mujoco.faces import FaceContacts, contact_frames
 from pipeline.engines.one_sided import OneSidedMesh
 from pipeline.model.kinematics import Pose
 from pipeline.protocols.whisking import run_trial

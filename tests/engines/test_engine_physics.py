@@ -129,19 +129,17 @@ def test_scan_mesh_scene_gives_contacts_and_stays_physical(shared_dir):
 def test_link_inertias_reach_bullet():
     """pybullet drops localInertiaDiagonal when it shares a changeDynamics call with damping
     settings; the engine must end up with the model's link inertias, not Bullet's capsule ones."""
-    import pybullet as p
-
     from pipeline.engines import units as U
-    from pipeline.engines.bullet_whisker import BulletWhisker
+    from pipeline.engines.bullet.client import BulletClient
+    from pipeline.engines.bullet.whisker import BulletWhisker
 
     array = single_whisker(ALPHA, MaterialConfig())
-    client = p.connect(p.DIRECT)
+    client = BulletClient()
     try:
         whisker = BulletWhisker(client, array.whiskers[0])
-        got = np.array([p.getDynamicsInfo(whisker.body, link, physicsClientId=client)[2]
-                        for link in whisker.whisker_links])
+        got = np.array([client.getDynamicsInfo(whisker.body, link)[2] for link in whisker.whisker_links])
     finally:
-        p.disconnect(client)
+        client.close()
     np.testing.assert_allclose(got, array.whiskers[0].chain.link_inertia_kg_m2 * U.INERTIA, rtol=1e-6)
 
 

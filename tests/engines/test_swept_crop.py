@@ -61,7 +61,7 @@ def test_cropped_whiskers_match_their_whole_reach(monkeypatch, margin_m):
     """Three whiskers pressed into a sphere of 1.1 mm faces, with faces cropped to their free
     paths (no margin: they leave the crop and run again) and with their whole reach ball: the
     same contacts, the same base wrench up to the trace of the contacts' order (module docstring
-    of pipeline/engines/mujoco.py, Independence); fewer faces built."""
+    of pipeline/engines/mujoco/, Independence); fewer faces built."""
     import trimesh
 
     from pipeline.scenes.obstacles import TriangleMesh

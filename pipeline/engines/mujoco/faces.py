@@ -1,7 +1,7 @@
 """MuJoCo's contacts with a scan as contacts with its triangles, read one-sided
 (:mod:`pipeline.engines.one_sided`, as Bullet reads them).
 
-MuJoCo collides a scan as one convex prism per face (:class:`~pipeline.engines.mujoco.MeshPrisms`).
+MuJoCo collides a scan as one convex prism per face (:class:`~pipeline.engines.mujoco.prisms.MeshPrisms`).
 A link pressed into the surface near an edge between two faces is nearer both prisms' slanted
 side walls than their faces: two opposed contacts squeeze it and friction holds it (a wedge),
 as deep as the step let it sink. Here the prisms only *find* which link touches the scan: after

@@ -8,7 +8,7 @@ bending node one revolute joint per hinge of the node, all on massless links but
 which carries the next whisker link. The implicit step is described in
 :mod:`pipeline.engines.bullet`; loads (:mod:`pipeline.model.effects.loads`) enter it as generalised
 forces Jᵀ·F and are applied to Bullet's bodies too. The base wrench is Newton–Euler of the
-step (:mod:`pipeline.engines.bullet_wrench`) with these external forces and the contacts' (the
+step (:mod:`pipeline.engines.bullet.wrench`) with these external forces and the contacts' (the
 step solves every contact itself: Bullet's own solver never sees one, module
 :mod:`pipeline.engines.bullet`).
 """
@@ -18,57 +18,25 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
+import pybullet as p
 
 from pipeline.engines import units as U
-from pipeline.engines.bullet_contact import contact_frame, solve_forces
-from pipeline.engines.bullet_wrench import chain_wrench
+from pipeline.engines.bullet.client import BulletClient
+from pipeline.engines.bullet.contact import contact_frame, solve_forces
+from pipeline.engines.bullet.multibody import CAPSULE_ALONG_X, IDENTITY_QUAT, LinkList
+from pipeline.engines.bullet.wrench import chain_wrench
 from pipeline.engines.common import start_rate
 from pipeline.model.array import WhiskerModel
 from pipeline.model.kinematics import ProtractionDrive
 from pipeline.model.effects.loads import LinkState, total_link_forces
-from pipeline.model.rotations import axis_rotation, matrix_from_xyzw, quat_xyzw, rot_z
+from pipeline.model.rotations import axis_rotation, matrix_from_xyzw, rot_z
 
-IDENTITY_QUAT = (0.0, 0.0, 0.0, 1.0)
-_CAPSULE_ALONG_X = (0.0, 0.7071067811865476, 0.0, 0.7071067811865476)   # z axis → x axis
-_AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
 # Largest change of a free joint angle (rad) before M_FF of the implicit step is recomputed:
 # M_FF then changes by ≲ 0.5 × this, relative (measured on RC1); in a full-array free whisk it
 # is recomputed on ≈ 1 step in 10 and the base signals stay within 5·10⁻⁵ RMS of recomputing it
 # every step (issue 16; 1 ms-old matrices were 13× further off and failed the twist cross-check).
 MASS_REFRESH_RAD = 1e-4
-
-
-def quat(matrix: np.ndarray) -> list[float]:
-    return quat_xyzw(matrix).tolist()
-
-
-class LinkList:
-    """Accumulates the per-link arguments of ``createMultiBody``."""
-
-    def __init__(self):
-        self.columns = {k: [] for k in ("linkMasses", "linkCollisionShapeIndices",
-                                        "linkVisualShapeIndices", "linkPositions",
-                                        "linkOrientations", "linkInertialFramePositions",
-                                        "linkInertialFrameOrientations", "linkParentIndices",
-                                        "linkJointTypes", "linkJointAxis")}
-        self.inertia: list[list[float]] = []
-
-    def add(self, parent: int, joint_type: int, axis, position=(0, 0, 0), rotation=None,
-            mass=0.0, inertia=(0.0, 0.0, 0.0), shape=-1, com=(0.0, 0.0, 0.0)) -> int:
-        """Add a link; returns its link index (its id as a parent is index + 1)."""
-        c = self.columns
-        c["linkMasses"].append(mass)
-        c["linkCollisionShapeIndices"].append(shape)
-        c["linkVisualShapeIndices"].append(-1)
-        c["linkPositions"].append(list(position))
-        c["linkOrientations"].append(IDENTITY_QUAT if rotation is None else quat(rotation))
-        c["linkInertialFramePositions"].append(list(com))
-        c["linkInertialFrameOrientations"].append(IDENTITY_QUAT)
-        c["linkParentIndices"].append(parent + 1)
-        c["linkJointTypes"].append(joint_type)
-        c["linkJointAxis"].append(list(axis))
-        self.inertia.append(list(inertia))
-        return len(self.inertia) - 1
+_AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
 
 
 class BulletWhisker:
@@ -79,9 +47,7 @@ class BulletWhisker:
     whisker cost ≈ 55 µs per step in a world of 40, an awake one alone ≈ 26 µs). ``built``
     False: the constants and collision shapes only, no multibody yet."""
 
-    def __init__(self, client: int, model: WhiskerModel, built: bool = True):
-        import pybullet as p
-
+    def __init__(self, client: BulletClient, model: WhiskerModel, built: bool = True):
         self.client = client
         self.model = model
         chain = model.chain
@@ -107,10 +73,10 @@ class BulletWhisker:
         for i in range(chain.links):
             r0, r1 = chain.node_radii_m[i], chain.node_radii_m[i + 1]
             length = chain.link_lengths_m[i]
-            shape = p.createCollisionShape(
+            shape = client.createCollisionShape(
                 p.GEOM_CAPSULE, radius=0.5 * (r0 + r1) * U.LENGTH, height=length * U.LENGTH,
                 collisionFramePosition=[0.5 * length * U.LENGTH, 0, 0],
-                collisionFrameOrientation=_CAPSULE_ALONG_X, physicsClientId=client)
+                collisionFrameOrientation=CAPSULE_ALONG_X)
             body_args = dict(mass=chain.link_mass_kg[i] * U.MASS,
                              inertia=(chain.link_inertia_kg_m2[i] * U.INERTIA).tolist(),
                              shape=shape, com=(chain.link_com_m[i] * U.LENGTH, 0, 0))
@@ -148,7 +114,7 @@ class BulletWhisker:
         # dofs moving whisker link i: those of its joint and before (a serial chain)
         self.ancestor_dofs = np.searchsorted(self.dofs, self.whisker_links, side="right")
         self._lhs_inverse, self._factorised_at = None, None
-        # Newton–Euler base wrench (:mod:`pipeline.engines.bullet_wrench`): the chain's links
+        # Newton–Euler base wrench (:mod:`pipeline.engines.bullet.wrench`): the chain's links
         revolute = np.array(links.columns["linkJointTypes"]) == p.JOINT_REVOLUTE
         self._chain_links = list(range(len(links.inertia)))
         self._local_axes = np.array(links.columns["linkJointAxis"], float) * revolute[:, None]
@@ -161,29 +127,25 @@ class BulletWhisker:
 
     def build(self) -> int:
         """Create the multibody (its joint states are set by :meth:`reset`); returns its body id."""
-        import pybullet as p
-
         c, links = self.client, self._links
-        self.body = p.createMultiBody(0.0, -1, -1, [0, 0, 0], IDENTITY_QUAT, physicsClientId=c, **links.columns)
+        self.body = c.createMultiBody(0.0, -1, -1, [0, 0, 0], IDENTITY_QUAT, **links.columns)
         if self.body < 0:
             raise RuntimeError(f"Bullet refused to build whisker {self.model.name}")
         for index, inertia in enumerate(links.inertia):
             # Two calls: pybullet 3.2.6 drops localInertiaDiagonal when damping or
             # maxJointVelocity come in the same changeDynamics call (tested in test_engine_physics).
-            p.changeDynamics(self.body, index, linearDamping=0, angularDamping=0, maxJointVelocity=1e6,
-                             jointDamping=0, physicsClientId=c)
-            p.changeDynamics(self.body, index, localInertiaDiagonal=inertia, physicsClientId=c)
-        p.changeDynamics(self.body, -1, linearDamping=0, angularDamping=0,
-                         activationState=p.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=c)
-        p.setJointMotorControlArray(self.body, self.dofs, p.VELOCITY_CONTROL,
-                                    forces=[0.0] * len(self.dofs), physicsClientId=c)
+            c.changeDynamics(self.body, index, linearDamping=0, angularDamping=0, maxJointVelocity=1e6,
+                             jointDamping=0)
+            c.changeDynamics(self.body, index, localInertiaDiagonal=inertia)
+        c.changeDynamics(self.body, -1, linearDamping=0, angularDamping=0,
+                         activationState=p.ACTIVATION_STATE_DISABLE_SLEEPING)
+        c.setJointMotorControlArray(self.body, self.dofs, p.VELOCITY_CONTROL,
+                                    forces=[0.0] * len(self.dofs))
         return self.body
 
     def remove(self) -> None:
         """Take the multibody out of its world (its collision shapes stay for :meth:`build`)."""
-        import pybullet as p
-
-        p.removeBody(self.body, physicsClientId=self.client)
+        self.client.removeBody(self.body)
         self.body = None
 
     # -- per trial -----------------------------------------------------------------------
@@ -193,22 +155,16 @@ class BulletWhisker:
         as the drive at t = 0 (rates for steps of size h, s: :func:`~pipeline.engines.common.start_rate`),
         free joints (``dofs[3:]``, in the order of :mod:`pipeline.engines.base`) at ``free_angles``
         [J] (rad; zeros: rest shape) moving at ``free_rates`` [J] (rad/s)."""
-        import pybullet as p
-
-        p.resetBasePositionAndOrientation(self.body, base_mm.tolist(), orientation,
-                                          physicsClientId=self.client)
+        self.client.resetBasePositionAndOrientation(self.body, base_mm.tolist(), orientation)
         q_driven = self.rest_driven + self.rates * float(drive(0.0))
         v_driven = self.rates * start_rate(drive, h)
         self._lhs_inverse = None                            # the next step computes M afresh
         for k, joint in enumerate(self.dofs):
             q, v = (q_driven[k], v_driven[k]) if k < 3 else (free_angles[k - 3], free_rates[k - 3])
-            p.resetJointState(self.body, joint, q, v, physicsClientId=self.client)
+            self.client.resetJointState(self.body, joint, q, v)
 
     def driven_angles(self) -> np.ndarray:
-        import pybullet as p
-
-        return np.array([s[0] for s in p.getJointStates(self.body, self.dofs[:3],
-                                                          physicsClientId=self.client)])
+        return np.array([s[0] for s in self.client.getJointStates(self.body, self.dofs[:3])])
 
     def apply_implicit_torques(self, q_target: np.ndarray, h: float, loads=(), contacts=(),
                                friction: float = 0.0, iterations: int = 50, record: bool = False) -> np.ndarray:
@@ -219,18 +175,16 @@ class BulletWhisker:
 
         ``loads`` (:mod:`pipeline.model.effects.loads`) enter the implicit solve as the generalised force
         Jᵀ·F and are applied to Bullet's bodies too, so the step Bullet takes is the implicit one.
-        So do the forces at ``contacts`` (:class:`~pipeline.engines.bullet_contact.ContactPoint`),
+        So do the forces at ``contacts`` (:class:`~pipeline.engines.bullet.contact.ContactPoint`),
         solved within the same implicit operator with Coulomb ``friction`` μ
-        (:mod:`pipeline.engines.bullet_contact`, ``iterations`` Gauss–Seidel sweeps at most).
+        (:mod:`pipeline.engines.bullet.contact`, ``iterations`` Gauss–Seidel sweeps at most).
         M·a + b comes from Bullet's inverse dynamics (exact at every step). The free–free block
         M_FF inside the implicit operator depends on the free angles q_F only (the driven joints
         turn the whole chain rigidly), so it is recomputed (Bullet's costliest query) only once
         some free angle has moved :data:`MASS_REFRESH_RAD` from where it was last computed. The
         driven joints land on q_target exactly."""
-        import pybullet as p
-
         c = self.client
-        states = p.getJointStates(self.body, self.dofs, physicsClientId=c)
+        states = c.getJointStates(self.body, self.dofs)
         q_list, v_list = [s[0] for s in states], [s[1] for s in states]
         q, v = np.array((q_list, v_list))
         q_free = q[3:]
@@ -239,8 +193,7 @@ class BulletWhisker:
         external = []                                   # (points, forces, torques) on the links
         generalised = self._apply_loads(loads, q_list, external) if loads else 0.0   # Bullet adds Jᵀ·F itself
         accel_driven = (((q_target - q[:3]) / h - v[:3]) / h).tolist()
-        driven_only = np.array(p.calculateInverseDynamics(self.body, q_list, v_list, accel_driven + self._free_zeros,
-                                                          physicsClientId=c))   # M_·D·a_D + b
+        driven_only = np.array(c.calculateInverseDynamics(self.body, q_list, v_list, accel_driven + self._free_zeros))   # M_·D·a_D + b
         if loads:
             driven_only -= generalised                                           # ... − Jᵀ·F
         accel_free = self._lhs_inverse @ (self._minus_stiffness * q_free - self._free_damping * v[3:] - driven_only[3:])
@@ -253,16 +206,15 @@ class BulletWhisker:
             accel_free = accel[3:]
         if record:
             self._record_wrench(q_list, v, h, external)
-        torque = p.calculateInverseDynamics(self.body, q_list, v_list, accel_driven + accel_free.tolist(),
-                                            physicsClientId=c)
+        torque = c.calculateInverseDynamics(self.body, q_list, v_list, accel_driven + accel_free.tolist())
         if loads or contacts:                          # (x − 0.0 is x: skipped without them)
             torque = (np.array(torque) - generalised).tolist()
-        p.setJointMotorControlArray(self.body, self.dofs, p.TORQUE_CONTROL, forces=torque, physicsClientId=c)
+        c.setJointMotorControlArray(self.body, self.dofs, p.TORQUE_CONTROL, forces=torque)
         return normal_forces
 
     def _contact_forces(self, contacts, q: list[float], v: np.ndarray, accel: np.ndarray, h: float,
                         friction: float, iterations: int, external: list) -> tuple[np.ndarray, np.ndarray]:
-        """Solve the contact forces of the step (:mod:`pipeline.engines.bullet_contact`), add
+        """Solve the contact forces of the step (:mod:`pipeline.engines.bullet.contact`), add
         their free-joint response W·J_Fᵀ·f to ``accel`` (in place), apply them to the links and
         append them to ``external`` as (points, forces, torques); returns the normal forces [P]
         and their generalised force Jᵀ·f [n_dof].
@@ -270,12 +222,9 @@ class BulletWhisker:
         One Jacobian per step, at the frame origin o of the farthest touched link: a point p on
         link l has the row d·J_lin + ((p − o) × d)·J_ang along d, with the columns of the joints
         beyond l (not l's ancestors in the serial chain) zeroed."""
-        import pybullet as p
-
         c = self.client
         farthest = self.whisker_links[max(contact.link for contact in contacts)]
-        origin = np.asarray(p.getLinkState(self.body, farthest, computeForwardKinematics=True,
-                                           physicsClientId=c)[4])
+        origin = np.asarray(c.getLinkState(self.body, farthest, computeForwardKinematics=True)[4])
         linear, angular = self.jacobian(farthest, [0.0, 0.0, 0.0], q)
         frames = np.concatenate([contact_frame(contact.normal, friction > 0) for contact in contacts])
         per_point = len(frames) // len(contacts)                     # rows n (, t1, t2) per point
@@ -294,26 +243,22 @@ class BulletWhisker:
         world = np.einsum("ij,i->ij", frames, forces).reshape(len(contacts), per_point, 3).sum(axis=1)
         external.append((np.array([contact.point_mm for contact in contacts]), world, np.zeros_like(world)))
         for contact, force in zip(contacts, world):
-            p.applyExternalForce(self.body, self.whisker_links[contact.link], force.tolist(),
-                                 contact.point_mm.tolist(), p.WORLD_FRAME, physicsClientId=c)
+            c.applyExternalForce(self.body, self.whisker_links[contact.link], force.tolist(),
+                                 contact.point_mm.tolist(), p.WORLD_FRAME)
         return forces[0::per_point], jacobian.T @ forces
 
     def jacobian(self, link: int, point: list[float], q: list[float]) -> tuple[np.ndarray, np.ndarray]:
         """Linear and angular Jacobian [3, n_dof] of ``point`` (link frame, mm) of Bullet ``link``
         at joint angles q, world frame: pybullet's are in the base's frame (a rotated head
         pose otherwise turns every contact and load by the head's rotation)."""
-        import pybullet as p
-
         zeros = [0.0] * self.n_dof
-        linear, angular = p.calculateJacobian(self.body, link, point, q, zeros, zeros, physicsClientId=self.client)
-        base = matrix_from_xyzw(p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)[1])
+        linear, angular = self.client.calculateJacobian(self.body, link, point, q, zeros, zeros)
+        base = matrix_from_xyzw(self.client.getBasePositionAndOrientation(self.body)[1])
         return base @ np.asarray(linear), base @ np.asarray(angular)
 
     def _factorise(self, q: list[float], h: float) -> None:
         """(M_FF + h·C + h²·K)⁻¹ at joint angles q (F: the free joints)."""
-        import pybullet as p
-
-        rows = p.calculateMassMatrix(self.body, q, physicsClientId=self.client)
+        rows = self.client.calculateMassMatrix(self.body, q)
         n = self.n_dof                                       # a flat iterator: a third of np.array's cost
         mass_free = np.fromiter(itertools.chain.from_iterable(rows), float, n * n).reshape(n, n)[3:, 3:]
         self._factorised_at = np.array(q[3:])
@@ -322,16 +267,13 @@ class BulletWhisker:
     def link_state(self, velocities: bool, base: bool = False) -> LinkState:
         """The whisker links' centres of mass, frames and velocities (world frame, SI); with
         ``base`` also the driven base frame's origin and motion (its centre of mass is its origin)."""
-        import pybullet as p
-
-        states = p.getLinkStates(self.body, self.whisker_links, computeLinkVelocity=int(velocities),
-                                 computeForwardKinematics=True, physicsClientId=self.client)
+        states = self.client.getLinkStates(self.body, self.whisker_links, computeLinkVelocity=int(velocities),
+                                 computeForwardKinematics=True)
         frames = np.array([matrix_from_xyzw(s[1]) for s in states])
         zeros = np.zeros((len(states), 3))
         motion = None
         if base:
-            b = p.getLinkState(self.body, self.base_link, computeLinkVelocity=1, computeForwardKinematics=True,
-                               physicsClientId=self.client)
+            b = self.client.getLinkState(self.body, self.base_link, computeLinkVelocity=1, computeForwardKinematics=True)
             motion = (np.array(b[0]) / U.LENGTH, np.array(b[6]) / U.LENGTH, np.array(b[7]))
         return LinkState(np.array([s[0] for s in states]) / U.LENGTH, frames,
                          np.array([s[6] for s in states]) / U.LENGTH if velocities else zeros,
@@ -343,8 +285,6 @@ class BulletWhisker:
         [n_dof] (internal units). pybullet takes the Jacobian's point in
         the link frame (not the centre-of-mass frame): checked by the static tip load test,
         whose deflection is then independent of the step size."""
-        import pybullet as p
-
         state = self.link_state(any(load.needs_velocity for load in loads), any(load.needs_base for load in loads))
         force, torque = total_link_forces(loads, self.model.chain, state)
         force, torque = force * U.FORCE, torque * U.TORQUE
@@ -354,20 +294,16 @@ class BulletWhisker:
             link = self.whisker_links[i]
             linear, angular = self.jacobian(link, [self.link_com[i], 0.0, 0.0], q)
             generalised += linear.T @ force[i] + angular.T @ torque[i]
-            p.applyExternalForce(self.body, link, force[i].tolist(), (state.com_m[i] * U.LENGTH).tolist(),
-                                 p.WORLD_FRAME, physicsClientId=self.client)
-            p.applyExternalTorque(self.body, link, torque[i].tolist(), p.WORLD_FRAME,
-                                  physicsClientId=self.client)
+            self.client.applyExternalForce(self.body, link, force[i].tolist(), (state.com_m[i] * U.LENGTH).tolist(),
+                                 p.WORLD_FRAME)
+            self.client.applyExternalTorque(self.body, link, torque[i].tolist(), p.WORLD_FRAME)
         return generalised
 
     def _record_wrench(self, q: list[float], v: np.ndarray, h: float, external: list) -> None:
         """Keep what :meth:`base_wrench` needs of the step about to be taken from joint angles q
         and rates v: the chain's frames and the ``external`` (points, forces, torques) on the
         links (internal units, world frame)."""
-        import pybullet as p
-
-        states = p.getLinkStates(self.body, self._chain_links, computeForwardKinematics=True,
-                                 physicsClientId=self.client)
+        states = self.client.getLinkStates(self.body, self._chain_links, computeForwardKinematics=True)
         rotations = matrix_from_xyzw([s[5] for s in states])
         points, forces, torques = ([np.concatenate(part) for part in zip(*external)] if external
                                    else [np.zeros((0, 3))] * 3)
@@ -376,13 +312,11 @@ class BulletWhisker:
     def base_wrench(self) -> np.ndarray:
         """Follicle → whisker force (N) and moment about the base point (N·m), whisker frame, in
         the step recorded by :meth:`apply_implicit_torques` and just taken, by Newton–Euler
-        (:mod:`pipeline.engines.bullet_wrench`) with the joint accelerations Bullet took,
+        (:mod:`pipeline.engines.bullet.wrench`) with the joint accelerations Bullet took,
         (v′ − v)/h."""
-        import pybullet as p
-
         c = self.client
         q, v, h, rotations, base, points, forces, torques = self._step
-        after = np.array([s[1] for s in p.getJointStates(self.body, self.dofs, physicsClientId=c)])
+        after = np.array([s[1] for s in c.getJointStates(self.body, self.dofs)])
         # origins from the base by the links' offsets (pybullet's link frame positions are off by
         # up to 10⁻⁵ relative), so that the wrench does not depend on where the base is
         origins = np.vstack([np.zeros(3), np.cumsum(np.einsum("lij,lj->li", rotations[:-1], self._link_offsets[1:]),
@@ -401,10 +335,7 @@ class BulletWhisker:
     def link_nodes(self, i: int) -> tuple[tuple[float, ...], tuple[float, ...]]:
         """Proximal and distal node of whisker link i, world frame, mm (internal units). Plain
         floats: it runs for every contact point of every step (numpy's call overhead tripled it)."""
-        import pybullet as p
-
-        state = p.getLinkState(self.body, self.whisker_links[i], computeForwardKinematics=True,
-                               physicsClientId=self.client)
+        state = self.client.getLinkState(self.body, self.whisker_links[i], computeForwardKinematics=True)
         (px, py, pz), (x, y, z, w) = state[4], state[5]
         length = self.link_lengths[i]              # along the link frame's x axis, R(q)·(1, 0, 0):
         return (px, py, pz), (px + length * (1 - 2 * (y * y + z * z)), py + length * 2 * (x * y + w * z),
@@ -412,10 +343,7 @@ class BulletWhisker:
 
     def node_positions(self) -> np.ndarray:
         """[N+1, 3] node positions, world frame, m."""
-        import pybullet as p
-
-        states = p.getLinkStates(self.body, self.whisker_links, computeForwardKinematics=True,
-                                 physicsClientId=self.client)
+        states = self.client.getLinkStates(self.body, self.whisker_links, computeForwardKinematics=True)
         frames = np.array([s[4] for s in states])
         tip = frames[-1] + matrix_from_xyzw(states[-1][5])[:, 0] * self.tip_offset
         return np.vstack([frames, tip]) / U.LENGTH

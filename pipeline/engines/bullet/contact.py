@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.engines.bullet.client import BulletClient
 from pipeline.engines.one_sided import MERGE_MM, one_sided
 
 CONTACT_REACH_MM = 0.25      # speculative contact distance (a tip moves ≲ 0.15 mm per step)
@@ -52,12 +53,12 @@ class ContactPoint:
     surface_velocity: np.ndarray   # [3] mm/s, the obstacle's (friction acts on the relative sliding)
 
 
-def find_contacts(client: int, obstacles, whisker_bodies: dict) -> dict[int, list[ContactPoint]]:
+def find_contacts(client: BulletClient, obstacles, whisker_bodies: dict) -> dict[int, list[ContactPoint]]:
     """Contact points within :data:`CONTACT_REACH_MM` of the obstacles, per whisker body id.
 
     ``obstacles``: (body id, velocity [3] mm/s, :class:`~pipeline.engines.one_sided.OneSidedMesh` or None, offset [3] mm of
     the mesh frame) of each; ``whisker_bodies``: body id → its
-    :class:`~pipeline.engines.bullet_whisker.BulletWhisker`.
+    :class:`~pipeline.engines.bullet.whisker.BulletWhisker`.
     A broadphase query per obstacle selects the candidate whiskers (cheap; the whiskers' boxes
     there are a step old, hence twice the reach), then ``getClosestPoints`` gives the points.
     On a mesh they only name the links near it: the contacts are those of :func:`~pipeline.engines.one_sided.one_sided` at
@@ -68,18 +69,16 @@ def find_contacts(client: int, obstacles, whisker_bodies: dict) -> dict[int, lis
     whose normal opposes a deeper one's of the same link and obstacle (a link between two
     faces of a sheet thinner than the reach: pushed from both sides, the step's problem has no
     bounded solution; the deeper side pushes it out)."""
-    import pybullet as p
-
     found: dict[int, list[ContactPoint]] = {}
     for obstacle, velocity, mesh, offset in obstacles:
-        low, high = p.getAABB(obstacle, -1, physicsClientId=client)
+        low, high = client.getAABB(obstacle, -1)
         low = [v - 2 * CONTACT_REACH_MM for v in low]
         high = [v + 2 * CONTACT_REACH_MM for v in high]
-        near = {body for body, _ in (p.getOverlappingObjects(low, high, physicsClientId=client) or ())
+        near = {body for body, _ in (client.getOverlappingObjects(low, high) or ())
                 if body in whisker_bodies}
         for body in near:
             whisker = whisker_bodies[body]
-            points = [point for point in p.getClosestPoints(obstacle, body, CONTACT_REACH_MM, physicsClientId=client)
+            points = [point for point in client.getClosestPoints(obstacle, body, CONTACT_REACH_MM)
                       if point[4] in whisker.local_link]
             if not points:
                 continue

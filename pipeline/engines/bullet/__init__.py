@@ -1,0 +1,81 @@
+"""Bullet engine (pybullet): whiskers as Featherstone chains with implicit joint spring-dampers.
+
+Each whisker is one multibody (:mod:`pipeline.engines.bullet.whisker`). Whiskers never touch each
+other, only obstacles, so they are independent systems: the whiskers that
+share a step size form one Bullet world (a pybullet client), run by the template of
+:mod:`pipeline.engines.base`. Each whisker steps at ``engine.dt_s / 2**j`` with j from its first
+mode (:mod:`pipeline.engines.stepping`).
+
+Integration scheme (one step of size h, per whisker; q, v joint positions and velocities):
+
+    (M_FF + h·C + h²·K) a_F = −K·q_F − C·v_F − b_F − M_FD·a_D + J_Fᵀ·f
+    τ = M·a + b − Jᵀ·f,  applied as joint torques, f as forces on the links, then Bullet's
+        semi-implicit Euler step (v ← v + h·a; q ← q + h·v)
+
+M is Bullet's joint-space mass matrix and b its bias forces (Coriolis, centrifugal) less the
+generalised loads Jᵀ·F (:mod:`pipeline.model.effects.loads`: gravity, drag, a tip force) at the current state; F are the spring joints, D the driven ones whose accelerations a_D make
+them land exactly on the prescribed angles at t + h. This linearly implicit scheme is stable
+for any h (for an undamped mode it is symplectic Euler with ω² replaced by k/(m + h²k)) and,
+unlike backward Euler, adds no numerical damping; frequencies drop by ≈ (hω)²/2 relative.
+The contact forces f are solved within the same operator (:mod:`pipeline.engines.bullet.contact`:
+non-penetration and Coulomb friction μ as configured); Bullet's own contact solver, which would
+see the links' inertia but not the springs, never sees a contact. M·a + b is Bullet's
+inverse dynamics at every step (driven joints land exactly); the free–free block M_FF inside
+the implicit operator, a function of the free angles only, is recomputed when one of them has
+moved by :data:`~pipeline.engines.bullet.whisker.MASS_REFRESH_RAD` (every ≈ 10th step of a
+free whisk; base signals then within 5·10⁻⁵ RMS, nodes within 0.05 µm of recomputing it every
+step).
+
+Cost per whisker-step (41 joints, this machine, issue 16): ``stepSimulation`` ≈ 82 µs (the
+same with 1 or 50 solver iterations: Featherstone dynamics, collision detection and the
+force/torque sensor), the implicit torques ≈ 73 µs (joint states 10 µs and their conversion
+8 µs, two inverse dynamics 9 µs, torques 2.5 µs, the mass matrix's 35 µs query and 25–35 µs
+list→array conversion on ≈ 1 step in 10, numpy ≈ 15 µs). A full-array free
+whisk takes ≈ 1.2·10⁶ whisker-steps per simulated second under the default step plan, so the
+pybullet calls alone put a floor of ≈ 110 µs × 3·10⁵ ≈ 33 CPU-s under a 250 ms trial.
+A whisker-step within reach of an obstacle adds its contact query (``getClosestPoints``), one
+Jacobian and the solve, ≈ 1.5–2× a free whisker-step (issue 24, engine CPU-s of 250 ms trials,
+Bullet's own contact before → this: RC1 against the active pegs ×1.4–1.6, the right array
+against them ×1.05, the passive peg through it ×1.08–1.16).
+
+Base wrench. The follicle's force and moment about the base point are Newton–Euler of the
+step that starts at the sample's time (:mod:`pipeline.engines.bullet.wrench`: the links'
+accelerations from the joint accelerations Bullet took, less the loads and contact forces), as
+MuJoCo's: sample k is recorded after the step that starts at t_k (one extra step at the end of
+a trial), its node positions before it.
+pybullet's force/torque sensor (on the fixed joint to link 1) is not used: it reads the step
+before and misses much of the centripetal load (on free RA0 at 12 Hz its axial force was 7 % of
+|F| off Σ m·a of the links' paths, Newton–Euler 0.2 %: ``tests/engines/test_bullet_wrench.py``).
+
+Contact jams. A whisker whose base moment leaves the plausible range (a contact that cannot
+be resolved, e.g. a bent start held against a surface) is taken out of the world (the rest of
+its world goes on); the template simulates it again alone with half the step.
+
+Triangle meshes (scans) are the scanned surface itself, read as the surface of the solid
+behind their outward-wound faces (:func:`~pipeline.engines.one_sided.one_sided`): a link's
+contact is its axis points' distance to the nearest face, edge or vertex, and a link whose
+axis has crossed a face (which has no thickness) is pushed back out along that face's
+normal. Bullet's own solver on meshes (before issue 24's round 3) saw the links' inertia but
+not the joint springs: base moments 3–15 % low on a meshed peg, 23 % on a wall, the whisker
+0.1 mm in (docs/model.md §2).
+
+Obstacle shapes cannot be freed in pybullet (``removeBody`` on a static mesh body fails and
+``removeCollisionShape`` refuses shapes in use), so each world keeps the bodies of every scene
+it has seen and parks those of other scenes far away: memory grows with the number of distinct
+scenes, not of trials.
+
+Point of contact: each touching link's contact points (on the whisker's surface) projected onto the link's axis between its nodes
+(:class:`~pipeline.engines.common.ContactFlags`).
+
+Internal units mm–mg–s (:mod:`pipeline.engines.units`); outputs are converted to SI.
+"""
+
+from pipeline.engines import import_quietly
+
+import_quietly("pybullet")     # pybullet prints its build time at import (see import_quietly)
+
+from pipeline.engines.bullet.engine import BulletEngine  # noqa: E402  (after the quiet import)
+
+ENGINE = BulletEngine
+
+__all__ = ["ENGINE", "BulletEngine"]
