@@ -32,10 +32,11 @@ tangent to the wall there (≤ 0.02 mm from the plane over the tip's travel).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import get_args
 
 import numpy as np
 
-from pipeline.config.physics import ModelConfig
+from pipeline.config.physics import EngineName, ModelConfig
 from pipeline.model.array import single_whisker
 from pipeline.model.effects.registry import model_parts
 from pipeline.model.kinematics import Pose, ProtractionDrive
@@ -49,7 +50,7 @@ from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh, points
 WHISKERS = ("RC1", "RC3", "RC5")
 FRACTIONS = (0.30, 0.60, 0.85)
 FRICTIONS = (0.0, 0.5)
-ENGINES = ("bullet", "mujoco")
+ENGINES = get_args(EngineName)     # every engine (config/physics.py)
 QUICK = {"whiskers": ("RC3",), "fractions": (0.60,), "frictions": (0.0,)}
 PEG_RADIUS_M = 0.5e-3            # the library's 1 mm pegs
 PEG_LENGTH_M = 0.02
