@@ -24,9 +24,10 @@ turning along ê; at the tip, φ stays), while |f_t| ≤ μ f_n.
 Solved with scipy's solve_bvp (:mod:`.elastica_bvp`; the types in :mod:`.elastica_data`) on
 τ = s/s_c ∈ [0, 1], states (x, y, θ, m), unknown parameters (s_c, F_x, F_y), lengths in S and
 forces in E I(0)/S². :func:`quasi_static_path` continues in ψ from the first touch (F = 0),
-stick or slide by return mapping, until the contact leaves the whisker (f_n ≤ 0, or no equilibrium with the tip on the peg: the slip-off angle), the
-tip's tangent turns parallel to the peg's surface (t·n̂ → 0: the rod beside the tip would touch
-it too, a contact this one-point model does not follow; not a slip-off) or the last angle.
+stick or slide by return mapping, until the contact leaves the whisker (f_n ≤ 0, or no
+equilibrium with the tip on the peg: the slip-off angle), the tip's tangent turns parallel to
+the peg's surface (t·n̂ → 0: the rod beside the tip would touch it too, a contact this one-point
+model does not follow; not a slip-off) or the last angle.
 
 Base wrench: what the clamp exerts on the rod, F_b = −F and M_b = −m(0) about the base
 point (N, N·m), F_b resolved along the base tangent (axial, toward the tip) and its normal
