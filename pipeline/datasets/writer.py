@@ -5,134 +5,37 @@ switches the file to SWMR mode and writes trial by trial (data, flush, table row
 flush), so a reader (``swmr=True``) sees the finished trials at any time, also after the
 writer was killed. A killed writer leaves HDF5's "open for writing" mark in the file; resuming
 copies the readable file into a fresh one (:func:`recover`) instead of clearing the mark in
-place. h5py is imported inside functions.
+place. The file's shapes and rows are :mod:`.layout`, its objects :mod:`.file_objects`; h5py is
+imported inside functions.
 """
 
 from __future__ import annotations
 
 import errno
-import json
 import os
 import socket
 import sys
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from pipeline.datasets.checks import non_finite
-from pipeline.datasets.dimensions import attach_dimensions, describe, storage_dtype, write_coordinates
-from pipeline.datasets.schema import (ARRAYS, FAILED, LIBVER, OK, PENDING, SAMPLES, SCHEMA, SCHEMA_VERSION,
-                                      TRIAL_COLUMNS, WHISKER_COLUMNS, TrialRecord, component_names, stored_columns)
+from pipeline.datasets.file_objects import create_file, recover
+from pipeline.datasets.layout import Layout, trial_arrays, whisker_table
+from pipeline.datasets.schema import (ARRAYS, FAILED, LIBVER, OK, PENDING, SAMPLES, SCHEMA_VERSION, TRIAL_COLUMNS,
+                                      TrialRecord, component_names, stored_columns)
 from pipeline.errors import UserError
 from pipeline.model.outputs import TrialOutput
-from pipeline.model.rotations import rotation_zyx
 from pipeline.storage import replacing, require_free_space
 
 if TYPE_CHECKING:
     from pipeline.config.physics import ModelConfig
     from pipeline.model.head_motion import HeadMotion
     from pipeline.model.kinematics import Pose, ProtractionDrive
-    from pipeline.model.morphology import Morphology
     from pipeline.scenes.obstacles import Scene
-
-TABLE_CHUNK_ROWS = 1024
-
-
-@dataclass(frozen=True)
-class Layout:
-    """Shapes of a dataset file: trials × samples × whiskers × links."""
-
-    trials: int
-    samples: int
-    sampling_rate_hz: float
-    links: int
-    whiskers: dict[str, np.ndarray]      # whisker table columns (WHISKER_COLUMNS)
-    node_every: int = 0                  # node positions every k-th sample; 0 = not stored
-    head_motion: bool = False            # the head's pose at every sample is stored
-    compression_level: int = 4
-
-    @property
-    def time_s(self) -> np.ndarray:
-        """Sample times: sample i covers (i/rate, (i+1)/rate] and is stamped at its end."""
-        return np.arange(1, self.samples + 1) / self.sampling_rate_hz
-
-    @property
-    def node_time_s(self) -> np.ndarray:
-        """Times of the stored node positions (every ``node_every``-th sample)."""
-        return self.time_s[self.node_every - 1::self.node_every] if self.node_every else self.time_s[:0]
-
-    def shape(self, name: str) -> tuple[int, ...]:
-        w = len(self.whiskers["name"])
-        return {"base_force": (self.trials, self.samples, w, 3), "base_moment": (self.trials, self.samples, w, 3),
-                "contact": (self.trials, self.samples, w, self.links),
-                "point_of_contact": (self.trials, self.samples, w),
-                "protraction_rad": (self.trials, self.samples),
-                "head_position_m": (self.trials, self.samples, 3),
-                "head_euler_zyx_rad": (self.trials, self.samples, 3),
-                "node_positions_m": (self.trials, len(self.node_time_s), w, self.links + 1, 3)}[name]
-
-    @property
-    def arrays(self) -> list[str]:
-        optional = {"node_positions_m": self.node_every, "head_position_m": self.head_motion,
-                    "head_euler_zyx_rad": self.head_motion}
-        return [name for name in ARRAYS if optional.get(name, True)]
-
-
-def whisker_table(morphology: "Morphology") -> dict[str, np.ndarray]:
-    """Whisker table columns of a (selected) morphology; base points relative to the array origin,
-    rest frames and the drive's joint angles as :func:`pipeline.model.array.build_array` makes them."""
-    from pipeline.model import kinematics
-
-    specs = list(morphology)
-    rest = np.array([kinematics.euler_joint_angles(s.rest_angles_rad, s.row, s.side, 0.0) for s in specs])
-    offsets = np.array([kinematics.WHISKER_FRAME_OFFSET[s.side] for s in specs])
-    return {"name": np.array([s.name.encode() for s in specs], "S8"),
-            "side": np.array([s.side for s in specs], "i1"),
-            "row": np.array([s.row for s in specs], "i1"),
-            "col": np.array([s.col for s in specs], "i1"),
-            "arc_length_m": np.array([s.arc_length_m for s in specs]),
-            "base_radius_m": np.array([s.base_radius_m for s in specs]),
-            "tip_radius_m": np.array([s.tip_radius_m for s in specs]),
-            "curvature_per_m": np.array([s.curvature_per_m for s in specs]),
-            "base_point_m": np.array([s.base_point_m for s in specs]).reshape(-1, 3) - morphology.origin_m,
-            "rest_rotation": rotation_zyx(*rest.reshape(-1, 3).T) @ offsets.reshape(-1, 3, 3),
-            "rest_euler_zyx_rad": rest.reshape(-1, 3),
-            "euler_rates": np.array([kinematics.euler_joint_rates(s.row, s.side) for s in specs]).reshape(-1, 3)}
-
-
-def trial_arrays(output: TrialOutput, protraction_rad: np.ndarray, layout: Layout,
-                 head: "HeadMotion | None" = None) -> dict[str, np.ndarray]:
-    """The trial-major arrays of one trial, padded to ``layout.samples`` (NaN / 0); with
-    ``layout.head_motion``, ``head``'s pose at the sample times (without ``head`` those arrays
-    keep their fill)."""
-    t = len(output.time_s)
-    if t > layout.samples:
-        raise ValueError(f"trial has {t} samples; the dataset holds {layout.samples}")
-    table = [name.decode() for name in layout.whiskers["name"]]
-    if list(output.whisker_names) != table:
-        raise ValueError(f"trial whiskers {','.join(output.whisker_names)} are not the dataset's "
-                         f"whisker table {','.join(table)} (same names in the same order)")
-
-    def padded(name: str, value: np.ndarray) -> np.ndarray:
-        spec = ARRAYS[name]
-        row = np.full(layout.shape(name)[1:], spec.fill, spec.dtype)
-        row[:len(value)] = value
-        return row
-
-    arrays = {"base_force": padded("base_force", output.base_wrench[..., :3]),
-              "base_moment": padded("base_moment", output.base_wrench[..., 3:]),
-              "contact": padded("contact", output.contact),
-              "point_of_contact": padded("point_of_contact", output.point_of_contact),
-              "protraction_rad": padded("protraction_rad", protraction_rad)}
-    if layout.head_motion and head is not None:
-        arrays.update((name, padded(name, value)) for name, value in head.table(output.time_s).items())
-    if layout.node_every:
-        arrays["node_positions_m"] = padded("node_positions_m",
-                                            output.node_positions_m[layout.node_every - 1::layout.node_every])
-    return arrays
 
 
 def model_file_record(model: ModelConfig) -> dict[str, Any] | None:
@@ -155,72 +58,6 @@ def encode(text: str, dtype: str) -> bytes:
     width = int(dtype[1:])
     data = " ".join(str(text).split()).encode()
     return data[:width].decode("utf-8", "ignore").encode() if len(data) > width else data
-
-
-def _create_columns(group, schema: dict[str, dict], rows: int, chunk_rows: int, data=None) -> None:
-    """A table's columns in ``group``, one 1-D column per component (schema.stored_columns):
-    filled with ``data`` (column name → values, rows first), or empty with the schema's fill."""
-    for name, meta in schema.items():
-        dtype = storage_dtype(meta["dtype"])
-        names = component_names(name, meta)
-        if data is not None:
-            values = stored_columns({name: np.asarray(data[name], dtype=dtype)}, schema)
-        else:
-            default = TrialRecord.__dataclass_fields__[name].default
-            fill = meta["fill"] if meta["fill"] is not None else np.asarray(default, dtype).ravel()[0]
-        for stored in names:
-            column = group.create_dataset(stored, data=values[stored]) if data is not None else \
-                group.create_dataset(stored, shape=(rows,), dtype=dtype, chunks=(chunk_rows,), fillvalue=fill)
-            component = f" ({stored[len(name) + 1:]} component)" if stored != name else ""
-            describe(column, meta["units"], meta["doc"] + component)
-
-
-def create_file(path: Path, layout: Layout, attrs: dict[str, Any]):
-    """Create every object of a dataset file (not yet in SWMR mode); returns the open h5py.File."""
-    import h5py
-
-    f = h5py.File(path, "w", libver=LIBVER)
-    f.attrs.update(schema=SCHEMA, schema_version=SCHEMA_VERSION, trials=layout.trials,
-                   samples=layout.samples, sampling_rate_hz=layout.sampling_rate_hz, links=layout.links,
-                   node_every=layout.node_every, units="SI: m, s, rad, N, N m")
-    for key, value in attrs.items():
-        f.attrs[key] = json.dumps(value) if isinstance(value, (dict, list, tuple)) else value
-    computed = {"trial": np.arange(layout.trials), "time": layout.time_s, "whisker": layout.whiskers["name"],
-                "link": np.arange(layout.links)}
-    if layout.node_every:
-        computed.update(node_time=layout.node_time_s, node=np.arange(layout.links + 1))
-    write_coordinates(f, computed)
-    _create_columns(f["whiskers"], WHISKER_COLUMNS, len(layout.whiskers["name"]), 0, layout.whiskers)
-    _create_columns(f["trials"], TRIAL_COLUMNS, layout.trials, min(layout.trials, TABLE_CHUNK_ROWS))
-    samples = f[SAMPLES]
-    compression = dict(compression="gzip", compression_opts=layout.compression_level, shuffle=True) \
-        if layout.compression_level else {}
-    for name in layout.arrays:
-        spec, shape = ARRAYS[name], layout.shape(name)
-        data = samples.create_dataset(name, shape=shape, dtype=spec.dtype, chunks=(1,) + shape[1:],
-                                fillvalue=spec.fill, **compression)
-        describe(data, spec.units, spec.description, spec.long_name, spec.standard_name)
-        data.attrs["axes"] = list(spec.dims)
-    for name in ("base_force", "base_moment"):
-        samples[name].attrs["frame"] = "whisker"
-    if layout.node_every:
-        samples["node_positions_m"].attrs.update(frame="world", every=layout.node_every)
-    attach_dimensions(f)
-    return f
-
-
-def recover(path: Path) -> None:
-    """Replace a file whose writer was killed by a clean copy of what a SWMR reader sees."""
-    import h5py
-
-    with replacing(path, ".recover.partial") as partial, h5py.File(path, "r", swmr=True) as old, \
-            h5py.File(partial, "w", libver=LIBVER) as new:
-        new.attrs.update(old.attrs)
-        for key in old:
-            old.copy(old[key], new, name=key)
-        attach_dimensions(new)
-        new.flush()
-        os.fsync(new.id.get_vfd_handle())
 
 
 TRIAL_SPACE_MARGIN_BYTES = 256 * 1024     # room kept for HDF5 metadata and the trial table

@@ -6,6 +6,13 @@
 - ``grid``: the paper's brute force (§4.4.1): every combination of ``points`` values per
   parameter (36 × 36 = 1296 for two, as the paper), spanning a factor 4 either side of the
   start for scale parameters and the bounds otherwise; the minimum of the objective's error.
+- ``scaling``: E and ζ of a resonance table from two facts of the chain: f ∝ √E at fixed
+  geometry (k_n ∝ E and, through eq. 3, c_n ∝ √E, so the modal damping ratio does not depend
+  on E), and the damping grows monotonically with θ_ζ. θ_ζ is a bounded 1-D search
+  (Brent, tolerance ``SCALING_ZETA_TOLERANCE``, within ``SCALING_ZETA_RANGE``) on the sum of
+  squared damping residuals at the start's E, then θ_E = E·exp(−2·mean of the frequency
+  residuals ln(sim/exp)) in closed form: 15–20 simulations, however costly each is (the
+  engine's refit, :mod:`.material_fit`). Unweighted, no Jacobian (no sd).
 
 With known standard deviations σ of the measured values (resonance tables) the residuals
 are divided by σ (a χ² fit) and cov = (JᵀJ)⁻¹; otherwise cov = s²·(JᵀJ)⁻¹ with
@@ -27,6 +34,8 @@ from pipeline.diagnosis.parameters import ModelSpec, ParameterSpace
 FD_STEP = 1e-4
 GRID_SPAN = np.log(4.0)
 PAPER_GRID_EVALUATIONS = 1296
+SCALING_ZETA_RANGE = (0.05, 0.6)
+SCALING_ZETA_TOLERANCE = 5e-3
 
 
 @dataclass
@@ -60,8 +69,11 @@ class _Counted:
         return self.spec.with_values(self.space.to_values(x))
 
     def __call__(self, x) -> np.ndarray:
+        return self.at(self.spec_at(x))
+
+    def at(self, spec: ModelSpec) -> np.ndarray:
         self.calls += 1
-        r = self.objective.residuals(self.spec_at(x))
+        r = self.objective.residuals(spec)
         return r if self.sigma is None else r / self.sigma
 
     def error(self, r: np.ndarray) -> float:
@@ -129,9 +141,11 @@ def best_start(objective, feature_objective, spec: ModelSpec, starts) -> ModelSp
 def fit(objective, spec: ModelSpec, names, method: str = "optimizer", grid_points: int | None = None,
         max_iterations: int = 15, sigma: np.ndarray | None = None) -> Fit:
     """Fit ``names`` of ``spec`` (others fixed) to ``objective``, starting from ``spec``'s values;
-    ``sigma``: standard deviations of the residuals when known (then a χ² fit)."""
+    ``sigma``: standard deviations of the residuals when known (then a χ² fit; optimizer and grid)."""
     from scipy.optimize import least_squares
 
+    if method == "scaling":
+        return _scaling(objective, spec, tuple(names))
     space = ParameterSpace(names)
     known = sigma is not None and np.all(np.isfinite(sigma)) and np.all(sigma > 0)
     counted = _Counted(objective, spec, space, sigma if known else None)
@@ -147,12 +161,37 @@ def fit(objective, spec: ModelSpec, names, method: str = "optimizer", grid_point
     if method != "optimizer":
         from pipeline.errors import UserError
 
-        raise UserError(f"unknown fit method '{method}' (optimizer or grid)")
+        raise UserError(f"unknown fit method '{method}' (optimizer, grid or scaling)")
     loss, scale = (objective.loss, 1.0) if isinstance(objective.loss, str) else objective.loss
     solution = least_squares(counted, x0, bounds=bounds, method="trf", diff_step=FD_STEP, x_scale=1.0,
                              max_nfev=max_iterations, ftol=1e-6, xtol=1e-6, loss=loss, f_scale=scale)
     notes = [] if solution.success else [f"optimizer stopped: {solution.message}"]
     return _result(counted, solution.x, solution.fun, solution.jac, notes)
+
+
+def _scaling(objective, spec: ModelSpec, names: tuple[str, ...]) -> Fit:
+    """The ``scaling`` method (module docstring) on an objective with a ``damping_mask``."""
+    from scipy.optimize import minimize_scalar
+
+    if sorted(names) != ["E", "zeta"]:
+        from pipeline.errors import UserError
+
+        raise UserError(f"the scaling fit takes E and zeta together, not {', '.join(names)}")
+    counted = _Counted(objective, spec, ParameterSpace(names))
+    damping = objective.damping_mask()
+
+    def damping_error(zeta: float) -> float:
+        return float(np.sum(counted.at(spec.with_values({"zeta": zeta}))[damping] ** 2))
+
+    zeta = minimize_scalar(damping_error, bounds=SCALING_ZETA_RANGE, method="bounded",
+                           options={"xatol": SCALING_ZETA_TOLERANCE}).x
+    damped = spec.with_values({"zeta": zeta})
+    frequency_ratio = -np.mean(counted.at(damped)[~damping])
+    fitted = damped.with_values({"E": damped.values()["E"] * np.exp(2 * frequency_ratio)})
+    residuals = counted.at(fitted)
+    values = fitted.values()
+    return Fit(fitted, names, {n: values[n] for n in names}, {}, objective.error(residuals), objective.metric,
+               residuals, evaluations=counted.calls)
 
 
 def _points(grid_points: int | None, dims: int) -> int:

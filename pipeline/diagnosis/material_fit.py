@@ -1,11 +1,12 @@
 """Refit Young's modulus θ_E and damping ratio θ_ζ on resonance measurements (paper §4.4.1).
 
-The error is the paper's median symmetric accuracy (eq. 4a, :func:`.features.msa`) over the
-pooled log-ratios of f1 and δ: MSA = exp(median |ln(sim/exp)|) − 1. Instead of the paper's 1296-point grid, the
-fit uses two facts of the chain: f1 ∝ √E at fixed geometry (k_n ∝ E and, through eq. 3,
-c_n ∝ √E, so the modal damping ratio does not depend on E), and δ grows monotonically
-with θ_ζ. So θ_ζ is a bounded 1-D search on the δ error and θ_E follows in closed form from
-the f1 log-ratios (least squares). Each evaluation is a full resonance simulation.
+The fit is the diagnosis' one fitter (:func:`.fitting.fit`, its ``scaling`` method: θ_ζ a
+bounded 1-D search on the δ residuals, θ_E in closed form from the f1 residuals) on the
+resonance table's objective (:class:`.objective.TableObjective`: residuals ln(sim/exp) of f1
+and the paper's two-peak δ, error the paper's median symmetric accuracy, eq. 4a) whose forward
+model is the engine's resonance protocol (:func:`~pipeline.protocols.resonance.run_resonance`
+with the configured engine and step): :class:`EngineTableObjective`. Each evaluation is a full
+resonance simulation of every whisker.
 """
 
 from __future__ import annotations
@@ -13,13 +14,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-import numpy as np
-from scipy.optimize import minimize_scalar
-
 from pipeline.config.physics import ModelConfig
-from pipeline.diagnosis.features import msa
+from pipeline.diagnosis.fitting import fit
+from pipeline.diagnosis.objective import TableObjective
+from pipeline.diagnosis.parameters import ModelSpec
 from pipeline.measurements import PAPER_ALPHA_B1
-from pipeline.measurements.table import ResonanceRecord, load_table
+from pipeline.measurements.table import ResonanceRecord, ResonanceTable, load_table
+from pipeline.model.effects.registry import model_parts
 from pipeline.protocols.resonance import ResonanceResult, run_resonance
 
 
@@ -50,28 +51,31 @@ def simulate_all(measurements: Sequence[ResonanceRecord], config: ModelConfig) -
     return {m.whisker: run_resonance(m.geometry, config) for m in measurements}
 
 
-def log_ratios(measurements: Sequence[ResonanceRecord], results: dict[str, ResonanceResult]) -> np.ndarray:
-    """ln(sim/exp) of f1 of every whisker, then of the paper's two-peak δ."""
-    return np.array([np.log(results[m.whisker].f1_hz / m.frequencies_hz[0]) for m in measurements]
-                    + [np.log(results[m.whisker].paper_log_decrement / m.log_decrement) for m in measurements])
+class EngineTableObjective(TableObjective):
+    """A resonance table's objective whose protocol records run the resonance protocol on the
+    engine of ``config`` with the spec's material (E, θ_ζ; the config's extensions are kept).
+    ``results`` keeps every run: (E in GPa, θ_ζ) → {whisker: ResonanceResult}."""
+
+    def __init__(self, table: ResonanceTable, config: ModelConfig):
+        super().__init__(table)
+        self.config = config
+        self.results: dict[tuple[float, float], dict[str, ResonanceResult]] = {}
+
+    def resonance(self, spec: ModelSpec, record, physics, prepared) -> ResonanceResult:
+        material = spec.material
+        result = run_resonance(record.geometry, self.config.model_copy(update={"material": material}))
+        key = (material.youngs_modulus_gpa, material.damping_ratio)
+        self.results.setdefault(key, {})[record.whisker] = result
+        return result
 
 
-def fit_material(measurements: Sequence[ResonanceRecord] | None = None, config: ModelConfig | None = None,
-                 zeta_bounds=(0.05, 0.6)) -> MaterialFit:
+def fit_material(measurements: Sequence[ResonanceRecord] | None = None,
+                 config: ModelConfig | None = None) -> MaterialFit:
     """θ_E and θ_ζ fitted to ``measurements`` (default: the paper's Table 1) from ``config``'s E."""
-    measurements = paper_table_1() if measurements is None else measurements
+    table = ResonanceTable(tuple(paper_table_1() if measurements is None else measurements))
     config = config or ModelConfig()
-    e0 = config.material.youngs_modulus_gpa
-
-    def delta_error(zeta: float) -> float:
-        results = simulate_all(measurements, with_material(config, e0, zeta))
-        return float(np.sum([np.log(results[m.whisker].paper_log_decrement / m.log_decrement) ** 2
-                             for m in measurements]))
-
-    zeta = float(minimize_scalar(delta_error, bounds=zeta_bounds, method="bounded",
-                                 options={"xatol": 5e-3}).x)
-    results = simulate_all(measurements, with_material(config, e0, zeta))
-    f_ratio = np.mean([np.log(m.frequencies_hz[0] / results[m.whisker].f1_hz) for m in measurements])
-    e_fit = float(e0 * np.exp(2 * f_ratio))
-    final = simulate_all(measurements, with_material(config, e_fit, zeta))
-    return MaterialFit(e_fit, zeta, msa(log_ratios(measurements, final)), final)
+    objective = EngineTableObjective(table, config)
+    fitted = fit(objective, ModelSpec(*model_parts(config)), ("E", "zeta"), method="scaling")
+    material = fitted.spec.material
+    return MaterialFit(material.youngs_modulus_gpa, material.damping_ratio, fitted.error,
+                       objective.results[(material.youngs_modulus_gpa, material.damping_ratio)])

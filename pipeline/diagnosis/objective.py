@@ -10,7 +10,9 @@ Every objective has ``residuals(spec)`` (the vector a least-squares optimiser se
 - :class:`TableObjective`: resonance tables; each whisker is run through the resonance
   protocol (docs/model.md §5) and f1, the paper's two-peak δ (or, for ``damping=modal`` tables, the
   first in-plane mode's damping ratio ζ1 of the linear chain) and f2, f3 (the linear model's
-  in-plane modes) are compared, residuals ln(sim/exp); error = MSA.
+  in-plane modes) are compared, residuals ln(sim/exp); error = MSA. Where the protocol runs is
+  its one hook, :meth:`TableObjective.resonance` (the trial simulator given; the engine's own
+  resonance protocol in :mod:`.material_fit`).
 """
 
 from __future__ import annotations
@@ -143,7 +145,6 @@ class TableObjective:
         protocol (two-peak δ) run it, f1 and δ from its tip; for modal records (a bandwidth or
         free-decay measurement of the first mode) f1 and ζ1 are the linear chain's first damped
         in-plane mode, as are f2 and f3 for every record."""
-        from pipeline.signals.resonance import analyse_tip
         from pipeline.engines.linear.modal import damped_modes
         from pipeline.engines.linear.chain import linearise
 
@@ -157,12 +158,20 @@ class TableObjective:
                         "f2_hz": modes[1] if len(modes) > 1 else np.nan,
                         "f3_hz": modes[2] if len(modes) > 2 else np.nan}
             if record.damping_measure != "modal":
-                trial = prepared.trial
-                positions = self.simulator.simulate(physics, [prepared])[0]
-                result = analyse_tip(positions[1:, 0, 1], trial.time_s[1:], trial.sampling_rate_hz)
+                result = self.resonance(spec, record, physics, prepared)
                 features.update(f1_hz=result.f1_hz, log_decrement=result.paper_log_decrement)
             out.append(features)
         return out
+
+    def resonance(self, spec: ModelSpec, record, physics, prepared: PreparedTrial):
+        """The forward model of a protocol record: the resonance protocol on ``record``'s whisker
+        (``physics``, the whisker of ``spec``), here the trial simulator's tip analysed
+        (:class:`~pipeline.signals.resonance.ResonanceResult`); a subclass may run it elsewhere."""
+        from pipeline.signals.resonance import analyse_tip
+
+        trial = prepared.trial
+        positions = self.simulator.simulate(physics, [prepared])[0]
+        return analyse_tip(positions[1:, 0, 1], trial.time_s[1:], trial.sampling_rate_hz)
 
     def measured(self) -> list[dict[str, tuple[float, float]]]:
         """Per whisker: feature → (value, standard deviation) for the measured features."""
@@ -193,6 +202,10 @@ class TableObjective:
             pairs.append(({"frf_hz": m["f1_hz"][0], "log_decrement": m.get(key, (np.nan,))[0]},
                           {"frf_hz": s["f1_hz"], "log_decrement": s[key]}))
         return _median_ratios(pairs)
+
+    def damping_mask(self) -> np.ndarray:
+        """True for each residual of a damping (δ or ζ1), False for a frequency."""
+        return np.array([key in ("log_decrement", "zeta1") for meas in self.measured() for key in meas])
 
     def log_sd(self) -> np.ndarray:
         """Standard deviation of each residual's measured value, in log units (NaN unknown)."""

@@ -24,8 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.model.morphology import (MIN_TIP_RADIUS_M, MODEL_RAT_COLUMNS, ROW_LETTERS, Morphology,
-                                       WhiskerSpec, mirrored, model_rat_radii)
+from pipeline.model.array_table import ROW_LETTERS, Morphology, WhiskerSpec, mirrored
+from pipeline.model.model_rat import MIN_TIP_RADIUS_M, MODEL_RAT_COLUMNS, model_rat_radii
 
 # Ibrahim & Wright 1982 ('F' whisker): mouse base 80–90 µm, rat 160–180 µm → 85/170 = 0.50, and
 # 80/180 … 90/160 = 0.44 … 0.56 (± 12 %) from the ends of their ranges.

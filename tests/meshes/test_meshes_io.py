@@ -9,9 +9,9 @@ from pipeline.config import load_config
 from pipeline.config.meshes import MeshConfig
 from pipeline.errors import UserError
 from pipeline.meshes.clean import VoxelGrid
-from pipeline.meshes.io import (open_point_file, parse_units, write_pcd_points, write_ply_points,
-                                write_xyz_points)
+from pipeline.meshes.io import open_point_file, write_pcd_points, write_ply_points, write_xyz_points
 from pipeline.meshes.load import read_scan
+from pipeline.meshes.point_source import parse_units
 
 REPO = Path(__file__).resolve().parents[2]
 
