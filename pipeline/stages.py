@@ -4,35 +4,30 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
+from pipeline.meshes.build import run_stage as build_meshes
+from pipeline.protocols.demo_trial import whisk_beside_meshes
+from pipeline.runner.simulate import run_stage as simulate
+
 STAGES: dict[str, Callable[..., dict[str, Any]]] = {}
 
 
-# --- build-meshes (pipeline/meshes): imported only when the stage runs
 def _build_meshes(config_path, scans="scans", out="outputs/meshes", force=False) -> dict[str, Any]:
-    from pipeline.meshes.build import run_stage
-
-    return run_stage(config_path, scans=scans, out=out, force=force)
+    return build_meshes(config_path, scans=scans, out=out, force=force)
 
 
 STAGES["build-meshes"] = _build_meshes
-# --- end build-meshes
 
 
-# --- simulate (pipeline/runner, issue 5): a new dataset version; imported only when the stage runs
 def _simulate(config_path, n=None, scenes=None, name=None, workers=None, record_every=None) -> dict[str, Any]:
-    from pipeline.runner.simulate import run_stage
-
-    return run_stage(config_path, n=n, scenes=scenes, name=name, workers=workers, record_every=record_every)
+    """A new dataset version (pipeline/runner)."""
+    return simulate(config_path, n=n, scenes=scenes, name=name, workers=workers, record_every=record_every)
 
 
 STAGES["simulate"] = _simulate
-# --- end simulate
 
 
 def _whisk_beside_meshes(config_path, meshes="outputs/meshes", out="outputs/trials", whiskers="R",
                          duration_s=0.25, distance_mm=28.0, engine=None) -> dict[str, Any]:
-    from pipeline.protocols.demo_trial import whisk_beside_meshes
-
     return whisk_beside_meshes(config_path, meshes=meshes, out=out, whiskers=whiskers,
                                duration_s=duration_s, distance_mm=distance_mm, engine=engine)
 

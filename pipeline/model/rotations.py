@@ -12,6 +12,8 @@ functions called rarely (matrix → Euler angles, quaternion → matrix) use ``R
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 
@@ -52,8 +54,6 @@ def yaw_pitch_roll(matrix) -> tuple[float, float, float]:
 
 def euler_zyx(matrices) -> np.ndarray:
     """[..., 3] :func:`yaw_pitch_roll` of rotation matrices [..., 3, 3]."""
-    import warnings
-
     from scipy.spatial.transform import Rotation
 
     matrices = np.asarray(matrices, float)

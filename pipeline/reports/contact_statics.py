@@ -34,8 +34,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import trimesh
 
 from pipeline.config.physics import ModelConfig
+from pipeline.engines import create_engine
 from pipeline.model.array import single_whisker
 from pipeline.model.effects.registry import model_parts
 from pipeline.model.kinematics import Pose, ProtractionDrive
@@ -157,8 +159,6 @@ def wall_touching(rod: Rod, touch_angle_rad: float) -> Peg:
 def wall_obstacle(peg: Peg, meshed: bool):
     """The flat wall tangent to the elastica's ``peg`` at its lowest point: a Box, or the same
     box as a closed triangle mesh."""
-    import trimesh
-
     centre = (peg.centre_m[0], peg.centre_m[1] - peg.radius_m + WALL_HALF_EXTENTS_M[1], 0.0)
     if not meshed:
         return Box(WALL_HALF_EXTENTS_M, centre)
@@ -178,8 +178,6 @@ def run_engine(config: ModelConfig, geometry: WhiskerGeometry, peg: Peg, speed_d
                sweep_deg: float = SWEEP_DEG, facets: int = 0, wall: bool = False):
     """(protraction angle per sample in degrees, TrialOutput) of one slow turn into the peg
     (``facets``, ``wall``: :func:`peg_obstacle`)."""
-    from pipeline.engines import create_engine
-
     end_deg = TOUCH_ANGLE_DEG + sweep_deg
     duration = end_deg / speed_deg_s
     drive = ProtractionDrive(np.array([0.0, duration]), np.radians([0.0, end_deg]), interpolation="linear")

@@ -17,7 +17,9 @@ from pathlib import Path
 from pipeline.config.simulate import ScenesConfig
 from pipeline.datasets.versions import MESHES_DIR
 from pipeline.errors import RunAborted, UserError
+from pipeline.protocols.whisking import parse_scene
 from pipeline.provenance import file_sha256
+from pipeline.scenes.library import mesh_scene
 from pipeline.scenes.obstacles import Scene
 
 
@@ -35,9 +37,6 @@ class SceneEntry:
 
     def load(self) -> Scene:
         """The scene; a mesh only if its file still has the sha256 the run recorded."""
-        from pipeline.protocols.whisking import parse_scene
-        from pipeline.scenes.library import mesh_scene
-
         if not self.is_mesh:
             return parse_scene(self.name)
         try:
