@@ -4,7 +4,7 @@ The whisker is a bench whisker (:func:`pipeline.model.array.single_whisker`: res
 x–y plane curving toward +y, turned about z, its plane normal) with the morphology's geometry.
 It turns at a constant rate from :data:`GAP_DEG` before the peg touches its rest shape at a
 given fraction of its arc length to a given angle past that first touch. Used to check contact
-statics (issue 24): base wrench, bend at the contact, penetration, friction.
+statics against the elastica (:mod:`pipeline.reports.contact_statics`): base wrench, bend at the contact, penetration, friction.
 """
 
 from __future__ import annotations

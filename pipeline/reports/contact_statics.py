@@ -1,4 +1,4 @@
-"""Contact statics against the elastica (issue 24): a whisker turned slowly into a thin peg.
+"""Contact statics against the elastica: a whisker turned slowly into a thin peg.
 
 One whisker of the model rat (default material, rigid follicle: the base is clamped as in the
 elastica) lies in the head's x–y plane, concave toward +y, and the drive turns it about z

@@ -1,5 +1,5 @@
 """``pipeline validate``: the paper's validation (Table 1, Figs. 2–5) on the configured engine,
-and the contact statics against the elastica (issue 24, :mod:`pipeline.reports.contact_statics`).
+and the contact statics against the elastica (:mod:`pipeline.reports.contact_statics`).
 
 Each figure is a :class:`~pipeline.reports.checks.Section` built by its module
 (resonance_checks, collision_checks, follicle_check, array_checks); this module runs them in
