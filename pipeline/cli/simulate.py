@@ -49,7 +49,7 @@ def simulate(
     json_output: bool = JSON,
 ) -> None:
     """Simulate N trials (scenes × head poses × whisks) on dask into a new versioned HDF5 dataset."""
-    # imported here, not at the top: ≈0.4 CPU-s on every command's start-up (`import pipeline.cli`)
+    # imported here, not at the top: ≈0.44 CPU-s on every command's start-up (`import pipeline.cli`)
     from pipeline.config.simulate import load_simulate_config
     from pipeline.runner.duplicates import refuse_duplicate
     from pipeline.runner.simulate import simulate as run_simulation

@@ -188,7 +188,7 @@ BATCH_OPTIONS = ("cores", "memory", "processes", "walltime", "queue", "account",
 
 
 def _memory(text: str | None) -> str | None:
-    # imported here, not at the top: ≈0.074 CPU-s on a trial's start-up
+    # imported here, not at the top: ≈0.07 CPU-s on a trial's start-up (`pipeline trial --out`)
     from dask.utils import parse_bytes
 
     if text is not None:

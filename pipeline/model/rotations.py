@@ -53,7 +53,7 @@ def yaw_pitch_roll(matrix) -> tuple[float, float, float]:
 
 def euler_zyx(matrices) -> np.ndarray:
     """[..., 3] :func:`yaw_pitch_roll` of rotation matrices [..., 3, 3]."""
-    # imported here, not at the top: ≈0.2 CPU-s on a trial's start-up
+    # imported here, not at the top: ≈0.20 CPU-s on a trial's start-up
     from scipy.spatial.transform import Rotation
 
     matrices = np.asarray(matrices, float)
