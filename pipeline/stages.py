@@ -4,15 +4,17 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
-from pipeline.meshes.build import run_stage as build_meshes
 from pipeline.protocols.demo_trial import whisk_beside_meshes
-from pipeline.runner.simulate import run_stage as simulate
 
 STAGES: dict[str, Callable[..., dict[str, Any]]] = {}
 
 
 def _build_meshes(config_path, scans="scans", out="outputs/meshes", force=False) -> dict[str, Any]:
-    return build_meshes(config_path, scans=scans, out=out, force=force)
+    """Collision meshes from scans (pipeline/meshes)."""
+    # imported here, not at the top: ≈1.1 CPU-s (Open3D) on every workflow, whether it builds meshes or not
+    from pipeline.meshes.build import run_stage
+
+    return run_stage(config_path, scans=scans, out=out, force=force)
 
 
 STAGES["build-meshes"] = _build_meshes
@@ -20,7 +22,10 @@ STAGES["build-meshes"] = _build_meshes
 
 def _simulate(config_path, n=None, scenes=None, name=None, workers=None, record_every=None) -> dict[str, Any]:
     """A new dataset version (pipeline/runner)."""
-    return simulate(config_path, n=n, scenes=scenes, name=name, workers=workers, record_every=record_every)
+    # imported here, not at the top: ≈0.3 CPU-s (dask) on every workflow, whether it simulates or not
+    from pipeline.runner.simulate import run_stage
+
+    return run_stage(config_path, n=n, scenes=scenes, name=name, workers=workers, record_every=record_every)
 
 
 STAGES["simulate"] = _simulate
