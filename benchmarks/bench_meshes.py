@@ -71,7 +71,7 @@ def main() -> int:
     import trimesh
 
     from pipeline.config.meshes import MeshConfig
-    from pipeline.meshes import build_meshes
+    from pipeline.meshes.build import build_meshes
     from pipeline.meshes.io import open_point_file
     from pipeline.meshes.units import TO_MM
 

@@ -28,6 +28,7 @@ _LABEL_SUFFIXES = tuple(s for s in UNIT_SUFFIXES if s.startswith("_") and s != "
 
 def print_json(data: object) -> None:
     """``data`` as indented JSON on stdout (NaN as null, numpy as Python), nothing else."""
+    # imported here, not at the top: ≈0.08 CPU-s on every command's start-up (`import pipeline.cli`)
     from pipeline.reports.document import jsonable
 
     print(json.dumps(jsonable(data), indent=2, default=str))
@@ -125,6 +126,7 @@ def value_text(key: str, value: Any) -> str:
 
 def summary_table(summary: Mapping[str, Any], title: str):
     """A two-column rich table (quantity, value) of ``summary``."""
+    # imported here, not at the top: ≈0.01 CPU-s on every command's start-up (`import pipeline.cli`)
     from rich.table import Table
 
     table = Table(title=title, title_justify="left", min_width=len(title))
@@ -138,6 +140,7 @@ def summary_table(summary: Mapping[str, Any], title: str):
 def parameters_table(params: Mapping[str, Mapping[str, Any]], title: str):
     """A rich table of fitted parameters ``{name: {value, sd, unit}}`` (SI, unit "1" for none):
     value and standard deviation rounded, with one SI prefix for both."""
+    # imported here, not at the top: ≈0.01 CPU-s on every command's start-up (`import pipeline.cli`)
     from rich.table import Table
 
     table = Table("parameter", "value", "± sd", "unit", title=title, title_justify="left")
@@ -154,6 +157,7 @@ def rows_table(rows: list[Mapping[str, Any]], columns: Iterable[str], title: str
     """A rich table with one row per dict; headers are labels with the unit in brackets. Columns
     in ``no_wrap`` (and every column whose cells are short) keep their full width, even beyond a
     narrow terminal: a timestamp or a name is never cut."""
+    # imported here, not at the top: ≈0.01 CPU-s on every command's start-up (`import pipeline.cli`)
     from rich.table import Table
 
     columns, keep = list(columns), set(no_wrap)
@@ -185,6 +189,7 @@ LOG_WIDTH = 1000     # stdout not a terminal (a log, a pipe): lines as long as t
 def show(*renderables: Any, next_steps: Iterable[str] = ()) -> None:
     """Print tables (or text) to stdout, then one "next:" line per suggested command. On a
     terminal, tables fit its width; in a log (stdout not a terminal) nothing is wrapped."""
+    # imported here, not at the top: ≈0.02 CPU-s on every command's start-up (`import pipeline.cli`)
     from rich.console import Console
     from rich.markup import escape
 

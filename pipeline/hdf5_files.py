@@ -81,6 +81,7 @@ def _parse_superblock(path: Path, offset: int, head: bytes) -> Superblock:
 def _set_read_attempts():
     """HDF5's ``H5Pset_metadata_read_attempts`` from the library h5py is linked with (h5py does not
     wrap it; dlsym on h5py's own extension module finds its libhdf5)."""
+    # imported here, not at the top: ≈0.02 CPU-s on a worker's start-up
     import h5py.h5p
 
     function = ctypes.CDLL(h5py.h5p.__file__).H5Pset_metadata_read_attempts
@@ -92,6 +93,7 @@ def open_hdf5(path: Path, what: str = "HDF5 file"):
     """``path`` open read-only as an ``h5py.File``: SWMR (bounded retries) only if a writer has it
     open, else plain (HDF5 checks the end of file). UserError naming the file if it cannot be read,
     is not HDF5, is truncated or its metadata are damaged."""
+    # imported here, not at the top: ≈0.02 CPU-s on a worker's start-up
     import h5py
 
     path = Path(path)
@@ -117,6 +119,7 @@ def open_hdf5(path: Path, what: str = "HDF5 file"):
 def refuse_external_links(handle, what: str = "HDF5 file") -> None:
     """UserError if the open file ``handle`` holds an external link: its data would come from
     another file, which neither the reader's checks nor a provenance hash of this file cover."""
+    # imported here, not at the top: ≈0.02 CPU-s on a worker's start-up
     import h5py
 
     found = []

@@ -24,6 +24,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 import pipeline
 from pipeline.errors import UserError
 from pipeline.provenance import file_sha256, json_sha256, paths_sha256
+from pipeline.stages import STAGES
 from pipeline.storage import write_text_durably
 
 STATE_DIR = Path("outputs/.workflow")
@@ -46,8 +47,6 @@ class WorkflowSpec(BaseModel):
 
 def _stage_functions() -> dict[str, Callable[..., Any]]:
     """Stage name → function(config_path, **args) -> summary dict. Imported lazily."""
-    from pipeline.stages import STAGES
-
     return STAGES
 
 

@@ -40,6 +40,7 @@ def export_nwb(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK, a 
                root: Optional[Path] = ROOT,
                json_output: bool = JSON) -> None:
     """One NWB file: base signals, contacts and drive as time series, whisker and trial tables, provenance."""
+    # imported here, not at the top: ≈0.63 CPU-s on every command's start-up (`import pipeline.cli`)
     from pipeline.exports.nwb import export_nwb as run_export
     from pipeline.exports.nwb_metadata import load_nwb_metadata
 
@@ -62,6 +63,7 @@ def export_whiskit(target: str = typer.Argument(..., help="Dataset NAME, NAME/vK
                    root: Optional[Path] = ROOT,
                    json_output: bool = JSON) -> None:
     """One trial as the original WHISKiT C++ writes its output: CSV files in mm, mN, µN·m."""
+    # imported here, not at the top: ≈0.10 CPU-s on every command's start-up (`import pipeline.cli`)
     from pipeline.exports.whiskit import export_whiskit as run_export
 
     out = writable_out(out)
@@ -85,6 +87,7 @@ def compare_whiskit(folder: Path = typer.Argument(..., help="WHISKiT output fold
                     root: Optional[Path] = ROOT,
                     json_output: bool = JSON) -> None:
     """Per whisker and base signal: RMS difference and correlation of WHISKiT output vs a dataset trial."""
+    # imported here, not at the top: ≈0.10 CPU-s on every command's start-up (`import pipeline.cli`)
     from pipeline.exports.whiskit import compare_whiskit as run_compare
 
     with busy("compare-whiskit", f"reading {folder} and trial {trial} of {target}", json_output):

@@ -25,6 +25,7 @@ def info(json_output: bool = JSON,
     it resolved (and how), and the resolved configuration."""
     if configs is not None and not configs.is_dir():
         raise UserError(f"--configs {configs}: no such folder")
+    # imported here, not at the top: ≈0.02 CPU-s on every command's start-up (`import pipeline.cli`)
     from pipeline.config.registry import resolved_configs
 
     project = describe_project(configs)
@@ -33,6 +34,7 @@ def info(json_output: bool = JSON,
     if json_output:
         print_json(data)
         return
+    # imported here, not at the top: ≈0.03 CPU-s on every command's start-up (`import pipeline.cli`)
     from rich.pretty import Pretty
     from rich.table import Table
 

@@ -29,6 +29,7 @@ def build_meshes(
     json_output: bool = JSON,
 ) -> None:
     """Turn every scan into a collision mesh (OBJ, metres) with quality metrics in manifest.json."""
+    # imported here, not at the top: ≈1.1 CPU-s on every command's start-up (`import pipeline.cli`)
     from pipeline.meshes.build import build_meshes as build, load_mesh_config
 
     project = project_root()

@@ -48,6 +48,7 @@ def absolute_path(path: Optional[Path]) -> Optional[str]:
 
 def morphology(text: Optional[str]) -> Optional[str]:
     """``--morphology``: a shipped array's name as it is, a table's path made absolute."""
+    # imported here, not at the top: ≈0.07 CPU-s on every command's start-up (`import pipeline.cli`)
     from pipeline.model.morphology import SHIPPED_MORPHOLOGIES
 
     return text if text is None or text in SHIPPED_MORPHOLOGIES else str(Path(text).resolve())
@@ -71,8 +72,9 @@ def writable_out(path: Optional[Path], option: str = "--out", *, file: bool = Fa
     """``path`` resolved, through the one output guard (pipeline.datasets.outputs): never inside a
     complete dataset version, through a symlink, or (a ``file``) over an existing file unless
     ``replace``."""
-    from pipeline.datasets.outputs import output_file, output_folder
-
     if path is None:
         return None
+    # imported here, not at the top: ≈0.10 CPU-s on every command's start-up (`import pipeline.cli`)
+    from pipeline.datasets.outputs import output_file, output_folder
+
     return output_file(path, option, replace=replace) if file else output_folder(path, option)

@@ -46,6 +46,7 @@ def resonance(
 ) -> None:
     """Resonance protocol (Gaussian pulse, abrupt stop): per-mode f and ζ from the ring-down, and
     the paper's two-peak log decrement."""
+    # imported here, not at the top: ≈0.83 CPU-s on every command's start-up (`import pipeline.cli`)
     from pipeline.model.morphology import load_morphology
     from pipeline.model.whisker import WhiskerGeometry
     from pipeline.protocols.resonance import run_resonance
@@ -94,6 +95,7 @@ def trial(
     json_output: bool = JSON,
 ) -> None:
     """Run one trial of the array in a scene and summarise (or write) its base signals."""
+    # imported here, not at the top: ≈0.12 CPU-s on every command's start-up (`import pipeline.cli`)
     from pipeline.model.kinematics import Pose
     from pipeline.protocols.whisking import default_drive, parse_scene, run_trial
 
@@ -116,6 +118,7 @@ def trial(
                    "max_moment_N_m": float(output.moment_magnitude().max()),
                    "cpu_seconds": output.metadata["cpu_seconds"]}
         if out is not None:
+            # imported here, not at the top: ≈0.10 CPU-s on every command's start-up (`import pipeline.cli`)
             from pipeline.datasets import write_single_trial
 
             activity.step(f"writing {out}")

@@ -18,6 +18,7 @@ def run(workflow: Path = typer.Argument(..., help="Workflow YAML, e.g. workflows
         force: bool = typer.Option(False, "--force", help="Run every stage even if unchanged."),
         json_output: bool = JSON) -> None:
     """Run a staged workflow, skipping stages whose inputs and config have not changed."""
+    # imported here, not at the top: ≈1.6 CPU-s on every command's start-up (`import pipeline.cli`)
     from pipeline.workflow import run_workflow
 
     stages = run_workflow(workflow, force=force, echo=lambda text: typer.echo(text, err=json_output))

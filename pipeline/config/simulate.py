@@ -18,8 +18,10 @@ from typing import Annotated, Literal
 
 from pydantic import AfterValidator, Field, PrivateAttr, field_validator, model_validator
 
+from pipeline.config.loader import load_config
 from pipeline.config.physics import FreeWhiskers, ModelConfig, StrictModel
-from pipeline.config.project import MESHES_DIR
+from pipeline.config.project import CONFIGS_DIR, MESHES_DIR, find_config, in_project, project_root
+from pipeline.provenance import file_sha256
 
 
 class Range(StrictModel):
@@ -186,6 +188,7 @@ BATCH_OPTIONS = ("cores", "memory", "processes", "walltime", "queue", "account",
 
 
 def _memory(text: str | None) -> str | None:
+    # imported here, not at the top: ≈0.07 CPU-s on a trial's start-up (`pipeline trial --out`)
     from dask.utils import parse_bytes
 
     if text is not None:
@@ -312,10 +315,6 @@ def load_simulate_config(path: str | Path | None = None, overrides: dict | None 
     pipeline.config.project) < environment (``PIPELINE_SIMULATE_*``) < ``overrides`` (command-line
     flags; None = not given; paths in them absolute). Relative paths of the file and environment
     are taken against the project root. ``config.config_file`` records the file used."""
-    from pipeline.config.loader import load_config
-    from pipeline.config.project import CONFIGS_DIR, find_config, in_project, project_root
-    from pipeline.provenance import file_sha256
-
     path = Path(path) if path is not None else find_config(CONFIG_NAME)
     config = load_config(SimulateConfig, path, env_prefix=ENV_PREFIX, overrides=overrides)[0]
     root = project_root(path)

@@ -24,6 +24,7 @@ SCALE_ATTRIBUTES = ("DIMENSION_LIST", "REFERENCE_LIST", "CLASS", "NAME")
 
 def storage_dtype(code: str):
     """The HDF5 type of a schema dtype code: ``S<n>`` is n bytes of UTF-8 text."""
+    # imported here, not at the top: ≈0.02 CPU-s on a worker's start-up
     import h5py
 
     return h5py.string_dtype("utf-8", int(code[1:])) if code[0] == "S" else np.dtype(code)

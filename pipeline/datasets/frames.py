@@ -33,6 +33,7 @@ def _matrices(table, column: str) -> np.ndarray:
 def whisker_frames(whiskers, protraction_rad=None):
     """Whisker frames in the head frame as a DataArray (whisker, [dims of ``protraction_rad``,]
     head_axis, whisker_axis); the rest frames without ``protraction_rad`` (rad)."""
+    # imported here, not at the top: ≈0.34 CPU-s on a worker's start-up
     import xarray as xr
 
     rest = _matrices(whiskers, "rest_rotation")
@@ -53,6 +54,7 @@ def whisker_frames(whiskers, protraction_rad=None):
 
 def _rotate(wrench, rotation, source: str, target: str):
     """``rotation`` (…, target, source) applied to the force and the moment of ``wrench``."""
+    # imported here, not at the top: ≈0.34 CPU-s on a worker's start-up
     import xarray as xr
 
     parts = []
@@ -79,6 +81,7 @@ def to_head_frame(base_wrench, whiskers, protraction_rad=None):
 def to_world_frame(base_wrench, whiskers, trials, protraction_rad=None):
     """``base_wrench`` (dims trial, whisker, signal, ...) in the world frame, using each trial's
     ``pose_rotation`` from the trial table ``trials`` (see :func:`to_head_frame`)."""
+    # imported here, not at the top: ≈0.34 CPU-s on a worker's start-up
     import xarray as xr
 
     head = to_head_frame(base_wrench, whiskers, protraction_rad)

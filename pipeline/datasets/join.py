@@ -13,11 +13,14 @@ import os
 import shutil
 from pathlib import Path
 
+import h5py
+
 from pipeline.config.project import datasets_root
 from pipeline.datasets.dimensions import SCALE_ATTRIBUTES, attach_dimensions
 from pipeline.datasets.manifest import write_manifest
 from pipeline.datasets.reader import decode_attr
 from pipeline.datasets.schema import ARRAYS, CONFIG_FILE, DATA_FILE, FAILED, LIBVER, OK, PENDING, SAMPLES
+from pipeline.datasets.shards import Shard
 from pipeline.datasets.versions import MESHES_DIR, SHARDS_DIR, VersionLock, is_locked, new_version
 from pipeline.datasets.writer import recover
 from pipeline.errors import UserError
@@ -48,10 +51,6 @@ def _run_folder(root: Path, name: str, run: str | None) -> Path:
 def _shards(run_folder: Path) -> list[tuple[Path, range]]:
     """(data file, trial block) per shard, checked complete, not being written, and all of one
     partition (same shard count and trials, each holding its own block)."""
-    import h5py
-
-    from pipeline.datasets.shards import Shard
-
     found, partitions = {}, set()
     for folder in sorted(run_folder.glob("shard_*_of_*")):
         data = folder / DATA_FILE
@@ -88,8 +87,6 @@ def _shards(run_folder: Path) -> list[tuple[Path, range]]:
 
 
 def _write_joined(path: Path, label: str, shards: list[tuple[Path, range]]) -> None:
-    import h5py
-
     partial = path.with_name(path.name + ".partial")
     with h5py.File(shards[0][0], "r") as first, h5py.File(partial, "w", libver=LIBVER) as out:
         out.attrs.update(first.attrs)
@@ -131,8 +128,6 @@ def join_shards(root: Path | None, name: str, run: str | None = None) -> Path:
 
 
 def _join_locked(root: Path, name: str, run_folder: Path) -> Path:
-    import h5py
-
     shards = _shards(run_folder)
     version = new_version(root, name)
     with VersionLock(version):

@@ -14,8 +14,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pipeline.config.simulate import SimulateConfig
+from pipeline.datasets.reader import decode_attr
+from pipeline.datasets.schema import DATA_FILE, FAILED, OK
 from pipeline.datasets.versions import SHARDS_DIR
 from pipeline.errors import UserError
+from pipeline.hdf5_files import open_hdf5
 from pipeline.provenance import json_sha256
 
 
@@ -53,10 +56,6 @@ def run_id(config: SimulateConfig) -> str:
 def shard_counts(folder: Path) -> dict:
     """Trials of the shard in ``folder`` by status: {number, count, trials, ok, failed, pending}
     (all of its block pending if its data file is not there yet or cannot be read while written)."""
-    from pipeline.datasets.reader import decode_attr
-    from pipeline.datasets.schema import DATA_FILE, FAILED, OK
-    from pipeline.hdf5_files import open_hdf5
-
     match = re.fullmatch(r"shard_(\d+)_of_(\d+)", folder.name)
     number, count = int(match.group(1)), int(match.group(2))
     counts = {"number": number, "count": count, "trials": 0, "ok": 0, "failed": 0, "pending": 0}

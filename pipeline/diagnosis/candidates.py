@@ -14,6 +14,7 @@ joints (C = α·M + β·K). A law candidate equal to the model's own damping mod
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -109,8 +110,6 @@ CANDIDATE_NAMES = tuple(c.name for c in CANDIDATES)
 def starts_for(names, scales: WhiskerScales) -> list[dict[str, float]]:
     """Starting values for the extension parameters among ``names``: every combination of the
     starts of their candidates (restricted to the requested parameters)."""
-    import itertools
-
     per_extension = []
     for cand in CANDIDATES:
         wanted = [n for n in cand.params if n in names]

@@ -9,8 +9,25 @@ import math
 from functools import partial
 from pathlib import Path
 
+from pipeline.diagnosis import saved_model
+from pipeline.diagnosis.calibrate import calibrate, modal_summary
+from pipeline.diagnosis.damping_evidence import C1_MODES_HZ, damping_law_evidence
+from pipeline.diagnosis.diagnose import diagnose
+from pipeline.diagnosis.engine import EngineSimulator
 from pipeline.diagnosis.fitting import engine_check
+from pipeline.diagnosis.joint import calibrate_sets, condition_splits
+from pipeline.diagnosis.objective import TableObjective, TrajectoryObjective
+from pipeline.diagnosis.parameters import ModelSpec, parse_names
+from pipeline.diagnosis.report import write_report, write_table_report
+from pipeline.diagnosis.statics import static_vs_dynamic
+from pipeline.diagnosis.synth import load_synth_config, synth
+from pipeline.diagnosis.table_diagnosis import diagnose_table
+from pipeline.diagnosis.threads import single_threaded_blas
 from pipeline.errors import UserError
+from pipeline.measurements import ResonanceTable, load_measurement
+from pipeline.measurements.library import load_library
+from pipeline.measurements.statics import static_records
+from pipeline.measurements.table import CONDITIONS, combine
 
 
 def _jsonable(value):
@@ -26,10 +43,6 @@ def _jsonable(value):
 
 def run_calibrate(path: Path, names: str, method: str, objective: str, material, engine, bootstrap: int,
                   grid_points, save_model: Path | None = None) -> tuple[dict, list[str]]:
-    from pipeline.diagnosis.calibrate import calibrate
-    from pipeline.diagnosis.parameters import ModelSpec, parse_names
-    from pipeline.measurements import ResonanceTable, load_measurement
-
     measurement = load_measurement(path)
     if bootstrap and isinstance(measurement, ResonanceTable):
         raise UserError(f"--bootstrap {bootstrap}: refits over the trials of a time series (.h5); "
@@ -44,13 +57,11 @@ def run_calibrate(path: Path, names: str, method: str, objective: str, material,
                                            f"{result['metric']} {e['error_before']:.4g} → {e['error_after']:.4g}"))
     lines += [f"  note: {n}" for n in result["notes"]]
     if save_model is not None:
-        from pipeline.diagnosis.saved_model import save_model as save
-
         spec = ModelSpec(material).with_values({n: p["value"] for n, p in result["params"].items()})
         whisker, modes = next(iter(result["modes"].items()))
         summary = {"method": "calibrate", "metric": result["metric"], "error": result["error"],
                    "whisker": whisker, **modes}
-        result["model_file"] = str(save(save_model, spec, result["params"], [path], summary))
+        result["model_file"] = str(saved_model.save_model(save_model, spec, result["params"], [path], summary))
         lines.append(f"  model: {result['model_file']}")
     return _jsonable(result), lines
 
@@ -58,8 +69,6 @@ def run_calibrate(path: Path, names: str, method: str, objective: str, material,
 def parse_where(where: str | None) -> dict[str, str]:
     """The conditions of ``--where`` ('key=value;...', docs/measurements.md); UserError naming a
     term that is not one."""
-    from pipeline.measurements.table import CONDITIONS
-
     wanted = {}
     for item in filter(None, (part.strip() for part in (where or "").split(";"))):
         key, _, value = (x.strip() for x in item.partition("="))
@@ -73,9 +82,6 @@ def parse_where(where: str | None) -> dict[str, str]:
 def _tables(paths, library: bool, where: str | None) -> list:
     """Resonance tables of ``paths`` plus the shipped library's, kept when they match ``where``
     ('key=value;...', conditions of docs/measurements.md)."""
-    from pipeline.measurements import ResonanceTable, load_measurement
-    from pipeline.measurements.library import load_library
-
     tables = [load_measurement(p) for p in paths] + (load_library() if library else [])
     for table, path in zip(tables, paths):
         if not isinstance(table, ResonanceTable):
@@ -89,9 +95,6 @@ def _tables(paths, library: bool, where: str | None) -> list:
 
 def run_calibrate_sets(paths, library: bool, where: str | None, hold_out: bool, names: str,
                        material) -> tuple[dict, list[str]]:
-    from pipeline.diagnosis.joint import calibrate_sets
-    from pipeline.diagnosis.parameters import parse_names
-
     result = calibrate_sets(_tables(paths, library, where), parse_names(names), material, hold_out)
     lines = [f"joint fit of {result['values']} values ({len(result['fitted_records'])} whiskers): "
              f"{result['metric']} = {result['error']:.4g}, χ² = {result['chi2']:.1f}; "
@@ -118,8 +121,6 @@ def run_calibrate_sets(paths, library: bool, where: str | None, hold_out: bool, 
 
 def _with_damping_laws(data: dict, lines: list[str], material) -> None:
     """Add which damping law the library supports (:func:`~.damping_evidence.damping_law_evidence`)."""
-    from pipeline.diagnosis.damping_evidence import C1_MODES_HZ, damping_law_evidence
-
     evidence = damping_law_evidence(material)
     data["damping_laws"] = evidence
     lines.append(f"  damping law (untrimmed whiskers; C1 measured {' / '.join(f'{f:.0f}' for f in C1_MODES_HZ)} Hz):")
@@ -139,10 +140,6 @@ def _with_damping_laws(data: dict, lines: list[str], material) -> None:
 def _with_statics(data: dict, lines: list[str], dynamic_e: dict, label: str, material) -> None:
     """Add the quasi-static measurements' E against the dynamic ``dynamic_e`` ({'value', 'sd'}, Pa)
     of the fit named by ``label`` (:func:`pipeline.diagnosis.statics.static_vs_dynamic`)."""
-    from pipeline.diagnosis.parameters import ModelSpec
-    from pipeline.diagnosis.statics import static_vs_dynamic
-    from pipeline.measurements.statics import static_records
-
     s = static_vs_dynamic(static_records(), ModelSpec(material), dynamic_e["value"], dynamic_e["sd"])
     data["static"] = {**s, "dynamic_fit": label}
     lines.append("  quasi-static measurements (linear chain statics; E per source):")
@@ -164,10 +161,6 @@ def _candidates_need_a_series(candidates: str, what) -> UserError:
 def run_diagnose(path: Path | None, material, report: Path | None, engine: str | None,
                  candidates: str | None = None, library: bool = False,
                  save_model: Path | None = None) -> tuple[dict, list[str]]:
-    from pipeline.diagnosis.threads import single_threaded_blas
-    from pipeline.measurements import ResonanceTable, load_measurement
-    from pipeline.measurements.table import combine
-
     if candidates and library:
         raise _candidates_need_a_series(candidates, "the library")
     if library:
@@ -196,21 +189,16 @@ def run_diagnose(path: Path | None, material, report: Path | None, engine: str |
 
 def _save_diagnosis(out: Path, result, path: Path, geometry, whisker: str) -> Path:
     """The diagnosis' final model (baseline refit plus the named extension, if any) to ``out``."""
-    from pipeline.diagnosis.calibrate import modal_summary
-    from pipeline.diagnosis.saved_model import save_model
-
     final = result.final
     summary = {"method": "diagnose", "cause": "+".join(getattr(result, "causes", None) or [result.cause]),
                "metric": final.metric, "error": final.error,
                "whisker": whisker, **modal_summary(final.spec, geometry)}
-    return save_model(out, final.spec, final.params(), [path], summary)
+    return saved_model.save_model(out, final.spec, final.params(), [path], summary)
 
 
 def _with_condition_splits(data: dict, lines: list[str], tables, material) -> tuple[dict, list[str]]:
     """Add what a uniform model gets wrong across sets: for each condition that differs between
     them, the χ² gain of fitting E and the damping separately per value of that condition."""
-    from pipeline.diagnosis.joint import condition_splits
-
     splits = condition_splits(tables, material=material)
     data["condition_splits"] = [{k: v for k, v in s.items()} for s in splits]
     lines.append("  across sets (E and damping fitted per value of a condition, all whiskers):")
@@ -229,9 +217,6 @@ def _with_condition_splits(data: dict, lines: list[str], tables, material) -> tu
 
 
 def _diagnose_series(measurement, material, report, engine, candidates) -> tuple[dict, list[str], object]:
-    from pipeline.diagnosis.diagnose import diagnose
-    from pipeline.diagnosis.objective import TrajectoryObjective
-
     result = diagnose(measurement, material, candidates)
     data = result.as_dict()
     lines = [f"{measurement.path}: cause = {' + '.join(result.causes) or result.cause}",
@@ -244,16 +229,11 @@ def _diagnose_series(measurement, material, report, engine, candidates) -> tuple
     if engine:
         _check_on_engine(data, lines, result.final, partial(TrajectoryObjective, measurement), engine)
     if report is not None:
-        from pipeline.diagnosis.report import write_report
-
         lines.append(f"  report: {write_report(report, measurement, result)}")
     return _jsonable(data), lines, result
 
 
 def _diagnose_table(table, material, report, engine) -> tuple[dict, list[str], object]:
-    from pipeline.diagnosis.objective import TableObjective
-    from pipeline.diagnosis.table_diagnosis import diagnose_table
-
     result = diagnose_table(table, material)
     data = result.as_dict()
     lines = [f"{table.path or 'measurement library'}: cause = {result.cause}", f"  {result.summary}"]
@@ -262,25 +242,18 @@ def _diagnose_table(table, material, report, engine) -> tuple[dict, list[str], o
     if engine:
         _check_on_engine(data, lines, result.final, partial(TableObjective, table), engine)
     if report is not None:
-        from pipeline.diagnosis.report import write_table_report
-
         lines.append(f"  report: {write_table_report(report, table, result)}")
     return _jsonable(data), lines, result
 
 
 def _check_on_engine(data: dict, lines: list[str], model, objective, engine: str) -> None:
     """Score the final model with the fast simulator and with `engine`; `objective(simulator=None)`."""
-    from pipeline.diagnosis.engine import EngineSimulator
-
     data["engine"] = engine_check(model, objective(), objective(EngineSimulator(engine)), engine)
     lines.append(f"  engine check: {data['engine']}")
 
 
 def run_synth(config: Path, out: Path, seed: int | None, model_file: str | None = None) -> dict:
     """The summary of the synthetic measurement written to ``out`` (:func:`~.synth.synth`)."""
-    from pipeline.diagnosis.synth import load_synth_config, synth
-    from pipeline.diagnosis.threads import single_threaded_blas
-
     settings = load_synth_config(config, {"seed": seed, "model_file": model_file})
     with single_threaded_blas():
         return synth(settings, out)

@@ -12,7 +12,7 @@ linear in it), two passes. Then
   consistent when all three in-plane modes oscillate and ζ2, ζ3 ≤ ζ1, within :data:`ZETA_TIE`);
   the C1 geometry is the
   model rat's RC1 (the paper's whisker of that name; the measured whisker's size is not printed);
-- the C1 check of issue 25: f1–f3 within 15 % of the measured, ζ1 in the untrimmed whiskers'
+- the C1 check: f1–f3 within 15 % of the measured, ζ1 in the untrimmed whiskers'
   0.11–0.17.
 
 The law picked: the lowest held-out error among the laws consistent with the multi-mode

@@ -14,6 +14,7 @@ rigidly rotated rest shape, for a release how far it is from rest.
 from __future__ import annotations
 
 import numpy as np
+from scipy.ndimage import median_filter
 
 from pipeline.diagnosis.drives import base_motion
 from pipeline.measurements.timeseries import TimeSeriesMeasurement, Trial
@@ -52,8 +53,6 @@ def amplitude(measurement: TimeSeriesMeasurement) -> float:
 def bend(measurement: TimeSeriesMeasurement) -> float:
     """Largest measured tip deflection / arc length: how far the data take the whisker from
     its (rigidly rotated) rest shape. The median over 5 frames keeps one noisy frame out."""
-    from scipy.ndimage import median_filter
-
     worst = 0.0
     for trial in measurement.trials:
         tip = deflection(trial, trial.positions_m)[:, int(np.argmax(trial.arc_fraction))]

@@ -9,6 +9,8 @@ angular velocity is ω = Rx(φ)ᵀRy(θ)ᵀ(0, 0, ψ̇) + Rx(φ)ᵀ(0, θ̇, 0) 
 from __future__ import annotations
 
 import numpy as np
+from scipy.integrate import cumulative_trapezoid
+from scipy.interpolate import PchipInterpolator
 
 from pipeline.engines.linear.motion import BaseMotion
 from pipeline.measurements.timeseries import ReleaseDrive, RotationDrive
@@ -20,8 +22,6 @@ def base_motion(drive: RotationDrive | ReleaseDrive, times: np.ndarray) -> BaseM
     s = len(times)
     if isinstance(drive, ReleaseDrive):
         return BaseMotion(np.broadcast_to(np.eye(3), (s, 3, 3)).copy(), np.zeros((s, 3)), np.zeros((s, 3)))
-    from scipy.integrate import cumulative_trapezoid
-    from scipy.interpolate import PchipInterpolator
 
     spline = PchipInterpolator(drive.time_s, drive.angles_rad, axis=0)
     inside = (times >= drive.time_s[0]) & (times <= drive.time_s[-1])

@@ -18,13 +18,19 @@ yaw/pitch/roll are refused.
 from __future__ import annotations
 
 import numpy as np
+from scipy.interpolate import PchipInterpolator
 
 from pipeline.config.physics import EngineConfig, MaterialConfig, ModelConfig
 from pipeline.diagnosis.fastsim import PreparedTrial, release_state
+from pipeline.engines import create_engine
 from pipeline.engines.linear.chain import linearise
 from pipeline.errors import UserError
 from pipeline.measurements.timeseries import ReleaseDrive
+from pipeline.model.array import ArrayModel, bench_whisker
+from pipeline.model.kinematics import Pose, ProtractionDrive, still
 from pipeline.model.physics import WhiskerPhysics
+from pipeline.model.rotations import rotation_zyx, yaw_pitch_roll, z_onto
+from pipeline.scenes import empty
 
 DRIVE_RESAMPLE_S = 1e-5
 ENGINE_DT_S = 1e-4
@@ -32,8 +38,6 @@ ENGINE_DT_S = 1e-4
 
 def _rank_one(prepared: PreparedTrial):
     """(joint rates r, θ samples on a fine grid) with angles = r·θ, or a UserError."""
-    from scipy.interpolate import PchipInterpolator
-
     drive, t0 = prepared.trial.drive, prepared.trial.time_s[0]
     _, sv, vt = np.linalg.svd(drive.angles_rad, full_matrices=False)
     if sv[0] == 0 or sv[1] > 1e-6 * sv[0]:
@@ -50,9 +54,6 @@ def _rank_one(prepared: PreparedTrial):
 def _pose_for(direction: np.ndarray):
     """Head pose whose rotation is the smallest one taking the measurement's gravity direction
     to world −z (the transpose of the one taking z onto −direction), and that rotation."""
-    from pipeline.model.kinematics import Pose
-    from pipeline.model.rotations import yaw_pitch_roll, z_onto
-
     rotation = z_onto(-np.asarray(direction, float)).T
     return Pose((0.0, 0.0, 0.0), yaw_pitch_roll(rotation)), rotation
 
@@ -68,12 +69,6 @@ class EngineSimulator:
         return [self._trial(physics, lin, p) for p in prepared]
 
     def _trial(self, physics, lin, prepared: PreparedTrial) -> np.ndarray:
-        from pipeline.engines import create_engine
-        from pipeline.model.array import ArrayModel, bench_whisker
-        from pipeline.model.kinematics import ProtractionDrive, still
-        from pipeline.model.rotations import rotation_zyx
-        from pipeline.scenes import empty
-
         trial = prepared.trial
         rate = trial.sampling_rate_hz
         duration = (trial.samples - 1) / rate

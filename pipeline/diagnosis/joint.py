@@ -22,8 +22,9 @@ from pipeline.diagnosis.fitting import fit, matched_start
 from pipeline.diagnosis.objective import TableObjective
 from pipeline.diagnosis.parameters import ModelSpec
 from pipeline.diagnosis.table_diagnosis import log_sd_with_defaults
+from pipeline.diagnosis.threads import single_threaded_blas
 from pipeline.measurements.library import split_held_out
-from pipeline.measurements.table import combine
+from pipeline.measurements.table import CONDITIONS, combine
 
 MAX_ITERATIONS = 60
 
@@ -61,8 +62,6 @@ def calibrate_sets(tables, names=("E", "zeta"), material: MaterialConfig | None 
                    hold_out: bool = True, extensions=()) -> dict:
     """Fit ``names`` jointly to ``tables`` (records in ``HELD_OUT`` kept out when ``hold_out``);
     ``extensions``: model extensions present at their given values (fixed unless named)."""
-    from pipeline.diagnosis.threads import single_threaded_blas
-
     material = material or MaterialConfig()
     fitted, held = split_held_out(tables) if hold_out else (combine(tables), None)
     with single_threaded_blas():
@@ -109,9 +108,6 @@ def condition_splits(tables, names=("E", "zeta"), material: MaterialConfig | Non
     ``names`` fitted separately per value of that condition (all records, none held out), and
     ΔBIC = Δχ² − Δp·ln m (negative: the split is worth its extra parameters). Conditions that
     split the sets alike share their fits."""
-    from pipeline.diagnosis.threads import single_threaded_blas
-    from pipeline.measurements.table import CONDITIONS
-
     material = material or MaterialConfig()
     fits: dict[tuple, tuple[float, int, dict]] = {}
 

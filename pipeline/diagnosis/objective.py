@@ -23,8 +23,11 @@ from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial
 from pipeline.diagnosis.features import (TipSignal, decrement, dominant_side, features, is_release, msa,
                                          smoothing_window)
 from pipeline.diagnosis.parameters import ModelSpec
+from pipeline.engines.linear.chain import linearise
+from pipeline.engines.linear.modal import damped_modes
 from pipeline.measurements.table import ResonanceTable
 from pipeline.measurements.timeseries import RotationDrive, TimeSeriesMeasurement, Trial
+from pipeline.signals.resonance import DURATION_S, analyse_tip, pulse_drive
 
 RESIDUAL_UNIT_M = 1e-4
 MISSING_FEATURE_PENALTY = np.log(10.0)     # a feature the simulation does not produce at all
@@ -121,8 +124,6 @@ def _median_ratios(pairs) -> tuple[float, float]:
 
 def protocol_trial(name: str) -> Trial:
     """The resonance protocol (docs/model.md §5) as a trial: tip of a base pulse about z, 1 s at 1 kHz."""
-    from pipeline.signals.resonance import DURATION_S, pulse_drive
-
     drive = pulse_drive()
     angles = np.zeros((len(drive.time_s), 3))
     angles[:, 0] = drive.angle_rad
@@ -145,9 +146,6 @@ class TableObjective:
         protocol (two-peak δ) run it, f1 and δ from its tip; for modal records (a bandwidth or
         free-decay measurement of the first mode) f1 and ζ1 are the linear chain's first damped
         in-plane mode, as are f2 and f3 for every record."""
-        from pipeline.engines.linear.modal import damped_modes
-        from pipeline.engines.linear.chain import linearise
-
         out = []
         for record, prepared in zip(self.table.records, self.prepared):
             physics = spec.physics(record.geometry)

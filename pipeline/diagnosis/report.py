@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
 
 from pipeline.diagnosis.deflection import body as base_frame
@@ -17,11 +19,7 @@ from pipeline.diagnosis.residuals import DIRECTIONS, tip_residual_spectra
 
 
 def _pyplot():
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     return plt
 
 

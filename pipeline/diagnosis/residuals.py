@@ -11,6 +11,7 @@ its own (≈ 3 % at 67 Hz and 1 kHz): σ̂ = √(mean(Δ²r²)/6) over every poi
 from __future__ import annotations
 
 import numpy as np
+from scipy.signal import welch
 
 from pipeline.diagnosis.deflection import body
 from pipeline.diagnosis.features import (TipSignal, decrement, dominant_side, features, is_release,
@@ -72,8 +73,6 @@ def analyse(measurement: TimeSeriesMeasurement, simulated: list[np.ndarray]) -> 
 
 def tip_residual_spectra(measurement: TimeSeriesMeasurement, simulated: list[np.ndarray]):
     """(frequency Hz, {direction: mean power spectral density m²/Hz}) of the tip residuals."""
-    from scipy.signal import welch
-
     spectra, freq = {d: [] for d in DIRECTIONS}, None
     segment = min(256, *(len(trial.time_s) for trial in measurement.trials))   # one frequency grid
     for trial, sim in zip(measurement.trials, simulated):

@@ -10,6 +10,7 @@ from pathlib import Path
 from pipeline.config.model_file import (DataFile, FitSummary, FittedValue, MaterialUncertainty, ModelFile,
                                         ModelProvenance, write_model_file)
 from pipeline.diagnosis.parameters import ModelSpec
+from pipeline.provenance import describe_environment, file_sha256
 
 
 def _sd(params: dict, name: str, scale: float = 1.0) -> float | None:
@@ -22,9 +23,6 @@ def model_file(spec: ModelSpec, params: dict, data: list[Path], fit: dict) -> Mo
     """The model file of ``spec`` with the uncertainties of the fitted ``params``
     (``{name: {value, sd, unit}}``, names as in :mod:`.parameters`), fitted to the files ``data``;
     ``fit``: the :class:`~pipeline.config.model_file.FitSummary` fields."""
-    from pipeline.provenance import file_sha256
-    from pipeline.provenance import describe_environment
-
     extensions = {
         ext.name: {p.name: FittedValue(value=getattr(ext, p.name), unit=p.unit, sd=_sd(params, f"{ext.name}.{p.name}"))
                    for p in ext.PARAMETERS}

@@ -21,7 +21,7 @@ import numpy as np
 from pipeline.diagnosis.candidates import CANDIDATE_NAMES, WhiskerScales
 from pipeline.diagnosis.damping_evidence import EQ3_ZETA1_PER_THETA
 from pipeline.diagnosis.diagnose import CONTINUUM
-from pipeline.diagnosis.synth import SynthConfig
+from pipeline.diagnosis.synth import SynthConfig, true_spec
 
 CAUSES = ("none",) + tuple(c for c in CANDIDATE_NAMES if c != "kelvin_voigt")   # the draws' law is KV
 # the parameter each cause is judged on, and the recovery tolerance (relative if rel else absolute)
@@ -88,7 +88,6 @@ def draw(cause: str, seed: int, duration_s: float = 0.25) -> Scenario:
                    "tracking": {"noise_mm": rng.uniform(0.02, 0.1), "missing_fraction": rng.uniform(0, 0.05)},
                    "trials": trials}
     config = SynthConfig.model_validate(base_config)
-    from pipeline.diagnosis.synth import true_spec
 
     physics = true_spec(config).physics(config.whisker.geometry())
     if cause == "rayleigh":

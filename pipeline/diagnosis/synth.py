@@ -17,10 +17,20 @@ from typing import Literal, Optional
 import numpy as np
 from pydantic import Field, ValidationInfo, model_validator
 
+from pipeline.config import load_config
+from pipeline.config.model_file import merge_model_file
 from pipeline.config.physics import MaterialConfig, StrictModel, base_dir
+from pipeline.diagnosis.deflection import bend
+from pipeline.diagnosis.diagnose import LINEAR_BEND_MAX
+from pipeline.diagnosis.engine import EngineSimulator
+from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial
+from pipeline.diagnosis.parameters import ModelSpec
+from pipeline.engines.linear.chain import linearise
 from pipeline.errors import UserError
 from pipeline.measurements.timeseries import (ReleaseDrive, RotationDrive, TimeSeriesMeasurement, Trial,
                                               write_timeseries)
+from pipeline.model.effects.registry import effects_from
+from pipeline.model.whisker import WhiskerGeometry
 
 
 class WhiskerSpec(StrictModel):
@@ -31,8 +41,6 @@ class WhiskerSpec(StrictModel):
     curvature_per_mm: float = Field(0.0, ge=-1, le=1, description="A of y = A·x², 1/mm")
 
     def geometry(self):
-        from pipeline.model.whisker import WhiskerGeometry
-
         return WhiskerGeometry(self.arc_length_mm * 1e-3, self.base_diameter_um * 0.5e-6,
                                self.tip_diameter_um * 0.5e-6, self.curvature_per_mm * 1e3)
 
@@ -112,23 +120,16 @@ class SynthConfig(StrictModel):
     @model_validator(mode="before")
     @classmethod
     def _with_model_file(cls, data, info: ValidationInfo):
-        from pipeline.config.model_file import merge_model_file
-
         return merge_model_file(data, "model_file", base_dir(info))[0]
 
 
 def load_synth_config(path: str | Path | None, overrides: dict | None = None) -> SynthConfig:
-    from pipeline.config import load_config
-
     if path is None:
         raise UserError("pipeline synth needs --config FILE (see docs/measurements.md)")
     return load_config(SynthConfig, path, overrides=overrides)[0]
 
 
 def true_spec(config: SynthConfig):
-    from pipeline.diagnosis.parameters import ModelSpec
-    from pipeline.model.effects.registry import effects_from
-
     where = f"model file {config.model_file}" if config.model_file else "synth config"
     return ModelSpec(config.material, effects_from(config.extensions, where))
 
@@ -145,9 +146,6 @@ def _drive(spec: TrialSpec, config: SynthConfig, duration: float, truth_lin, dir
 
 def synthesise(config: SynthConfig) -> TimeSeriesMeasurement:
     """Simulate every trial of ``config`` with the true model and degrade it as a tracker would."""
-    from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial
-    from pipeline.engines.linear.chain import linearise
-
     rng = np.random.default_rng(config.seed)
     geometry = config.whisker.geometry()
     physics = true_spec(config).physics(geometry)
@@ -170,8 +168,6 @@ def synthesise(config: SynthConfig) -> TimeSeriesMeasurement:
     if config.engine == "fast":
         clean = FastSimulator().simulate(physics, prepared)
     else:
-        from pipeline.diagnosis.engine import EngineSimulator
-
         clean = EngineSimulator(config.engine).simulate(physics, prepared)
     noisy = []
     for trial, positions in zip(trials, clean):
@@ -187,9 +183,6 @@ def synth(config: SynthConfig, out: str | Path) -> dict:
     """Write the synthetic measurement to ``out``; returns a summary (no truth in the file):
     file, whisker, trials, samples, engine, ``bend`` (largest tip deflection / arc length) and,
     when the linear fast simulator made data bent beyond what it follows, a ``note``."""
-    from pipeline.diagnosis.deflection import bend
-    from pipeline.diagnosis.diagnose import LINEAR_BEND_MAX
-
     measurement = synthesise(config)
     path = write_timeseries(out, measurement)
     summary = {"file": str(path), "whisker": measurement.whisker, "trials": len(measurement.trials),

@@ -12,15 +12,19 @@ fitted in-sample; with three or more whiskers each is also scored leaving one wh
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy.stats import chi2 as chi2_dist
 
 from pipeline.config.physics import MaterialConfig
+from pipeline.diagnosis.calibrate import modal_summary
 from pipeline.diagnosis.candidates import CANDIDATES, WhiskerScales
+from pipeline.diagnosis.features import msa
 from pipeline.diagnosis.fitting import FD_STEP, Fit, fit, matched_start
 from pipeline.diagnosis.objective import TableObjective
 from pipeline.diagnosis.parameters import BASELINE_NAMES, ModelSpec, ParameterSpace
+from pipeline.diagnosis.threads import single_threaded_blas
 from pipeline.measurements.table import ResonanceTable
 
 CONFOUNDED = 0.1           # orthogonal share of a sensitivity below which E/θ_ζ mimic it
@@ -83,8 +87,6 @@ def _verdict(jac: np.ndarray, weights: np.ndarray, dof_left: int) -> tuple[str, 
 
 
 def diagnose_table(table: ResonanceTable, material: MaterialConfig | None = None) -> TableDiagnosis:
-    from pipeline.diagnosis.threads import single_threaded_blas
-
     with single_threaded_blas():
         return _diagnose_table(table, material or MaterialConfig())
 
@@ -101,10 +103,6 @@ def log_sd_with_defaults(objective: TableObjective) -> tuple[np.ndarray, str]:
 
 def _leave_one_out(table: ResonanceTable, spec: ModelSpec, names) -> float:
     """MSA of each whisker's features predicted from a fit to the other whiskers."""
-    from dataclasses import replace
-
-    from pipeline.diagnosis.features import msa
-
     ratios = []
     for k in range(len(table.records)):
         others = replace(table, records=table.records[:k] + table.records[k + 1:])
@@ -114,8 +112,6 @@ def _leave_one_out(table: ResonanceTable, spec: ModelSpec, names) -> float:
 
 
 def _diagnose_table(table: ResonanceTable, material: MaterialConfig) -> TableDiagnosis:
-    from scipy.stats import chi2 as chi2_dist
-
     objective = TableObjective(table)
     sd, assumed = log_sd_with_defaults(objective)
     weights = 1.0 / sd
@@ -162,8 +158,6 @@ def _diagnose_table(table: ResonanceTable, material: MaterialConfig) -> TableDia
 
 
 def _summary(table, baseline: Fit, rows, chi2, dof, identifiability, inside) -> str:
-    from pipeline.diagnosis.calibrate import modal_summary
-
     e = baseline.values["E"]
     parts = [f"Baseline E = {e / 1e9:.2f} ± {baseline.sd.get('E', np.nan) / 1e9:.2f} GPa, "
              f"θ_ζ = {baseline.values['zeta']:.3f} ± {baseline.sd.get('zeta', np.nan):.3f}: "

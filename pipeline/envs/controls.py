@@ -15,6 +15,7 @@ import numpy as np
 
 from pipeline.model.head_motion import INERTIAL_TOLERANCE, HeadFrameInertia, twist_exponential
 from pipeline.model.kinematics import Pose
+from pipeline.model.rotations import yaw_pitch_roll
 
 
 class CriticalLag:
@@ -54,8 +55,6 @@ class HeadPlant:
 
     @property
     def pose(self) -> Pose:
-        from pipeline.model.rotations import yaw_pitch_roll
-
         return Pose(tuple(self.position.tolist()), yaw_pitch_roll(self.rotation))
 
     def interval(self, duration_s: float, command: np.ndarray):

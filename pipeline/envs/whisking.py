@@ -36,12 +36,14 @@ import numpy as np
 from gymnasium import spaces
 
 from pipeline.config.physics import ModelConfig
+from pipeline.datasets.writer import write_single_trial
 from pipeline.engines.session import Session
 from pipeline.envs.controls import CriticalLag, HeadPlant
 from pipeline.model.head_motion import HeadMotion
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.outputs import TrialOutput
 from pipeline.protocols.whisking import Whisking, parse_scene
+from pipeline.recordings import write_recording
 from pipeline.scenes.obstacles import Box, Scene
 
 WALL_GAP_M = 0.003          # the wall ahead starts this far beyond the array's reach
@@ -172,8 +174,6 @@ class WhiskingEnv(gym.Env):
 
     def record(self, path: str | Path) -> Path:
         """Write the episode so far as a one-trial dataset (docs/dataset.md; viewer and stats read it)."""
-        from pipeline.datasets.writer import write_single_trial
-
         return write_single_trial(path, self.episode_output(), self.model, self.scene, self.start,
                                   self.episode_drive(), self.episode_head())
 
@@ -181,7 +181,6 @@ class WhiskingEnv(gym.Env):
         """``render_mode="rerun"``: write the episode so far to ``recording`` (.rrd)."""
         if self.render_mode != "rerun" or not self.history:
             return None
-        from pipeline.recordings import write_recording
 
         self.recording.parent.mkdir(parents=True, exist_ok=True)
         write_recording(self.recording, self.episode_output(), self.scene, self.start,

@@ -20,6 +20,10 @@ from pathlib import Path
 from typing import Any, Optional
 
 import numpy as np
+from hdmf.backends.hdf5.h5_utils import H5DataIO
+from hdmf.common import DynamicTable, VectorData
+from pynwb import NWBFile, NWBHDF5IO, TimeSeries
+from pynwb.file import Subject
 
 from pipeline.config.project import project_root
 from pipeline.errors import UserError
@@ -54,8 +58,6 @@ def _concatenated(per_trial: np.ndarray) -> np.ndarray:
 def _whisker_table(data: DatasetTrials):
     """Every column of the dataset's whisker table; its ``name`` column is ``whisker`` here (an NWB
     table has a name of its own)."""
-    from hdmf.common import DynamicTable, VectorData
-
     columns = [VectorData(name="whisker" if name == "name" else name, description=data.column_docs.get(name, name),
                           data=data.whisker_names if name == "name" else values)
                for name, values in data.whiskers.items()]
@@ -111,10 +113,6 @@ RAT = ("rat", "Rattus norvegicus")
 def build_nwbfile(data: DatasetTrials, metadata: NwbMetadata | None = None):
     """The in-memory ``pynwb.NWBFile`` of ``data``, described by ``metadata`` (experimenter,
     institution, lab, session, keywords, subject; default: none, and the simulated animal)."""
-    from hdmf.backends.hdf5.h5_utils import H5DataIO
-    from pynwb import NWBFile, TimeSeries
-    from pynwb.file import Subject
-
     rate = data.sampling_rate_hz
     block_s = len(data.time_s) / rate
     packages = data.provenance.get("packages", {})
@@ -192,8 +190,6 @@ def refuse_existing_export(path: str | Path) -> Path:
 def write_nwb(data: DatasetTrials, path: str | Path, metadata: NwbMetadata | None = None) -> dict[str, Any]:
     """Write ``data`` (described by ``metadata``) to the new NWB file ``path`` (parents created); a
     summary of what was written."""
-    from pynwb import NWBHDF5IO
-
     path = refuse_existing_export(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with replacing(path) as partial, NWBHDF5IO(str(partial), "w") as io:     # a full disk leaves no file

@@ -13,7 +13,7 @@ from __future__ import annotations
 import csv
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from pipeline.errors import UserError
@@ -103,8 +103,6 @@ def parse_conditions(lines, path) -> dict:
 def combine(tables) -> ResonanceTable:
     """One table of the records of several (names prefixed by their set: ``set/whisker``), for
     a joint fit; each record keeps its set's damping measure and names its set in ``source``."""
-    from dataclasses import replace
-
     records = []
     for table in tables:
         name = table.path.stem if table.path else "table"

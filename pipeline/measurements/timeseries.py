@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import os
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import h5py
 import numpy as np
 
 from pipeline.errors import UserError
@@ -87,8 +88,6 @@ class TimeSeriesMeasurement:
     warnings: tuple[str, ...] = ()     # about the data, found while loading (see drive_checks)
 
     def subset(self, names) -> "TimeSeriesMeasurement":
-        from dataclasses import replace
-
         chosen = tuple(t for t in self.trials if t.name in set(names))
         return replace(self, trials=chosen)
 
@@ -272,8 +271,6 @@ def load_timeseries(path: str | Path) -> TimeSeriesMeasurement:
 
 def write_timeseries(path: str | Path, measurement: TimeSeriesMeasurement) -> Path:
     """Write ``measurement`` in format version 1 (atomically: a partial file, then rename)."""
-    import h5py
-
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_name(path.name + ".partial")

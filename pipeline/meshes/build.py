@@ -25,12 +25,24 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
+import open3d as o3d
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from scipy.spatial import cKDTree
 
+from pipeline.config.loader import load_config
 from pipeline.config.meshes import MeshConfig
+from pipeline.config.project import find_config
+from pipeline.datasets.manifest import refuse_complete_version
 from pipeline.errors import UserError
+from pipeline.meshes.clean import oriented_normals, remove_outliers
 from pipeline.meshes.io import SUPPORTED_SUFFIXES, write_obj
+from pipeline.meshes.load import read_scan
 from pipeline.meshes.manifest import (is_current, load_manifest, parameters_key, scan_parameters, versions,
                                       write_manifest)
+from pipeline.meshes.metrics import mesh_metrics
+from pipeline.meshes.reconstruct import drop_far_faces, reconstruct, trim_unsupported
+from pipeline.meshes.refine import clean_mesh, limit_edges, simplify
 from pipeline.provenance import file_sha256
 
 CONFIG_ENV_PREFIX = "PIPELINE_MESHES_"
@@ -82,15 +94,6 @@ def build_scan(path: Path, name: str, out_dir: Path, config: MeshConfig) -> dict
 
     Raises :class:`UserError` for bad input. Vertices are written in metres.
     """
-    import open3d as o3d
-    from scipy.spatial import cKDTree
-
-    from pipeline.meshes.clean import oriented_normals, remove_outliers
-    from pipeline.meshes.load import read_scan
-    from pipeline.meshes.metrics import mesh_metrics
-    from pipeline.meshes.reconstruct import drop_far_faces, reconstruct, trim_unsupported
-    from pipeline.meshes.refine import clean_mesh, limit_edges, simplify
-
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
     timings: dict[str, float] = {}
     clock = time.perf_counter()
@@ -251,8 +254,6 @@ def build_meshes(scans_dir: str | Path, out_dir: str | Path, config: MeshConfig 
     unless ``force``. Bad scans are reported (``status == "failed"``, one-line message)
     and do not stop the others. ``workers`` overrides ``config.workers``.
     """
-    from pipeline.datasets.manifest import refuse_complete_version
-
     config = config or MeshConfig()
     scans_dir, out_dir = Path(scans_dir), Path(out_dir)
     refuse_complete_version(out_dir, "build-meshes output folder")
@@ -348,10 +349,6 @@ class _progress:
 
     def __enter__(self) -> Callable[[str], None]:
         if self.enabled and self.total:
-            from rich.console import Console
-            from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
-                                       TimeElapsedColumn)
-
             console = Console(stderr=True)
             if console.is_terminal:
                 self.bar = Progress(TextColumn("building meshes"), BarColumn(),
@@ -375,9 +372,6 @@ class _progress:
 def load_mesh_config(path: str | Path | None = None) -> MeshConfig:
     """Defaults < ``path`` (or the project's ``configs/meshes.yaml`` if it exists, see
     :mod:`pipeline.config.project`) < ``PIPELINE_MESHES_*``."""
-    from pipeline.config.loader import load_config
-    from pipeline.config.project import find_config
-
     if path is None:
         path = find_config(CONFIG_NAME)
     config, _ = load_config(MeshConfig, path, env_prefix=CONFIG_ENV_PREFIX)

@@ -8,6 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import open3d as o3d
 
 from pipeline.config.meshes import NormalsConfig, OutlierConfig
 
@@ -74,8 +75,6 @@ class OutlierResult:
 
 
 def _cloud(points_mm: np.ndarray):
-    import open3d as o3d
-
     return o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points_mm))
 
 
@@ -103,8 +102,6 @@ def oriented_normals(points_mm: np.ndarray, config: NormalsConfig, voxel_mm: flo
     Consistent orientation fixes the sign up to one global flip; the flip is chosen so that
     most normals point away from the centroid of the cloud.
     """
-    import open3d as o3d
-
     cloud = _cloud(points_mm)
     cloud.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(
         radius=config.radius_voxels * voxel_mm, max_nn=config.max_neighbors))

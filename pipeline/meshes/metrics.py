@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import open3d as o3d
 
 
 def unique_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -61,8 +62,6 @@ def mesh_metrics(vertices_mm: np.ndarray, faces: np.ndarray, tree, samples: int,
 
 def distance_to_surface(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Unsigned distance of each point to the triangle surface (vertices, faces); same unit."""
-    import open3d as o3d
-
     surface = o3d.t.geometry.TriangleMesh()
     surface.vertex.positions = o3d.core.Tensor(np.asarray(vertices, dtype=np.float32))
     surface.triangle.indices = o3d.core.Tensor(np.asarray(faces, dtype=np.int32))

@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import open3d as o3d
 
 from pipeline.config.meshes import ReconstructConfig
 
@@ -35,8 +36,6 @@ def poisson_depth(extent_mm: float, cell_mm: float, config) -> tuple[int, float,
 
 def reconstruct(points_mm: np.ndarray, normals: np.ndarray, config: ReconstructConfig,
                 voxel_mm: float) -> Reconstruction:
-    import open3d as o3d
-
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points_mm))
     cloud.normals = o3d.utility.Vector3dVector(normals)
     warnings: list[str] = []
@@ -62,8 +61,6 @@ def trim_unsupported(mesh, tree, points_mm: np.ndarray, config: ReconstructConfi
 
     Returns (mesh, area removed mm²). ``tree`` is a ``cKDTree`` of ``points_mm``.
     """
-    import open3d as o3d
-
     area_before = mesh.get_surface_area() if len(mesh.triangles) else 0.0
     if len(mesh.vertices):
         distance, _ = tree.query(np.asarray(mesh.vertices),

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from trimesh.remesh import subdivide_to_size
 
 from pipeline.config.meshes import CleanConfig, SimplifyConfig
 
@@ -40,8 +41,6 @@ def simplify(mesh, config: SimplifyConfig):
 def limit_edges(vertices: np.ndarray, faces: np.ndarray,
                 max_edge_mm: float) -> tuple[np.ndarray, np.ndarray]:
     """Split only the edges longer than ``max_edge_mm`` (shared midpoints: crack-free)."""
-    from trimesh.remesh import subdivide_to_size
-
     if len(faces) == 0:
         return vertices, faces
     vertices, faces = subdivide_to_size(vertices, faces, max_edge=max_edge_mm, max_iter=20)

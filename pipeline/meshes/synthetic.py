@@ -16,6 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
+from pipeline.meshes.io import write_pcd_points, write_ply_points, write_xyz_points
+import open3d as o3d
+import trimesh
+
 # ---------------------------------------------------------------------------- objects
 
 
@@ -94,8 +98,6 @@ def drainpipe(rng: np.random.Generator):
 
 
 def _lumpy_sphere(rng: np.random.Generator, radius: float, subdivisions: int = 4):
-    import trimesh
-
     sphere = trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0)
     directions = sphere.vertices
     bumps = np.zeros(len(directions))
@@ -148,8 +150,6 @@ SCENES = {"drainpipe": drainpipe, "rock_pile": rock_pile, "branch": branch}
 
 def scene_mesh(name: str, seed: int = 0):
     """The reference surface of scene ``name`` as a ``trimesh.Trimesh`` in mm."""
-    import trimesh
-
     rng = np.random.default_rng([seed, list(SCENES).index(name)])
     vertices, faces = SCENES[name](rng)
     return trimesh.Trimesh(vertices, faces, process=False)
@@ -197,8 +197,6 @@ def _look_at_rays(eye: np.ndarray, target: np.ndarray, sensor: SensorModel):
 def scan_points(vertices: np.ndarray, faces: np.ndarray, seed: int = 0,
                 views: int = 4, sensor: SensorModel = SensorModel()) -> np.ndarray:
     """Simulated multi-view depth scan of a mesh (mm) → points (n, 3) in mm."""
-    import open3d as o3d
-
     rng = np.random.default_rng(seed)
     mesh = o3d.t.geometry.TriangleMesh()
     mesh.vertex.positions = o3d.core.Tensor(np.asarray(vertices, dtype=np.float32))
@@ -266,8 +264,6 @@ EXAMPLES = {
 def write_example_scans(out_dir: str | Path, seed: int = 0,
                         truth_dir: str | Path | None = None) -> list[Path]:
     """Write the example scans (and optionally their reference meshes in mm) to ``out_dir``."""
-    from pipeline.meshes.io import write_pcd_points, write_ply_points, write_xyz_points
-
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []

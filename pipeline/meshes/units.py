@@ -8,6 +8,7 @@ sample surfaces every ~0.05–5 mm, so a spacing of 0.0001–0.005 is metres and
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from pipeline.config.meshes import UnitsConfig
 
@@ -17,8 +18,6 @@ DETECT_SAMPLE = 50_000
 
 def median_spacing(points: np.ndarray) -> float:
     """Median distance of each of the first ``DETECT_SAMPLE`` points to its nearest other point."""
-    from scipy.spatial import cKDTree
-
     sample = points[:DETECT_SAMPLE]
     if len(sample) < 2:
         return float("nan")

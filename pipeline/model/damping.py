@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.model.whisker import link_centres_of_mass, planar_modes
+
 
 @dataclass(frozen=True)
 class PaperDamping:
@@ -21,8 +23,6 @@ class PaperDamping:
 
     def coefficients(self, chain, base_stiffness_nm_per_rad: float | None = None) -> np.ndarray:
         """[N−1] c_n of the chain's joints (a base spring does not enter eq. 3)."""
-        from pipeline.model.whisker import link_centres_of_mass
-
         com = link_centres_of_mass(chain)
         masses = chain.link_mass_kg
         result = np.empty(chain.links - 1)
@@ -51,8 +51,6 @@ class KelvinVoigtDamping:
     def coefficients(self, chain, base_stiffness_nm_per_rad: float | None = None) -> np.ndarray:
         """[N−1] c_n of the chain's joints; the base spring of ``base_stiffness_nm_per_rad``
         (N·m/rad), if given, enters ω₁ and takes the same β."""
-        from pipeline.model.whisker import planar_modes
-
         stiffness = (None if base_stiffness_nm_per_rad is None
                      else np.concatenate([[base_stiffness_nm_per_rad], chain.stiffness_nm_per_rad]))
         freqs, _ = planar_modes(chain, stiffness)

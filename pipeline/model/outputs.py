@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pipeline.model.morphology import canonical_name
+
 SIGNALS = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 SIGNAL_UNITS = ("N", "N", "N", "N*m", "N*m", "N*m")
 
@@ -42,8 +44,6 @@ class TrialOutput:
         return self.contact.shape[2]
 
     def index(self, name: str) -> int:
-        from pipeline.model.morphology import canonical_name
-
         return self.whisker_names.index(canonical_name(name))
 
     def contact_points_m(self) -> np.ndarray:

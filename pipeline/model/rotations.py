@@ -4,13 +4,14 @@ matrices, quaternions in the two conventions the engines use, and "turn z onto t
 Matrices act on column vectors (v_world = R·v_local). Angles in rad.
 
 numpy, not scipy's ``Rotation``, where a function runs per link or per body while an engine
-is built (every dataset trial): scipy does the same 2–100× slower per call
-(``benchmarks/bench_rotations.py``: one Z–Y–X matrix 7 against 14 µs, a quaternion 4 against
-390 µs, z onto an axis 165 against 500 µs; scipy cost 0.6 s per MuJoCo dataset trial). The
-functions called rarely (matrix → Euler angles, quaternion → matrix) use ``Rotation``.
+is built (every dataset trial): scipy does the same 2–100× slower per call (docs/scaling.md,
+``benchmarks/bench_rotations.py``). The functions called rarely (matrix → Euler angles,
+quaternion → matrix) use ``Rotation``.
 """
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 
@@ -52,8 +53,7 @@ def yaw_pitch_roll(matrix) -> tuple[float, float, float]:
 
 def euler_zyx(matrices) -> np.ndarray:
     """[..., 3] :func:`yaw_pitch_roll` of rotation matrices [..., 3, 3]."""
-    import warnings
-
+    # imported here, not at the top: ≈0.20 CPU-s on a trial's start-up
     from scipy.spatial.transform import Rotation
 
     matrices = np.asarray(matrices, float)

@@ -13,7 +13,7 @@ damping from :mod:`pipeline.model.damping`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -158,8 +158,6 @@ def build_chain(geometry: WhiskerGeometry, links: int, youngs_modulus_pa: float,
 
 
 def _with_damping(chain: WhiskerChain, damping: np.ndarray) -> WhiskerChain:
-    from dataclasses import replace
-
     return replace(chain, damping_nms_per_rad=np.asarray(damping, dtype=float))
 
 

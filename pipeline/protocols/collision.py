@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.config.physics import ModelConfig
+from pipeline.engines import create_engine
 from pipeline.model.array import single_whisker
 from pipeline.model.effects.registry import model_parts
 from pipeline.model.kinematics import Pose, ProtractionDrive
@@ -66,8 +67,6 @@ def edge_scene(geometry: WhiskerGeometry, angle_rad: float = START_GAP_RAD):
 def run_collision(geometry: WhiskerGeometry, config: ModelConfig, speed_deg_s: float,
                   engine=None) -> CollisionResult:
     """Simulate one collision and measure the shock at the base (SI)."""
-    from pipeline.engines import create_engine
-
     omega = np.radians(speed_deg_s)
     t = np.array([0.0, DURATION_S])
     drive = ProtractionDrive(t, omega * t, interpolation="linear")

@@ -15,6 +15,7 @@ from pipeline.errors import SimulationError
 from pipeline.errors import UserError
 from pipeline.model.kinematics import Pose
 from pipeline.protocols.whisking import run_trial
+from pipeline.recordings import write_recording
 from pipeline.scenes import Scene
 from pipeline.scenes.library import beside_right_array, load_mesh
 
@@ -25,8 +26,6 @@ def whisk_beside_meshes(config_path: str | Path | None, meshes: str = "outputs/m
                         engine: str | None = None) -> dict:
     """Run one trial per ``<meshes>/*.obj`` and write ``<out>/<mesh>.rrd``; returns a summary.
     ``engine`` (bullet or mujoco) overrides the model config's engine."""
-    from pipeline.recordings import write_recording
-
     overrides = {"engine": {"name": engine}} if engine else None
     config, _ = load_config(ModelConfig, config_path, env_prefix="PIPELINE_MODEL_", overrides=overrides)
     paths = sorted(Path(meshes).glob("*.obj"))

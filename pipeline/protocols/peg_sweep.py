@@ -4,7 +4,7 @@ The whisker is a bench whisker (:func:`pipeline.model.array.single_whisker`: res
 x–y plane curving toward +y, turned about z, its plane normal) with the morphology's geometry.
 It turns at a constant rate from :data:`GAP_DEG` before the peg touches its rest shape at a
 given fraction of its arc length to a given angle past that first touch. Used to check contact
-statics (issue 24): base wrench, bend at the contact, penetration, friction.
+statics against the elastica (:mod:`pipeline.reports.contact_statics`): base wrench, bend at the contact, penetration, friction.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.config.physics import ModelConfig
+from pipeline.engines import create_engine
 from pipeline.model.array import ArrayModel, single_whisker
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.morphology import load_morphology
@@ -50,8 +51,6 @@ def run_peg_sweep(config: ModelConfig, whisker: str, arc_fraction: float, past_d
                   rate_deg_s: float = 20.0) -> PegSweep:
     """Turn the model rat's ``whisker`` (its geometry, ``config``'s material and engine) at
     ``rate_deg_s`` into a peg at ``arc_fraction`` of its length, ``past_deg`` past first touch."""
-    from pipeline.engines import create_engine
-
     spec = load_morphology(config.morphology)[whisker]
     geometry = WhiskerGeometry(spec.arc_length_m, spec.base_radius_m, spec.tip_radius_m, spec.curvature_per_m)
     array = single_whisker(geometry, config.material, whisker)

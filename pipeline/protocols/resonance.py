@@ -3,6 +3,7 @@ rotation, an abrupt stop, then ringing; drive and analysis in :mod:`pipeline.sig
 
 from __future__ import annotations
 
+from pipeline.engines import create_engine
 from pipeline.signals.resonance import DURATION_S, MODES, ResonanceResult, analyse_tip, pulse_drive
 from pipeline.config.physics import ModelConfig
 from pipeline.errors import UserError
@@ -15,8 +16,6 @@ from pipeline.scenes import empty
 
 def run_resonance(geometry: WhiskerGeometry, config: ModelConfig, modes: int = MODES) -> ResonanceResult:
     """Simulate the resonance protocol for one whisker and analyse its tip (SI in and out)."""
-    from pipeline.engines import create_engine
-
     if config.material.damping_ratio <= 0:
         raise UserError("damping ratio ζ = 0: the resonance protocol measures modes from a decaying "
                         "ring-down, and an undamped whisker's fit mistakes its second mode for f1; use ζ > 0 "

@@ -6,6 +6,7 @@ from collections.abc import Callable
 from functools import cached_property
 
 from pipeline.config.physics import ModelConfig
+from pipeline.engines import create_engine
 from pipeline.errors import UserError
 from pipeline.model.array import ArrayModel, build_array
 from pipeline.model.effects.registry import model_parts
@@ -55,8 +56,6 @@ class Whisking:
     @property
     def engine(self):
         if self._engine is None:
-            from pipeline.engines import create_engine
-
             self._engine = create_engine(self.config, self.array)
         return self._engine
 

@@ -4,6 +4,7 @@ most loaded whiskers on the right, the time panel below (playing at 1/10 real ti
 from __future__ import annotations
 
 import numpy as np
+import rerun.blueprint as rrb
 
 from pipeline.model.outputs import TrialOutput
 
@@ -21,8 +22,6 @@ def loaded_whiskers(output: TrialOutput, count: int = SHOWN_WHISKERS) -> list[st
 
 
 def make_blueprint(output: TrialOutput):
-    import rerun.blueprint as rrb
-
     shown = loaded_whiskers(output)
     rows = [rrb.Horizontal(
         rrb.TimeSeriesView(origin=f"signals/{name}/force", name=f"{name} force (N)"),

@@ -23,6 +23,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from pipeline.datasets.versions import version_folder
+import psutil
+
 from pipeline.errors import UserError
 
 RECORDINGS_DIR = "recordings"
@@ -64,8 +67,6 @@ def resolve_target(target: str, trial: int | None = None, root: Path | None = No
         if trial is not None:
             raise UserError("--trial applies to dataset targets (NAME[/vK]), not to an .rrd file")
         return path
-
-    from pipeline.datasets.versions import version_folder
 
     folder = version_folder(target, root)
     label = f"{folder.parent.name}/{folder.name}"
@@ -149,8 +150,6 @@ class ViewerProcess:
 
 def _group_has_live_process(pgid: int) -> bool:
     """Any process of group ``pgid`` that is not a zombie (psutil's process table)."""
-    import psutil
-
     for proc in psutil.process_iter(["status"]):
         try:
             if os.getpgid(proc.pid) == pgid and proc.info["status"] not in (psutil.STATUS_ZOMBIE,

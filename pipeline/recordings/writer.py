@@ -26,6 +26,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+import rerun as rr
+import rerun_bindings
 
 from pipeline.model.outputs import SIGNAL_UNITS, SIGNALS, TrialOutput
 from pipeline.model.rotations import quat_xyzw
@@ -83,8 +85,6 @@ def write_recording(path: Path, output: TrialOutput, scene: Scene, pose: "Pose",
 
 def _write(tmp: Path, output: TrialOutput, scene: Scene, pose: "Pose", recording_id: str, title: str) -> None:
     """The recording into ``tmp``, its stream closed (or an OSError)."""
-    import rerun as rr
-
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=str(recording_id), send_properties=True)
     try:
         rec.save(tmp, default_blueprint=make_blueprint(output))
@@ -107,8 +107,6 @@ def _release_closed_streams() -> None:
     recording, bounded like the other waits. Left: the in-memory stream rerun makes for the
     default blueprint stays referenced inside rerun (2 threads, ≈ 0.9 MB per recording).
     """
-    import rerun_bindings
-
     _within(rerun_bindings.flush_and_cleanup_orphaned_recordings, CLOSE_TIMEOUT_S)
 
 
@@ -142,14 +140,10 @@ def _closing_failed(tmp: Path, message: str) -> None:
 
 
 def _time_column(time_s: np.ndarray):
-    import rerun as rr
-
     return rr.TimeColumn(TIMELINE, duration=np.asarray(time_s, dtype=np.float64))
 
 
 def _log_world(rec, output: TrialOutput, scene: Scene, pose: "Pose") -> None:
-    import rerun as rr
-
     rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True, strict=True)
     rec.log("world/head", rr.Transform3D(translation=np.asarray(pose.position_m, float),
                                          mat3x3=pose.rotation),
@@ -164,28 +158,20 @@ def _log_world(rec, output: TrialOutput, scene: Scene, pose: "Pose") -> None:
 
 
 def _quaternion(obstacle):
-    import rerun as rr
-
     return rr.Quaternion(xyzw=quat_xyzw(obstacle.rotation))
 
 
 def _cylinder(peg: Cylinder):
-    import rerun as rr
-
     return rr.Cylinders3D(lengths=[peg.length_m], radii=[peg.radius_m], centers=[peg.position_m],
                           quaternions=[_quaternion(peg)], colors=[OBSTACLE_COLOUR], fill_mode="solid")
 
 
 def _box(box: Box):
-    import rerun as rr
-
     return rr.Boxes3D(half_sizes=[box.half_extents_m], centers=[box.position_m],
                       quaternions=[_quaternion(box)], colors=[OBSTACLE_COLOUR], fill_mode="solid")
 
 
 def _mesh(mesh: TriangleMesh):
-    import rerun as rr
-
     return rr.Mesh3D(vertex_positions=np.asarray(mesh.vertices_m, np.float32),
                      triangle_indices=np.asarray(mesh.faces, np.uint32),
                      vertex_normals=np.asarray(mesh.vertex_normals, np.float32), albedo_factor=MESH_COLOUR)
@@ -195,8 +181,6 @@ SHAPES = {Cylinder: _cylinder, Box: _box, TriangleMesh: _mesh}
 
 
 def _log_obstacle(rec, entity: str, obstacle, time_s: np.ndarray) -> None:
-    import rerun as rr
-
     shape = SHAPES[type(obstacle)](obstacle)
     rec.log(entity, shape, static=True, strict=True)
     velocity = np.asarray(obstacle.velocity_m_s, float)
@@ -207,8 +191,6 @@ def _log_obstacle(rec, entity: str, obstacle, time_s: np.ndarray) -> None:
 
 
 def _log_whiskers(rec, output: TrialOutput) -> None:
-    import rerun as rr
-
     nodes = np.asarray(output.node_positions_m, np.float32)
     T, W, nodes_per_whisker, _ = nodes.shape
     contact = np.asarray(output.contact, bool)
@@ -250,8 +232,6 @@ def _series_names(kind: slice) -> list[str]:
 
 
 def _log_signals(rec, output: TrialOutput) -> None:
-    import rerun as rr
-
     wrench = np.asarray(output.base_wrench, np.float64)
     magnitude = np.asarray(output.moment_magnitude(), np.float64)
     times = _time_column(output.time_s)

@@ -17,13 +17,17 @@ from typing import Callable
 import numpy as np
 
 from pipeline.config.physics import ModelConfig
+from pipeline.config.simulate import PoseSamplingConfig
 from pipeline.errors import UserError
+from pipeline.meshes.synthetic import scene_mesh
 from pipeline.model.kinematics import Pose
 from pipeline.protocols.whisking import Whisking, default_drive, run_trial
 from pipeline.reports import published as P
 from pipeline.reports.checks import Section, check, spearman
 from pipeline.reports.stats import contact_runs
 from pipeline.scenes import Scene, TriangleMesh, active_pegs, passive_peg
+from pipeline.scenes.library import load_mesh
+from pipeline.scenes.poses import PoseSampler, PoseSamplingError
 
 DEFAULT_MESH = Path("outputs/meshes/drainpipe.obj")
 QUICK_WHISKERS = ("RD0", "RC1", "RD2")
@@ -46,13 +50,7 @@ def slip_off(signals: dict) -> float:
 def natural_scene(mesh: Path | None, config: ModelConfig, whiskers, drive) -> tuple[Scene, Pose, str]:
     """(scene, head pose, note): the mesh (or the synthetic drainpipe) with a sampled pose facing
     the right side."""
-    from pipeline.config.simulate import PoseSamplingConfig
-    from pipeline.scenes.library import load_mesh
-    from pipeline.scenes.poses import PoseSampler, PoseSamplingError
-
     if mesh is None and not DEFAULT_MESH.is_file():
-        from pipeline.meshes.synthetic import scene_mesh
-
         reference = scene_mesh("drainpipe")
         surface = TriangleMesh(np.asarray(reference.vertices) * 1e-3, np.asarray(reference.faces),
                                "synthetic drainpipe")

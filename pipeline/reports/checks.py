@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.stats import linregress, spearmanr, t
 
 from pipeline.config.material import FollicleConfig
 from pipeline.config.physics import ModelConfig
@@ -72,8 +73,6 @@ def check(name: str, label: str, published: Published, simulated, agrees, criter
 
 def linear_fit(x, y) -> dict:
     """Least-squares line y = slope·x + intercept with r², adjusted r², the slope's p-value and se."""
-    from scipy.stats import linregress
-
     x, y = np.asarray(x, float), np.asarray(y, float)
     n = len(x)
     if n < 3 or np.ptp(x) == 0:
@@ -88,8 +87,6 @@ def linear_fit(x, y) -> dict:
 
 def slope_difference_p(a: dict, b: dict) -> float:
     """Two-sided p-value that two :func:`linear_fit` slopes are equal (t test, n_a + n_b − 4 dof)."""
-    from scipy.stats import t
-
     se = np.hypot(a["slope_se"], b["slope_se"])
     dof = a["n"] + b["n"] - 4
     if not (se > 0 and dof > 0):
@@ -99,8 +96,6 @@ def slope_difference_p(a: dict, b: dict) -> float:
 
 def spearman(x, y) -> float:
     """Rank correlation of finite pairs (NaN with fewer than 3)."""
-    from scipy.stats import spearmanr
-
     x, y = np.asarray(x, float), np.asarray(y, float)
     keep = np.isfinite(x) & np.isfinite(y)
     if keep.sum() < 3 or np.ptp(x[keep]) == 0 or np.ptp(y[keep]) == 0:

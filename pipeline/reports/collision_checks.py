@@ -26,8 +26,11 @@ from __future__ import annotations
 from typing import Callable
 
 import numpy as np
+from scipy.signal import find_peaks
+from scipy.stats import wilcoxon
 
 from pipeline.config.physics import ModelConfig
+from pipeline.engines import create_engine
 from pipeline.model.array import single_whisker
 from pipeline.model.effects.registry import model_parts
 from pipeline.model.kinematics import Pose, ProtractionDrive
@@ -66,8 +69,6 @@ def geometries(config: ModelConfig, name: str) -> dict[str, WhiskerGeometry]:
 
 def collision_runs(config: ModelConfig, names, speeds=SPEEDS_DEG_S, progress: Progress = lambda _: None) -> list[dict]:
     """Every (whisker, shape, speed) collision: dicts with the CollisionResult under ``result``."""
-    from pipeline.engines import create_engine
-
     bench = rigid(config)
     records = []
     for name in names:
@@ -95,8 +96,6 @@ def first_negative_peak(time_s: np.ndarray, dmz: np.ndarray, lead_s: float = SMO
     """(time in ms, value in N·m/s) of the first negative local minimum of dMz/dt from ``lead_s``
     before contact on — the paper's Ṁz,max; (NaN, NaN) if there is none. The centred smoothing
     moves a dip at contact up to half its width earlier; before that the whisker turns freely."""
-    from scipy.signal import find_peaks
-
     peaks, _ = find_peaks(-dmz)
     found = [p for p in peaks if time_s[p] >= -lead_s - 1e-9 and dmz[p] < 0]
     return (float(time_s[found[0]] * 1e3), float(dmz[found[0]])) if found else (float("nan"), float("nan"))
@@ -142,8 +141,6 @@ def straight_vs_curved(rows: list[dict]) -> dict:
 def smaller_p(ratios: np.ndarray) -> float:
     """One-sided Wilcoxon signed-rank p-value that the ratios are below 1 (on ln ratio; NaN with
     fewer than 3 pairs or all equal to 1)."""
-    from scipy.stats import wilcoxon
-
     logs = np.log(ratios[ratios > 0])
     if logs.size < 3 or not np.any(logs):
         return float("nan")
@@ -231,8 +228,6 @@ def shock_section(records: list[dict]) -> Section:
 # -- the shock-wave front --------------------------------------------------------------
 def front_runs(geometry: WhiskerGeometry, config: ModelConfig, speed_deg_s: float = FRONT_SPEED_DEG_S):
     """(with the edge, without it) at FRONT_RATE_HZ; the base stops at the first contact in both."""
-    from pipeline.engines import create_engine
-
     bench = with_output_rate(rigid(config), FRONT_RATE_HZ)
     omega, dt = np.radians(speed_deg_s), bench.engine.dt_s
     duration = START_GAP_RAD / omega + FRONT_AFTER_CONTACT_S

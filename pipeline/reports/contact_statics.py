@@ -1,4 +1,4 @@
-"""Contact statics against the elastica (issue 24): a whisker turned slowly into a thin peg.
+"""Contact statics against the elastica: a whisker turned slowly into a thin peg.
 
 One whisker of the model rat (default material, rigid follicle: the base is clamped as in the
 elastica) lies in the head's x–y plane, concave toward +y, and the drive turns it about z
@@ -35,8 +35,10 @@ from dataclasses import dataclass, field
 from typing import get_args
 
 import numpy as np
+import trimesh
 
 from pipeline.config.physics import EngineName, ModelConfig
+from pipeline.engines import create_engine
 from pipeline.model.array import single_whisker
 from pipeline.model.effects.registry import model_parts
 from pipeline.model.kinematics import Pose, ProtractionDrive
@@ -158,8 +160,6 @@ def wall_touching(rod: Rod, touch_angle_rad: float) -> Peg:
 def wall_obstacle(peg: Peg, meshed: bool):
     """The flat wall tangent to the elastica's ``peg`` at its lowest point: a Box, or the same
     box as a closed triangle mesh."""
-    import trimesh
-
     centre = (peg.centre_m[0], peg.centre_m[1] - peg.radius_m + WALL_HALF_EXTENTS_M[1], 0.0)
     if not meshed:
         return Box(WALL_HALF_EXTENTS_M, centre)
@@ -179,8 +179,6 @@ def run_engine(config: ModelConfig, geometry: WhiskerGeometry, peg: Peg, speed_d
                sweep_deg: float = SWEEP_DEG, facets: int = 0, wall: bool = False):
     """(protraction angle per sample in degrees, TrialOutput) of one slow turn into the peg
     (``facets``, ``wall``: :func:`peg_obstacle`)."""
-    from pipeline.engines import create_engine
-
     end_deg = TOUCH_ANGLE_DEG + sweep_deg
     duration = end_deg / speed_deg_s
     drive = ProtractionDrive(np.array([0.0, duration]), np.radians([0.0, end_deg]), interpolation="linear")

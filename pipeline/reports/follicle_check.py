@@ -23,11 +23,16 @@ import numpy as np
 
 from pipeline.config.material import FollicleConfig
 from pipeline.config.physics import ModelConfig
+from pipeline.diagnosis.fastsim import release_state
+from pipeline.engines import create_engine
+from pipeline.engines.linear.chain import linearise
+from pipeline.measurements.timeseries import ReleaseDrive
 from pipeline.model.array import single_whisker
 from pipeline.model.effects.follicle import CompliantFollicle
 from pipeline.model.effects.registry import model_parts
 from pipeline.model.kinematics import Pose, still
 from pipeline.model.morphology import load_morphology
+from pipeline.model.physics import build_physics
 from pipeline.model.whisker import WhiskerGeometry
 from pipeline.reports import published as P
 from pipeline.reports.checks import Section, check, with_follicle
@@ -52,12 +57,6 @@ def compliant_follicle(config: ModelConfig) -> FollicleConfig:
 def release(config: ModelConfig, geometry: WhiskerGeometry) -> dict:
     """Tip displacement from rest (m, [T, 3]) and base wrench ([T, 6]) for AFTER_RELEASE_S
     after the release from the probe's deflection, time from the release; the static state."""
-    from pipeline.diagnosis.fastsim import release_state
-    from pipeline.engines.linear.chain import linearise
-    from pipeline.engines import create_engine
-    from pipeline.measurements.timeseries import ReleaseDrive
-    from pipeline.model.physics import build_physics
-
     material, extensions = model_parts(config)
     physics = build_physics(geometry, material, extensions)
     lin = linearise(physics)

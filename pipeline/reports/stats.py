@@ -25,7 +25,11 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.activity import Activity
+from pipeline.datasets.reader import DatasetFile
+from pipeline.datasets.versions import resolve
 from pipeline.errors import UserError
+from pipeline.reports.document import write_json
+from pipeline.reports.stats_figures import write_figures, write_report
 
 MOMENT_BINS_NM = np.logspace(-12, -3, 91)
 FORCE_BINS_N = np.logspace(-10, -1, 91)
@@ -298,11 +302,6 @@ def stats_report(target: str | Path, root: str | Path | None, out: str | Path | 
     """Write report.md, the figures and stats.json of a dataset's ok trials into ``out``
     (default ``reports/stats/<name>_v<k>/``); returns a summary with their paths. ``activity``
     shows each step (and the trials read) on stderr."""
-    from pipeline.datasets.reader import DatasetFile
-    from pipeline.datasets.versions import resolve
-    from pipeline.reports.document import write_json
-    from pipeline.reports.stats_figures import write_figures, write_report
-
     start = time.perf_counter()
     path = resolve(target, root)
     with DatasetFile(path) as ds:

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
 
 from pipeline.reports.document import Markdown, number
@@ -14,11 +16,7 @@ COLUMNS = 7
 
 
 def pyplot():
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     return plt
 
 

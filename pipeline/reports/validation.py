@@ -1,5 +1,5 @@
 """``pipeline validate``: the paper's validation (Table 1, Figs. 2–5) on the configured engine,
-and the contact statics against the elastica (issue 24, :mod:`pipeline.reports.contact_statics`).
+and the contact statics against the elastica (:mod:`pipeline.reports.contact_statics`).
 
 Each figure is a :class:`~pipeline.reports.checks.Section` built by its module
 (resonance_checks, collision_checks, follicle_check, array_checks); this module runs them in
@@ -13,14 +13,24 @@ two processes.
 
 from __future__ import annotations
 
+import multiprocessing
+import os
 import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Callable
 
 from pipeline.config.physics import ModelConfig
 from pipeline.errors import UserError
+from pipeline.protocols.collision import SPEEDS_DEG_S
+from pipeline.reports.array_checks import array_section
 from pipeline.reports.checks import Section
+from pipeline.reports.collision_checks import collision_runs, front_section, shock_section
+from pipeline.reports.contact_statics import contact_statics_section
 from pipeline.reports.document import Markdown, number, write_json
+from pipeline.reports.follicle_check import follicle_section
+from pipeline.reports.resonance_checks import array_resonance, engine_resonances, table_1
+from pipeline.reports.validation_figures import write_figure
 
 QUICK_COLLISION_WHISKERS = ("RA0",)
 FULL_COLLISION_WHISKERS = ("RA0", "RB1", "RC2", "RD0")
@@ -33,13 +43,6 @@ LONGEST_FIRST = ("contact_statics", "fig5", "fig3_shock", "fig2", "table1", "fig
 def build_section(name: str, config: ModelConfig, quick: bool, mesh: Path | None,
                   progress: Callable[[str], None] | None = None) -> tuple[Section, float]:
     """(section ``name``, seconds it took) with the material of ``config`` (Table 1 not refitted)."""
-    from pipeline.protocols.collision import SPEEDS_DEG_S
-    from pipeline.reports.array_checks import array_section
-    from pipeline.reports.collision_checks import collision_runs, front_section, shock_section
-    from pipeline.reports.contact_statics import contact_statics_section
-    from pipeline.reports.follicle_check import follicle_section
-    from pipeline.reports.resonance_checks import array_resonance, engine_resonances, table_1
-
     progress = progress or (lambda _: None)
     begin = time.perf_counter()
     if name == "table1":
@@ -73,10 +76,6 @@ def validate(model: ModelConfig, out: str | Path, quick: bool = False, refit: bo
     it finishes. ``refit`` first refits the material on Table 1 (in this process); the other
     sections then use the refitted material.
     """
-    import os
-
-    from pipeline.reports.resonance_checks import table_1
-
     start = time.perf_counter()
     mesh = Path(mesh) if mesh else None
     if mesh is not None and not mesh.is_file():
@@ -94,9 +93,6 @@ def validate(model: ModelConfig, out: str | Path, quick: bool = False, refit: bo
             if name in names:
                 done[name] = build_section(name, config, quick, mesh, progress)
     else:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor, as_completed
-
         progress(f"{', '.join(names)}: running in {workers} processes ({config.engine.name})")
         with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
             futures = {pool.submit(build_section, name, config, quick, mesh): name for name in names}
@@ -113,8 +109,6 @@ def validate(model: ModelConfig, out: str | Path, quick: bool = False, refit: bo
 
 def write_validation_report(sections: list[Section], config: ModelConfig, out: str | Path, meta: dict) -> dict:
     """report.md, ``<section>.png`` and validation.json in ``out``; returns the checks and paths."""
-    from pipeline.reports.validation_figures import write_figure
-
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     figures = {s.name: write_figure(s, out) for s in sections}

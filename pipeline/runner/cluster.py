@@ -18,6 +18,10 @@ import sys
 import warnings
 from contextlib import contextmanager
 from typing import Iterator
+from urllib.parse import urlsplit
+
+import dask_jobqueue
+from distributed import Client, LocalCluster
 
 from pipeline.config.simulate import BATCH_KINDS, ClusterConfig
 from pipeline.errors import UserError
@@ -51,8 +55,6 @@ def scheduler_bind(config: ClusterConfig) -> dict:
 
 
 def _cluster_class(config: ClusterConfig):
-    import dask_jobqueue
-
     return {"slurm": dask_jobqueue.SLURMCluster, "pbs": dask_jobqueue.PBSCluster,
             "sge": dask_jobqueue.SGECluster, "lsf": dask_jobqueue.LSFCluster}[config.kind]
 
@@ -112,8 +114,6 @@ def job_script(config: ClusterConfig) -> str:
 def _echo_dashboard(client, config: ClusterConfig) -> None:
     """Print the address of the dashboard of a cluster we started (and how to reach it from
     another machine), or that of an existing scheduler, if enabled."""
-    from urllib.parse import urlsplit
-
     if not config.dashboard:
         return
     if config.kind == "scheduler":
@@ -126,11 +126,9 @@ def _echo_dashboard(client, config: ClusterConfig) -> None:
 
 
 @contextmanager
-def dask_client(config: ClusterConfig) -> Iterator["distributed.Client"]:  # noqa: F821
+def dask_client(config: ClusterConfig) -> Iterator[Client]:
     """A client of the cluster ``config`` names, once it has a worker (UserError after
     ``config.worker_wait_s``)."""
-    from distributed import Client, LocalCluster
-
     if config.kind == "scheduler":
         try:
             client = Client(config.scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")

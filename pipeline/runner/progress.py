@@ -13,6 +13,10 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Callable, Iterator, TextIO
 
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, ProgressColumn, TextColumn
+from rich.text import Text
+
 LINE_INTERVAL_S = 30.0      # a batch log gets a line at most this often (and one at the end)
 
 
@@ -64,10 +68,6 @@ def _lines(counts: Counts, label: str, stream: TextIO, interval_s: float) -> Cal
 
 @contextmanager
 def _bar(counts: Counts, label: str) -> Iterator[Callable[[bool, float], None]]:
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, ProgressColumn, TextColumn
-    from rich.text import Text
-
     class RateAndLeft(ProgressColumn):
         def render(self, task) -> Text:
             now = time.perf_counter()

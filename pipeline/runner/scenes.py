@@ -17,7 +17,10 @@ from pathlib import Path
 from pipeline.config.simulate import ScenesConfig
 from pipeline.datasets.versions import MESHES_DIR
 from pipeline.errors import RunAborted, UserError
+from pipeline.meshes.manifest import load_manifest
+from pipeline.protocols.whisking import parse_scene
 from pipeline.provenance import file_sha256
+from pipeline.scenes.library import mesh_scene
 from pipeline.scenes.obstacles import Scene
 
 
@@ -35,9 +38,6 @@ class SceneEntry:
 
     def load(self) -> Scene:
         """The scene; a mesh only if its file still has the sha256 the run recorded."""
-        from pipeline.protocols.whisking import parse_scene
-        from pipeline.scenes.library import mesh_scene
-
         if not self.is_mesh:
             return parse_scene(self.name)
         try:
@@ -80,8 +80,6 @@ def copy_meshes(scenes: tuple[SceneEntry, ...], folder: Path) -> None:
 
 def mesh_files(folder: Path) -> list[Path]:
     """Meshes of a ``build-meshes`` folder: the ok entries of its manifest, else every ``*.obj``."""
-    from pipeline.meshes.manifest import load_manifest
-
     scans = load_manifest(folder)["scans"]
     if scans:
         return sorted(folder / entry["output"]["path"] for entry in scans.values()

@@ -21,6 +21,8 @@ from itertools import islice
 from pathlib import Path
 from typing import Any, Iterator
 
+from distributed import wait
+
 from pipeline.config.simulate import SimulateConfig, load_simulate_config
 from pipeline.datasets.manifest import write_manifest
 from pipeline.datasets.runs import open_run_file, remove_unstarted, run_folder, totals
@@ -32,6 +34,9 @@ from pipeline.engines import engine_class
 from pipeline.errors import RunAborted, UserError
 from pipeline.model.array import build_array
 from pipeline.model.effects.registry import model_parts
+from pipeline.model.morphology import load_morphology
+from pipeline.runner.cluster import dask_client
+from pipeline.runner.plugin import SimulatorPlugin, run_trial
 from pipeline.runner.progress import progress as run_progress, trials_per_hour
 from pipeline.runner.scenes import SceneEntry, copy_meshes, scene_catalogue
 from pipeline.runner.trial import RunSpec, TrialResult, load_whisk_table
@@ -43,8 +48,6 @@ WAIT_POLL_S = 2.0          # how often a run waiting for trials checks that the 
 
 
 def _layout(config: SimulateConfig) -> Layout:
-    from pipeline.model.morphology import load_morphology
-
     model = config.model
     morphology = load_morphology(model.morphology).select(model.whiskers)
     if len(morphology) == 0:
@@ -102,10 +105,6 @@ def _stream(client, plugin_name: str, todo: list[int], worker_wait_s: float) -> 
     whose nanny gave up, external workers gone) the run stops with a RunAborted, its unfinished
     trials pending.
     """
-    from distributed import wait
-
-    from pipeline.runner.plugin import run_trial
-
     token = uuid.uuid4().hex[:8]
     pending = iter(todo)
     watch = _WorkerWatch(client, worker_wait_s)
@@ -156,9 +155,6 @@ def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _T
     A full disk (here or on a worker) or a :class:`RunAborted` from a worker stops the run:
     trials not written stay pending for ``--resume``.
     """
-    from pipeline.runner.cluster import dask_client
-    from pipeline.runner.plugin import SimulatorPlugin
-
     config, scenes = spec.config, spec.scenes
     # The event loops' own loggers print tracebacks for what the run already handles: a fetch that
     # timed out (_outcome) leaves a task whose AllExit nobody reads; a callback interrupted by

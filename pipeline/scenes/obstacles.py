@@ -149,6 +149,7 @@ class TriangleMesh:
     @cached_property
     def vertex_normals(self) -> np.ndarray:
         """[V, 3] unit outward normals at the vertices (trimesh: face normals weighted by angle)."""
+        # imported here, not at the top: ≈0.34 CPU-s on a trial's start-up
         import trimesh
 
         return trimesh.Trimesh(self.vertices_m, self.faces, process=False).vertex_normals

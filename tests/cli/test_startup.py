@@ -1,4 +1,4 @@
-"""Start-up cost (issue 16 §3): the CLI and a short trial load no heavy module they do not use.
+"""Start-up cost: the CLI and a short trial load no heavy module they do not use.
 
 Each of scipy's subpackages, open3d, dask, trimesh, h5py and filelock costs 0.03–0.3 CPU-s to
 import; ``pipeline trial`` before its first step stays under 0.5 CPU-s only while they stay out.

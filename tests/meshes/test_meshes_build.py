@@ -13,7 +13,7 @@ import pytest
 
 from pipeline.config.meshes import MeshConfig
 from pipeline.errors import UserError
-from pipeline.meshes import build_meshes
+from pipeline.meshes.build import build_meshes
 from pipeline.meshes.io import write_ply_points
 from pipeline.meshes.manifest import parameters_key, scan_parameters, versions
 

@@ -38,7 +38,7 @@ def build_in_subprocess(scans, out) -> dict:
     """Build the scans in a fresh interpreter; its metrics and peak resident memory (MB)."""
     code = PEAK_RSS_SOURCE + textwrap.dedent(f"""
         import json
-        from pipeline.meshes import build_meshes
+        from pipeline.meshes.build import build_meshes
         report = build_meshes({str(scans)!r}, {str(out)!r}, workers=1)
         scan = report.scans[0]
         print(json.dumps({{"status": scan.status, "message": scan.message,

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from pipeline.config.meshes import MeshConfig
-from pipeline.meshes import build_meshes
+from pipeline.meshes.build import build_meshes
 from pipeline.meshes.io import read_obj
 from pipeline.meshes.metrics import distance_to_surface
 
