@@ -165,8 +165,6 @@ class TableObjective:
         """The forward model of a protocol record: the resonance protocol on ``record``'s whisker
         (``physics``, the whisker of ``spec``), here the trial simulator's tip analysed
         (:class:`~pipeline.signals.resonance.ResonanceResult`); a subclass may run it elsewhere."""
-        from pipeline.signals.resonance import analyse_tip
-
         trial = prepared.trial
         positions = self.simulator.simulate(physics, [prepared])[0]
         return analyse_tip(positions[1:, 0, 1], trial.time_s[1:], trial.sampling_rate_hz)
