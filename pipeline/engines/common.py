@@ -178,7 +178,7 @@ class ContactFlags:
         self.node_fractions = node_fractions
         whiskers, links = node_fractions.shape[0], node_fractions.shape[1] - 1
         self.touching = np.zeros((whiskers, links), bool)
-        self.point_of_contact = np.full(whiskers, np.nan)
+        self._steps: list[tuple[np.ndarray, ...]] = []       # the interval's steps with contacts, read at take()
 
     def add(self, flat_links: np.ndarray, points: np.ndarray, proximal: np.ndarray,
             distal: np.ndarray) -> None:
@@ -187,20 +187,34 @@ class ContactFlags:
         if not len(flat_links):
             return
         self.touching.flat[flat_links] = True
-        whisker, link = np.divmod(flat_links, self.touching.shape[1])
-        fraction = arc_fraction_on_link(points, proximal, distal, self.node_fractions[whisker, link],
-                                        self.node_fractions[whisker, link + 1])
-        proximal_most = np.full(len(self.point_of_contact), np.inf)
-        np.minimum.at(proximal_most, whisker, fraction)
-        this_step = np.isfinite(proximal_most)
-        self.point_of_contact[this_step] = proximal_most[this_step]
+        self._steps.append((flat_links, points, proximal, distal))
 
     def take(self) -> tuple[np.ndarray, np.ndarray]:
         """The flags [W, N] and POC [W] (float32) of the interval that just ended; starts a new one."""
-        flags, poc = self.touching.copy(), self.point_of_contact.astype(np.float32)
+        flags, poc = self.touching.copy(), self._points_of_contact().astype(np.float32)
         self.touching[:] = False
-        self.point_of_contact[:] = np.nan
+        self._steps = []
         return flags, poc
+
+    def _points_of_contact(self) -> np.ndarray:
+        """[W] the POC of each whisker from its last step with contacts in the interval (NaN: none)."""
+        result = np.full(len(self.node_fractions), np.nan)
+        if not self._steps:
+            return result
+        step = np.repeat(np.arange(len(self._steps)), [len(s[0]) for s in self._steps])
+        flat_links, points, proximal, distal = (np.concatenate(parts) for parts in zip(*self._steps))
+        whisker, link = np.divmod(flat_links, self.touching.shape[1])
+        last = np.full(len(result), -1)
+        np.maximum.at(last, whisker, step)
+        mine = step == last[whisker]                                  # each whisker's last step
+        whisker, link = whisker[mine], link[mine]
+        fraction = arc_fraction_on_link(points[mine], proximal[mine], distal[mine], self.node_fractions[whisker, link],
+                                        self.node_fractions[whisker, link + 1])
+        proximal_most = np.full(len(result), np.inf)
+        np.minimum.at(proximal_most, whisker, fraction)
+        found = np.isfinite(proximal_most)
+        result[found] = proximal_most[found]
+        return result
 
 
 def link_reach_m(whiskers) -> np.ndarray:

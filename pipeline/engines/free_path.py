@@ -83,6 +83,7 @@ class FreePath:
         self.engine = None
         self.motion = FreeMotion(array.whiskers, margin_m=CLEARANCE_MARGIN_M + FREE_PATH_MARGIN_M)
         self.joints: dict = {}   # whisker → its free joints' (angles rad, rates rad/s) [T, n] at the samples
+                                 # (with ``engine.late_start`` only)
         self.source = twins(array.whiskers)        # the coarse engine runs one whisker of each mirror pair
 
     @classmethod
@@ -103,12 +104,12 @@ class FreePath:
         if self.engine is None:
             self.engine = self.make_engine(replace(self.array, whiskers=tuple(self.array.whiskers[k] for k in sources)),
                                            self.config)
-        for _, world in self.engine.worlds:
-            world.joint_log = {}
+        for _, world in self.engine.worlds:                # the joint states only a late start needs
+            world.joint_log = {} if self.config.late_start else None
         output = self.engine.run(empty(), pose, drive, duration_s)
         joints = {}
         for members, world in self.engine.worlds:
-            log, world.joint_log = world.joint_log, None
+            log, world.joint_log = world.joint_log or {}, None
             if len(log) == len(times_s):                   # simulated, not reused
                 for j, i in enumerate(members[world.members]):
                     joints[int(sources[i])] = tuple(np.array([log[s][j][part] for s in range(len(times_s))]) for part in (0, 1))

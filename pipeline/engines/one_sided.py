@@ -28,47 +28,48 @@ class OneSidedMesh:
     def __init__(self, mesh, double_precision: bool = False):
         self.surface = mesh.surface                 # metres, built once per mesh
         self.double_precision = double_precision
-        if double_precision:
-            self.vertices_mm = np.asarray(mesh.vertices_m, float) * 1e3
-            self.faces = np.asarray(mesh.faces, np.int64)
+        if double_precision:                        # per face its corners [3, F, 3] and unit normal [F, 3]
+            self.corners_mm = np.moveaxis((np.asarray(mesh.vertices_m, float) * 1e3)[np.asarray(mesh.faces, np.int64)],
+                                          1, 0).copy()
+            a, b, c = self.corners_mm
+            normals = _cross(b - a, c - a)
+            self.normals = normals / np.sqrt(_dot(normals, normals))[:, None]
 
     def nearest(self, points_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """([P, 3] nearest surface point, [P, 3] its face's outward unit normal) of ``points_mm``."""
         if not self.double_precision:
             nearest_m, normals = self.surface.closest_points(points_mm / 1e3)
             return nearest_m * 1e3, normals
-        a, b, c = np.moveaxis(self.vertices_mm[self.faces[self.surface.closest_faces(points_mm / 1e3)]], 1, 0)
-        normals = _cross(b - a, c - a)
-        normals /= np.sqrt(_dot(normals, normals))[:, None]
-        return closest_on_triangles(points_mm, a, b, c, normals), normals
+        faces = self.surface.closest_faces(points_mm / 1e3)
+        normals = self.normals[faces]
+        return closest_on_triangles(points_mm, self.corners_mm[:, faces], normals), normals
 
 
 def _dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    return np.einsum("ij,ij->i", u, v)
+    """[...] the dot products of the vectors [..., 3]."""
+    return np.einsum("...j,...j->...", u, v)
 
 
 def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    return np.stack([u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1], u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2],
-                     u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]], axis=1)
+    """[..., 3] the cross products of the vectors [..., 3]."""
+    return np.stack([u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1], u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2],
+                     u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]], axis=-1)
 
 
-def closest_on_triangles(points: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray,
-                         normals: np.ndarray) -> np.ndarray:
-    """[P, 3] the point of triangle (a, b, c) [P, 3] each (unit ``normals`` by their winding)
-    nearest each point: its projection on the plane when that lies inside, else the nearest
-    point of the three edges."""
-    projected = points - _dot(points - a, normals)[:, None] * normals
-    inside = np.ones(len(points), bool)
-    nearest, best = projected.copy(), np.full(len(points), np.inf)
-    for u, v in ((a, b), (b, c), (c, a)):
-        edge = v - u
-        inside &= _dot(_cross(edge, projected - u), normals) >= 0.0
-        along = np.clip(_dot(points - u, edge) / np.maximum(_dot(edge, edge), 1e-30), 0.0, 1.0)
-        on_edge = u + along[:, None] * edge
-        distance = _dot(points - on_edge, points - on_edge)
-        closer = distance < best
-        nearest[closer], best[closer] = on_edge[closer], distance[closer]
-    return np.where(inside[:, None], projected, nearest)
+def closest_on_triangles(points: np.ndarray, corners: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """[P, 3] the point of triangle ``corners`` [3, P, 3] (a, b, c; unit ``normals`` [P, 3] by
+    their winding) nearest each point [P, 3]: its projection on the plane when that lies
+    inside, else the nearest point of the three edges (the first of them at a tie)."""
+    projected = points - _dot(points - corners[0], normals)[:, None] * normals
+    edges = corners[[1, 2, 0]] - corners                                          # [3, P, 3]: ab, bc, ca
+    outside = np.flatnonzero(~(_dot(_cross(edges, projected - corners), normals) >= 0.0).all(axis=0))
+    if outside.size:
+        corners, edges, points = corners[:, outside], edges[:, outside], points[outside]
+        along = np.clip(_dot(points - corners, edges) / np.maximum(_dot(edges, edges), 1e-30), 0.0, 1.0)
+        on_edge = corners + along[..., None] * edges
+        away = points - on_edge
+        projected[outside] = np.take_along_axis(on_edge, np.argmin(_dot(away, away), axis=0)[None, :, None], axis=0)[0]
+    return projected
 
 
 def one_sided(axis_mm: np.ndarray, radii_mm: np.ndarray, mesh: OneSidedMesh, offset_mm: np.ndarray,

@@ -43,8 +43,11 @@ def contact_frames(normals: np.ndarray) -> np.ndarray:
 def _first_free(conflicts: np.ndarray) -> np.ndarray:
     """[K] bool: greedy in order, each candidate kept unless it conflicts with a kept earlier one."""
     kept = np.zeros(len(conflicts), bool)
-    for i, row in enumerate(conflicts):
-        kept[i] = not (row[:i] & kept[:i]).any()
+    chosen: list[int] = []
+    for i, row in enumerate(conflicts.tolist()):       # plain lists: a few dozen candidates
+        if not any(row[j] for j in chosen):
+            chosen.append(i)
+    kept[chosen] = True
     return kept
 
 
