@@ -338,9 +338,6 @@ def to_xarray(ds: DatasetFile, chunks: dict | None = None):
     ``trial`` and ``whisker`` (the whisker names are the ``whisker`` coordinate), the file's
     attributes (dicts and lists as JSON text);
     closing it closes the file."""
-    # imported here, not at the top: ≈0.34 CPU-s on a worker's start-up
-    import xarray as xr
-
     coords = {**_table_coordinates(ds.trial_columns, TRIAL_COLUMNS, "trial"),
               **_table_coordinates({k: v for k, v in ds.whisker_columns.items() if k != "name"},
                                    WHISKER_COLUMNS, "whisker")}
