@@ -42,7 +42,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from pipeline.config.physics import MaterialConfig  # noqa: E402
 from pipeline.diagnosis.candidates import CANDIDATE_NAMES  # noqa: E402
 from pipeline.diagnosis.commands import run_diagnose  # noqa: E402
-from pipeline.diagnosis.diagnose import FLOOR_FRACTION, LINEAR_BEND_MAX, decide  # noqa: E402
+from pipeline.diagnosis.decision import FLOOR_FRACTION, decide  # noqa: E402
+from pipeline.diagnosis.diagnose import LINEAR_BEND_MAX  # noqa: E402
 from pipeline.measurements.timeseries import write_timeseries  # noqa: E402
 from tests.truth.cases import CAUSES, KEY_PARAMETER, draw_case  # noqa: E402
 from tests.truth.drives import GaussianPulse  # noqa: E402

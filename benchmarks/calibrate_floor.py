@@ -34,7 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from pipeline.config.physics import MaterialConfig  # noqa: E402
 from pipeline.diagnosis.commands import run_diagnose  # noqa: E402
-from pipeline.diagnosis.diagnose import SIGNIFICANT  # noqa: E402
+from pipeline.diagnosis.decision import SIGNIFICANT  # noqa: E402
 from tests.truth import draw_case, simulate_measurement  # noqa: E402
 
 

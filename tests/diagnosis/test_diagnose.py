@@ -199,6 +199,7 @@ SLOW_DRAWS = [("stiffness_gradient", 21), ("damping_gradient", 28), ("density", 
 
 def _check(scenario, result):
     assert result.cause == scenario.cause, [(c.name, c.heldout_error, c.score, c.z) for c in result.candidates]
+    assert result.causes == ([] if scenario.cause == "none" else [scenario.cause]), result.evidence["rounds"]
     error, ok = scenario.recovered(result.final.params())
     assert ok, f"{scenario.cause}: key parameter error {error}"
 

@@ -39,7 +39,7 @@ def test_decision_allows_for_the_model_error_floor():
     candidate's gain stays inside what it took for an effect on effect-free draws; beyond that
     it is."""
     from pipeline.diagnosis.candidates import ABSORBS
-    from pipeline.diagnosis.diagnose import ABSORB_MARGIN, FLOOR_FRACTION, decide, significance
+    from pipeline.diagnosis.decision import ABSORB_MARGIN, FLOOR_FRACTION, decide, significance
 
     amplitude, noise = 4e-4, 20e-6
     floor, own = FLOOR_FRACTION * amplitude, ABSORB_MARGIN * ABSORBS["follicle"] * amplitude
@@ -51,7 +51,7 @@ def test_decision_allows_for_the_model_error_floor():
 
 
 def test_decision_names_a_cause_only_for_a_substantial_share_of_the_excess():
-    from pipeline.diagnosis.diagnose import EXPLAINED_MIN, FLOOR_FRACTION, decide
+    from pipeline.diagnosis.decision import EXPLAINED_MIN, FLOOR_FRACTION, decide
 
     noise, floor = 50e-6, FLOOR_FRACTION * 4e-4
     baseline = 2 * noise
@@ -89,7 +89,7 @@ def test_decision_counts_a_gain_beyond_the_candidates_own_floor():
     """What is left of the chain's model error looks more like drag than like a changed arc
     length: the same held-out gain, below the floor of the whole model error, names ``length``
     (it absorbed ≤ 0.0020·A on effect-free draws) but not ``drag`` (0.0064·A)."""
-    from pipeline.diagnosis.diagnose import ABSORB_MARGIN, FLOOR_FRACTION, beyond_floor, decide, significance
+    from pipeline.diagnosis.decision import ABSORB_MARGIN, FLOOR_FRACTION, beyond_floor, decide, significance
     from pipeline.diagnosis.candidates import ABSORBS
 
     amplitude, noise = 4e-4, 50e-6
@@ -108,7 +108,7 @@ def test_decision_counts_a_gain_beyond_the_candidates_own_floor():
 def test_decision_gain_beyond_the_floor_still_needs_training_evidence():
     """A held-out gain beyond the candidate's floor is not enough without ΔBIC < −10 on the
     training trials."""
-    from pipeline.diagnosis.diagnose import FLOOR_FRACTION, decide
+    from pipeline.diagnosis.decision import FLOOR_FRACTION, decide
 
     amplitude, noise = 4e-4, 50e-6
     baseline = float(np.sqrt(noise ** 2 + (0.6 * FLOOR_FRACTION * amplitude) ** 2))

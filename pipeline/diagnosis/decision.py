@@ -1,0 +1,102 @@
+"""The rule that names a cause from held-out evidence (steps 4–5 of :mod:`.diagnose`).
+
+The evidence (``Diagnosis.evidence``, a dict): the baseline's held-out RMS error e₀
+(``baseline_m``), the tracking noise σ̂ (``noise_m``), the RMS deflection A of the held-out
+data (``amplitude_m``), the number n of held-out values (``values``), and per candidate its
+held-out error e_c, ΔBIC and n·ln(RSS_c/RSS₀) on its training trials, and its paired z.
+
+- Model-error floor f = ``FLOOR_FRACTION``·A: a cap on the misfit a right model leaves because
+  the chain is not the continuum (docs/measurements.md §9). The excess X = e₀² − σ̂² − f² is
+  the misfit to explain, significant when it exceeds ``SIGNIFICANT`` times its standard
+  error ≈ 1.5·σ̂²/√n (white noise).
+- A candidate's gain g = e₀² − e_c², its share of the excess φ = g/X (X ≤ 0: 1 if g exceeds
+  the candidate's own floor, else 0); its paired z beyond its own floor, z·(g − f_c²)/g, f_c =
+  min(f, ``ABSORB_MARGIN``·κ_c·A), κ_c the most of the model error that candidate took for an
+  effect on effect-free calibration draws (``Candidate.absorbs``).
+- Training test (:func:`trained`): ΔBIC < −``BIC_MIN`` for an effect; a training fit no
+  worse than the baseline's for a damping law.
+- Decision (:func:`decide`): the baseline is inadequate when X is significant or when a
+  candidate that passes the training test has z beyond its floor > ``Z_MIN``; otherwise
+  "none". Then the candidate with the lowest held-out error among those that pass the
+  training test, with z beyond its floor > ``Z_MIN`` and φ ≥ ``EXPLAINED_MIN``; none such →
+  "unexplained".
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.diagnosis.candidates import ABSORBS, DAMPING_LAWS
+
+BIC_MIN = 10.0             # "very strong" evidence on the Kass–Raftery scale
+Z_MIN = 3.0
+SIGNIFICANT = 3.0
+EXPLAINED_MIN = 0.5
+FLOOR_FRACTION = 0.03       # model-error floor / RMS deflection (docs/measurements.md §9)
+ABSORB_MARGIN = 2.0         # a candidate's floor / the most it absorbed on calibration draws (§9)
+
+
+def trained(name: str, bic_delta: float, fit_delta: float) -> bool:
+    """The training half's test of a candidate: an effect needs ΔBIC < −``BIC_MIN``; a damping
+    law (:data:`~.candidates.DAMPING_LAWS`: an alternative to the baseline's law, not an
+    effect added to it) needs only a training fit no worse than the baseline's
+    (n·ln(RSS_c/RSS₀) < 0), its held-out z beyond its own floor being the test: a law's
+    signature is the higher modes' decay, which some drives excite and others hardly, so one
+    half of the trials can hold it and the other not."""
+    if name in DAMPING_LAWS:
+        return fit_delta < 0
+    return bic_delta < -BIC_MIN
+
+
+def significance(error: float, noise: float, floor: float, n: int) -> float:
+    """Excess e² − σ̂² − floor² in units of its standard error for white noise, 1.5·σ̂²/√n."""
+    return float((error ** 2 - noise ** 2 - floor ** 2) / (1.5 * noise ** 2 / np.sqrt(n)))
+
+
+def beyond_floor(evidence: dict, floor_fraction: float = None) -> dict[str, float]:
+    """Each candidate's paired z for its held-out gain g = e₀² − e_c² beyond its own floor
+    f_c² (the model error it can take for an effect): z·(g − f_c²)/g, f_c = min(κ,
+    ``ABSORB_MARGIN``·absorbs)·A; a candidate without a gain keeps its z (≤ 0)."""
+    floor_fraction = FLOOR_FRACTION if floor_fraction is None else floor_fraction
+    e0, amplitude = evidence["baseline_m"], evidence["amplitude_m"]
+    result = {}
+    for c in evidence["candidates"]:
+        gain = e0 ** 2 - c["heldout_m"] ** 2
+        absorbed = (min(floor_fraction, ABSORB_MARGIN * c.get("absorbs", ABSORBS[c["name"]])) * amplitude) ** 2
+        result[c["name"]] = float(c["z"] * (gain - absorbed) / gain) if gain > 0 else min(float(c["z"]), 0.0)
+    return result
+
+
+def family_z(tried: int, first_round: int) -> float:
+    """The z threshold after ``tried`` candidates in all, ``first_round`` of them in the round that
+    set ``Z_MIN``: the one-sided tail of ``Z_MIN`` shared out over all of them (Bonferroni)."""
+    from scipy.stats import norm
+
+    return float(norm.isf(norm.sf(Z_MIN) * first_round / max(tried, first_round)))
+
+
+def decide(evidence: dict, floor_fraction: float = None, explained_min: float = None,
+           notes: list[str] | None = None, z_min: float = Z_MIN) -> tuple[str, dict[str, float]]:
+    """(cause, each candidate's share φ of the excess) from the held-out evidence
+    (``Diagnosis.evidence``) and the rule's thresholds (default: this module's)."""
+    floor_fraction = FLOOR_FRACTION if floor_fraction is None else floor_fraction
+    explained_min = EXPLAINED_MIN if explained_min is None else explained_min
+    e0, noise, n = evidence["baseline_m"], evidence["noise_m"], evidence["values"]
+    floor = floor_fraction * evidence["amplitude_m"]
+    excess = e0 ** 2 - noise ** 2 - floor ** 2
+    z_beyond = beyond_floor(evidence, floor_fraction)
+    shares = {c["name"]: (e0 ** 2 - c["heldout_m"] ** 2) / excess if excess > 0 else float(z_beyond[c["name"]] > 0)
+              for c in evidence["candidates"]}
+    beats = [c for c in evidence["candidates"]
+             if trained(c["name"], c["bic_delta"], c.get("fit_delta", float("nan"))) and z_beyond[c["name"]] > z_min]
+    if significance(e0, noise, floor, n) <= SIGNIFICANT and not beats:
+        return "none", shares
+    supported = [c for c in beats if shares[c["name"]] >= explained_min]
+    if not supported:
+        return "unexplained", shares
+    best = min(supported, key=lambda c: c["heldout_m"])
+    if notes is not None and significance(best["heldout_m"], noise, floor, n) > SIGNIFICANT:
+        notes.append(f"{best['name']} leaves a significant misfit ({best['heldout_m'] * 1e3:.4f} mm held out vs "
+                     f"noise {noise * 1e3:.4f} mm and model-error floor {floor * 1e3:.4f} mm): "
+                     "a second effect may be present")
+    return best["name"], shares
