@@ -4,8 +4,11 @@ A whisker pressed into an obstacle lets its contact drift out as it slides off (
 slip-off): the first step whose collision finds none of its links penetrating integrates the
 whole step without the contact, and the light distal links, released, move up to a·h² into
 the obstacle before the next step's collision sees them (RC3 touching a peg at 85 % of S:
-0.16 mm at h = 10⁻⁴ s). That step is taken again from the state it started from, on a second
-``MjData``, in :data:`SUBSTEPS` sub-steps of h/n, each with its own collision (and the scan
+0.16 mm at h = 10⁻⁴ s). Where the whisker's last contacts, carried with their links to the
+step's end (each a plane through its point, normal as it was), would then lie more than
+:data:`PREDICTED_DEPTH_MM` inside (on scans, where contacts flicker, a dataset trial loses some
+contact on ≈ 17 % of its steps; ≈ 2.5 % sink that deep), that step is taken again from the state it started
+from, on a second ``MjData``, in :data:`SUBSTEPS` sub-steps of h/n, each with its own collision (and the scan
 contacts' rewrite, :mod:`pipeline.engines.mujoco.faces`); the joints of the whiskers that
 lost their contact (free and driven) take the sub-steps' end state, every other whisker keeps
 the full step's. Each whisker is its own kinematic tree and constraint island, so a whisker's
@@ -25,7 +28,8 @@ from typing import Callable
 import mujoco
 import numpy as np
 
-SUBSTEPS = 4        # sub-steps of a step that lost a whisker's contact (0.16 → 0.014 mm, RC3 at 85 %)
+SUBSTEPS = 4        # sub-steps of a step that lost a whisker's contact (0.16 → 0.011 mm, RC3 at 85 %)
+PREDICTED_DEPTH_MM = 0.05    # a lost contact carried to the step's end this deep (contact_statics: a pass-through)
 
 
 class ContactLossSubsteps:
@@ -48,6 +52,7 @@ class ContactLossSubsteps:
         self.damping_change = np.where(folded, (self.h - self.h_sub) * stiffness, 0.0)
         self.spring_rate_sub = np.where(folded, 0.0, self.h_sub * stiffness)
         self.touching = np.zeros(members, bool)
+        self._last: tuple[np.ndarray, ...] = ()
         self._scratch: mujoco.MjData | None = None
         self._start = (np.empty(model.nq), np.empty(model.nv), np.empty(model.nv))
 
@@ -57,38 +62,65 @@ class ContactLossSubsteps:
 
     def step(self, d: mujoco.MjData, targets: np.ndarray) -> None:
         """One step of ``d`` whose driven joints land on ``targets``; a whisker that touched at
-        the last step and does not at this one's start takes this step in sub-steps."""
+        the last step, does not at this one's start and would end it inside the obstacle takes
+        this step in sub-steps."""
         had = self.touching.any()
         if had:
             for saved, now in zip(self._start, (d.qpos, d.qvel, d.qacc_warmstart)):
                 np.copyto(saved, now)
-            start_time = d.time
+            start_time, last = d.time, self._last
         self.step_function(self.model, d)
         if not (had or d.ncon):
             return
-        now = self._touching(d)
+        self._last = self._contacts(d)
+        now = np.zeros(len(self.touching), bool)
+        now[self._last[0]] = True
         lost = self.touching & ~now
         if lost.any():
-            now |= self._substeps(d, targets, lost, start_time) & lost
+            lost &= self._sinking(d, last, lost)
+            if lost.any():
+                now |= self._substeps(d, targets, lost, start_time) & lost
         self.touching = now
 
-    def _touching(self, d: mujoco.MjData) -> np.ndarray:
-        """[members] whether any link of each has a penetrating contact in ``d``."""
-        touching = np.zeros(len(self.touching), bool)
-        if d.ncon:
-            contact = d.contact
-            pressed = (contact.dist <= 0.0) & (contact.exclude == 0)
-            members = self.member_of_geom[contact.geom[pressed]].max(axis=1)
-            touching[members[members >= 0]] = True
-        return touching
+    def _contacts(self, d: mujoco.MjData) -> tuple[np.ndarray, ...]:
+        """The penetrating contacts of ``d``'s step start: their members, link bodies, points
+        (mm, world), unit normals toward the link and gaps (mm)."""
+        contact = d.contact
+        pressed = (contact.dist <= 0.0) & (contact.exclude == 0)
+        geoms = contact.geom[pressed]
+        link_second = self.member_of_geom[geoms[:, 1]] >= 0          # normals point from geom 0 to geom 1
+        members = self.member_of_geom[geoms].max(axis=1)
+        mine = members >= 0
+        link_geoms = np.where(link_second, geoms[:, 1], geoms[:, 0])[mine]
+        normals = contact.frame[pressed][mine, :3] * np.where(link_second[mine], 1.0, -1.0)[:, None]
+        bodies = self.model.geom_bodyid[link_geoms]
+        points = contact.pos[pressed][mine]
+        local = np.einsum("cji,cj->ci", d.xmat[bodies].reshape(-1, 3, 3), points - d.xpos[bodies])
+        return members[mine], bodies, points, local, normals, contact.dist[pressed][mine]
+
+    def _sinking(self, d: mujoco.MjData, last: tuple[np.ndarray, ...], lost: np.ndarray) -> np.ndarray:
+        """[members] whether some contact of the last step, carried with its link to the end of
+        this step (``d``'s joints), lies more than PREDICTED_DEPTH_MM inside its plane."""
+        members, bodies, points, local, normals, gaps = last
+        e = self._scratch_data()
+        e.qpos[:], e.mocap_pos[:], e.mocap_quat[:] = d.qpos, d.mocap_pos, d.mocap_quat
+        mujoco.mj_kinematics(self.model, e)
+        moved = e.xpos[bodies] + np.einsum("cij,cj->ci", e.xmat[bodies].reshape(-1, 3, 3), local)
+        depth = -(gaps + np.einsum("ci,ci->c", moved - points, normals))
+        sinking = np.zeros(len(lost), bool)
+        sinking[members[depth > PREDICTED_DEPTH_MM]] = True
+        return sinking
+
+    def _scratch_data(self) -> mujoco.MjData:
+        if self._scratch is None:
+            self._scratch = mujoco.MjData(self.model)
+        return self._scratch
 
     def _substeps(self, d: mujoco.MjData, targets: np.ndarray, lost: np.ndarray, start_time: float) -> np.ndarray:
         """The step taken again from its start in sub-steps, the ``lost`` whiskers' joints set to
         their end state in ``d``; [members] whether each touched in a sub-step."""
         m = self.model
-        if self._scratch is None:
-            self._scratch = mujoco.MjData(m)
-        e = self._scratch
+        e = self._scratch_data()
         e.time = start_time
         for into, saved in zip((e.qpos, e.qvel, e.qacc_warmstart), self._start):
             np.copyto(into, saved)
@@ -106,7 +138,7 @@ class ContactLossSubsteps:
                 np.multiply(self.spring_rate_sub, e.qvel, out=e.qfrc_applied)
                 e.qfrc_applied[kinematic] = self.armature * (((goal - e.qpos[kinematic]) / h - e.qvel[kinematic]) / h)
                 self.step_function(m, e)
-                touched |= self._touching(e)
+                touched[self._contacts(e)[0]] = True
         finally:
             m.opt.timestep, m.opt.disableflags, m.dof_damping[:] = self.h, flags, damping
         dofs = np.isin(self.dof_member, np.flatnonzero(lost))     # hinges and slides: qpos = dof address
