@@ -17,7 +17,8 @@ result does not depend on another's sub-steps (Independence, :mod:`pipeline.engi
 In a sub-step the driven joints land on the step's targets interpolated linearly from where
 the step started, the springs are treated as in a step of h/n (the damping fold D − (h/n)·K,
 or the explicit (h/n)·K·v force, package docstring, Integration), the link loads are those of
-the step's start and the sensors are off. What the step records (sensors and node positions
+the step's start, the sensors are off and only the links of the whiskers sub-stepped collide
+(the others' sub-steps are not used). What the step records (sensors and node positions
 describe its start) is the full step's. Internal units mm–mg–s.
 """
 
@@ -128,6 +129,9 @@ class ContactLossSubsteps:
         kinematic, h = self.kinematic, self.h_sub
         start = e.qpos[kinematic].copy()
         flags, damping = m.opt.disableflags, m.dof_damping.copy()
+        geom_contype, body_contype = m.geom_contype.copy(), m.body_contype.copy()
+        others = np.flatnonzero((self.member_of_geom[:-1] >= 0) & ~lost[self.member_of_geom[:-1]])
+        m.geom_contype[others] = m.body_contype[m.geom_bodyid[others]] = 0      # only theirs collide
         m.opt.timestep = h
         m.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
         m.dof_damping[:] = damping + self.damping_change
@@ -141,6 +145,7 @@ class ContactLossSubsteps:
                 touched[self._contacts(e)[0]] = True
         finally:
             m.opt.timestep, m.opt.disableflags, m.dof_damping[:] = self.h, flags, damping
+            m.geom_contype[:], m.body_contype[:] = geom_contype, body_contype
         dofs = np.isin(self.dof_member, np.flatnonzero(lost))     # hinges and slides: qpos = dof address
         for into, state in ((d.qpos, e.qpos), (d.qvel, e.qvel), (d.qacc_warmstart, e.qacc_warmstart)):
             into[dofs] = state[dofs]
