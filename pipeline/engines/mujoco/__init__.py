@@ -136,12 +136,15 @@ proximal one of its last step with contacts (:class:`~pipeline.engines.common.Co
 
 Independence. Each whisker is its own kinematic tree and, touching a static obstacle, its own
 constraint island: its result does not depend on which others are simulated with it (bit for
-bit, for pegs and edges; with a mesh the cropped face set, hence the order of a whisker's
-contacts, depends on the world's whiskers; the converged solve leaves that order a trace of
-≤ 4·10⁻⁴ of a whisker's peak in one sample, ~10⁻¹³ typically: 6 dataset trials, right side
-alone against the full array: peak |M| the same, peak F_t within 6·10⁻⁵; with a pyramidal cone
-and 100 sweeps up to 5 % and 8 %; with the triangle contacts up to 8·10⁻⁵ of the peak on a wavy
-wall, tests/engines/test_engine_mujoco_contact.py), which the template's reuse of free motion relies on.
+bit, for pegs and edges; against a mesh ≤ 5·10⁻⁷ of its peak on a wavy wall,
+tests/engines/test_engine_mujoco_contact.py), which the template's reuse of free motion relies
+on. MuJoCo solves the islands one by one but decides two things for the whole world (the warm
+start, the no-slip pass's stop); :mod:`pipeline.engines.mujoco.independent` turns both off.
+
+Contact loss. A step on which a whisker's last contacts open and, carried with its links to
+the step's end, would lie inside the obstacle is taken again for that whisker in sub-steps
+(:mod:`pipeline.engines.mujoco.substeps`): near slip-off the released links otherwise move
+up to 0.2 mm into a peg within the step.
 """
 
 from pipeline.engines.mujoco.engine import MujocoEngine

@@ -13,11 +13,13 @@ from pipeline.engines.base import TrialSetup, World, WorldResult
 from pipeline.engines.common import (CLEARANCE_MARGIN_M, ContactFlags, implausible, jam_message, link_reach_m,
                                      node_arc_fractions, node_padding_m, start_rate)
 from pipeline.engines.mujoco.faces import FaceContacts
+from pipeline.engines.mujoco.independent import independent_islands
 from pipeline.engines.mujoco.loads import apply_link_loads
 from pipeline.engines.mujoco.plan import MujocoPlan, head_coordinates
 from pipeline.engines.mujoco.prisms import MeshPrisms, cached_prisms
 from pipeline.engines.mujoco.reach import reachable_parts
 from pipeline.engines.mujoco.spec import WHISKER_CONTYPE, Part, compile_model
+from pipeline.engines.mujoco.substeps import ContactLossSubsteps
 from pipeline.engines.one_sided import OneSidedMesh
 from pipeline.engines.stepping import damping_folds
 from pipeline.engines.swept_crop import SWEPT_RUNS, SweptCrop
@@ -65,6 +67,7 @@ class MujocoWorld(World):
         """Compile the whiskers ``members`` (indices into this world's) and ``parts`` into a new
         model and data (:func:`~pipeline.engines.mujoco.spec.compile_model`)."""
         self.model = compile_model(self.whiskers, members, parts, self.config, self.dt_s, jointed_head)
+        independent_islands(self.model)
         self.data = mujoco.MjData(self.model)
         self.jointed_head = jointed_head
         self.members = members
@@ -124,6 +127,10 @@ class MujocoWorld(World):
             if damping_folds(self.whiskers[k], self.dt_s):
                 m.dof_damping[qpos] -= self.spring_rate[qpos]
                 self.spring_rate[qpos] = 0.0
+        self.substeps = ContactLossSubsteps(
+            m, mujoco.mj_step if self.faces is None else self.faces.step, self.kinematic, self.armature, stiffness,
+            (stiffness > 0) & (self.spring_rate == 0), self.dof_member,
+            np.where(self.link_of_geom >= 0, self.link_of_geom // self.links, -1), len(members))
 
     def _face_contacts(self, parts: list[Part]) -> FaceContacts | None:
         """The rewrite of the static meshes' prism contacts as triangle contacts
@@ -285,7 +292,8 @@ class MujocoWorld(World):
         bad_acceleration = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
         qpos, qvel, qfrc = d.qpos, d.qvel, d.qfrc_applied
         kinematic, armature, spring_rate = self.kinematic, self.armature, self.spring_rate
-        step_function = mujoco.mj_step if self.faces is None else self.faces.step
+        substeps = self.substeps
+        substeps.reset()
         loads = setup.loads
         chains = [self.whiskers[k].chain for k in self.members]
         yield plan
@@ -298,7 +306,7 @@ class MujocoWorld(World):
             records = due == 0 and sample > 0
             if due < 2:
                 option.disableflags = sensors_on if records else sensors_off
-            step_function(m, d)
+            substeps.step(d, targets[step])
             if bad_acceleration.number:
                 self._unless_parked(lambda: self._blown_up(step * h), park, result)
             if records:

@@ -1,0 +1,152 @@
+"""A step on which a whisker lost its last contact, taken again for that whisker in sub-steps.
+
+A whisker pressed into an obstacle lets its contact drift out as it slides off (near
+slip-off): the first step whose collision finds none of its links penetrating integrates the
+whole step without the contact, and the light distal links, released, move up to a·h² into
+the obstacle before the next step's collision sees them (RC3 touching a peg at 85 % of S:
+0.16 mm at h = 10⁻⁴ s). Where the whisker's last contacts, carried with their links to the
+step's end (each a plane through its point, normal as it was), would then lie more than
+:data:`PREDICTED_DEPTH_MM` inside (on scans, where contacts flicker, a dataset trial loses some
+contact on ≈ 17 % of its steps; ≈ 2.5 % sink that deep), that step is taken again from the state it started
+from, on a second ``MjData``, in :data:`SUBSTEPS` sub-steps of h/n, each with its own collision (and the scan
+contacts' rewrite, :mod:`pipeline.engines.mujoco.faces`); the joints of the whiskers that
+lost their contact (free and driven) take the sub-steps' end state, every other whisker keeps
+the full step's. Each whisker is its own kinematic tree and constraint island, so a whisker's
+result does not depend on another's sub-steps (Independence, :mod:`pipeline.engines.mujoco`).
+
+In a sub-step the driven joints land on the step's targets interpolated linearly from where
+the step started, the springs are treated as in a step of h/n (the damping fold D − (h/n)·K,
+or the explicit (h/n)·K·v force, package docstring, Integration), the link loads are those of
+the step's start, the sensors are off and only the links of the whiskers sub-stepped collide
+(the others' sub-steps are not used). What the step records (sensors and node positions
+describe its start) is the full step's. Internal units mm–mg–s.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import mujoco
+import numpy as np
+
+SUBSTEPS = 4        # sub-steps of a step that lost a whisker's contact (0.16 → 0.011 mm, RC3 at 85 %)
+PREDICTED_DEPTH_MM = 0.05    # a lost contact carried to the step's end this deep (contact_statics: a pass-through)
+
+
+class ContactLossSubsteps:
+    """The step of a world (``step_function(m, d)``: ``mj_step`` or the scan contacts' step), with
+    the steps on which a whisker lost its last contact taken again in sub-steps for it.
+
+    ``kinematic``, ``armature``: the driven dofs and their armatures (the step's kinematic
+    force); ``stiffness`` [nv] each dof's spring, ``folded`` [nv] whether its damping has h·K
+    folded in (otherwise it receives h·K·v); ``dof_member`` [nv] and ``member_of_geom``
+    [ngeom + 1] the member a dof or geom belongs to (−1: none); ``members`` how many."""
+
+    def __init__(self, model: mujoco.MjModel, step_function: Callable, kinematic: np.ndarray,
+                 armature: np.ndarray, stiffness: np.ndarray, folded: np.ndarray, dof_member: np.ndarray,
+                 member_of_geom: np.ndarray, members: int):
+        self.model, self.step_function = model, step_function
+        self.kinematic, self.armature = kinematic, armature
+        self.dof_member, self.member_of_geom = dof_member, member_of_geom
+        self.h = float(model.opt.timestep)
+        self.h_sub = self.h / SUBSTEPS
+        self.damping_change = np.where(folded, (self.h - self.h_sub) * stiffness, 0.0)
+        self.spring_rate_sub = np.where(folded, 0.0, self.h_sub * stiffness)
+        self.touching = np.zeros(members, bool)
+        self._last: tuple[np.ndarray, ...] = ()
+        self._scratch: mujoco.MjData | None = None
+        self._start = (np.empty(model.nq), np.empty(model.nv), np.empty(model.nv))
+
+    def reset(self) -> None:
+        """A new trial: no whisker touches."""
+        self.touching[:] = False
+
+    def step(self, d: mujoco.MjData, targets: np.ndarray) -> None:
+        """One step of ``d`` whose driven joints land on ``targets``; a whisker that touched at
+        the last step, does not at this one's start and would end it inside the obstacle takes
+        this step in sub-steps."""
+        had = self.touching.any()
+        if had:
+            for saved, now in zip(self._start, (d.qpos, d.qvel, d.qacc_warmstart)):
+                np.copyto(saved, now)
+            start_time, last = d.time, self._last
+        self.step_function(self.model, d)
+        if not (had or d.ncon):
+            return
+        self._last = self._contacts(d)
+        now = np.zeros(len(self.touching), bool)
+        now[self._last[0]] = True
+        lost = self.touching & ~now
+        if lost.any():
+            lost &= self._sinking(d, last, lost)
+            if lost.any():
+                now |= self._substeps(d, targets, lost, start_time) & lost
+        self.touching = now
+
+    def _contacts(self, d: mujoco.MjData) -> tuple[np.ndarray, ...]:
+        """The penetrating contacts of ``d``'s step start: their members, link bodies, points
+        (mm, world), unit normals toward the link and gaps (mm)."""
+        contact = d.contact
+        pressed = (contact.dist <= 0.0) & (contact.exclude == 0)
+        geoms = contact.geom[pressed]
+        link_second = self.member_of_geom[geoms[:, 1]] >= 0          # normals point from geom 0 to geom 1
+        members = self.member_of_geom[geoms].max(axis=1)
+        mine = members >= 0
+        link_geoms = np.where(link_second, geoms[:, 1], geoms[:, 0])[mine]
+        normals = contact.frame[pressed][mine, :3] * np.where(link_second[mine], 1.0, -1.0)[:, None]
+        bodies = self.model.geom_bodyid[link_geoms]
+        points = contact.pos[pressed][mine]
+        local = np.einsum("cji,cj->ci", d.xmat[bodies].reshape(-1, 3, 3), points - d.xpos[bodies])
+        return members[mine], bodies, points, local, normals, contact.dist[pressed][mine]
+
+    def _sinking(self, d: mujoco.MjData, last: tuple[np.ndarray, ...], lost: np.ndarray) -> np.ndarray:
+        """[members] whether some contact of the last step, carried with its link to the end of
+        this step (``d``'s joints), lies more than PREDICTED_DEPTH_MM inside its plane."""
+        members, bodies, points, local, normals, gaps = last
+        e = self._scratch_data()
+        e.qpos[:], e.mocap_pos[:], e.mocap_quat[:] = d.qpos, d.mocap_pos, d.mocap_quat
+        mujoco.mj_kinematics(self.model, e)
+        moved = e.xpos[bodies] + np.einsum("cij,cj->ci", e.xmat[bodies].reshape(-1, 3, 3), local)
+        depth = -(gaps + np.einsum("ci,ci->c", moved - points, normals))
+        sinking = np.zeros(len(lost), bool)
+        sinking[members[depth > PREDICTED_DEPTH_MM]] = True
+        return sinking
+
+    def _scratch_data(self) -> mujoco.MjData:
+        if self._scratch is None:
+            self._scratch = mujoco.MjData(self.model)
+        return self._scratch
+
+    def _substeps(self, d: mujoco.MjData, targets: np.ndarray, lost: np.ndarray, start_time: float) -> np.ndarray:
+        """The step taken again from its start in sub-steps, the ``lost`` whiskers' joints set to
+        their end state in ``d``; [members] whether each touched in a sub-step."""
+        m = self.model
+        e = self._scratch_data()
+        e.time = start_time
+        for into, saved in zip((e.qpos, e.qvel, e.qacc_warmstart), self._start):
+            np.copyto(into, saved)
+        e.mocap_pos[:], e.mocap_quat[:], e.xfrc_applied[:] = d.mocap_pos, d.mocap_quat, d.xfrc_applied
+        kinematic, h = self.kinematic, self.h_sub
+        start = e.qpos[kinematic].copy()
+        flags, damping = m.opt.disableflags, m.dof_damping.copy()
+        geom_contype, body_contype = m.geom_contype.copy(), m.body_contype.copy()
+        others = np.flatnonzero((self.member_of_geom[:-1] >= 0) & ~lost[self.member_of_geom[:-1]])
+        m.geom_contype[others] = m.body_contype[m.geom_bodyid[others]] = 0      # only theirs collide
+        m.opt.timestep = h
+        m.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+        m.dof_damping[:] = damping + self.damping_change
+        touched = np.zeros(len(self.touching), bool)
+        try:
+            for i in range(1, SUBSTEPS + 1):
+                goal = start + (targets - start) * (i / SUBSTEPS)
+                np.multiply(self.spring_rate_sub, e.qvel, out=e.qfrc_applied)
+                e.qfrc_applied[kinematic] = self.armature * (((goal - e.qpos[kinematic]) / h - e.qvel[kinematic]) / h)
+                self.step_function(m, e)
+                touched[self._contacts(e)[0]] = True
+        finally:
+            m.opt.timestep, m.opt.disableflags, m.dof_damping[:] = self.h, flags, damping
+            m.geom_contype[:], m.body_contype[:] = geom_contype, body_contype
+        dofs = np.isin(self.dof_member, np.flatnonzero(lost))     # hinges and slides: qpos = dof address
+        for into, state in ((d.qpos, e.qpos), (d.qvel, e.qvel), (d.qacc_warmstart, e.qacc_warmstart)):
+            into[dofs] = state[dofs]
+        return touched
