@@ -9,8 +9,8 @@ mode (:mod:`pipeline.engines.stepping`).
 Integration scheme (one step of size h, per whisker; q, v joint positions and velocities):
 
     (M_FF + h·C + h²·K) a_F = −K·q_F − C·v_F − b_F − M_FD·a_D + J_Fᵀ·f
-    τ = M·a + b − Jᵀ·f,  applied as joint torques, f as forces on the links, then Bullet's
-        semi-implicit Euler step (v ← v + h·a; q ← q + h·v)
+    then the semi-implicit Euler step v ← v + h·a; q ← q + h·v, taken by the engine itself
+        and written to Bullet's joints (resetJointStatesMultiDof)
 
 M is Bullet's joint-space mass matrix and b its bias forces (Coriolis, centrifugal) less the
 generalised loads Jᵀ·F (:mod:`pipeline.model.effects.loads`: gravity, drag, a tip force) at the current state; F are the spring joints, D the driven ones whose accelerations a_D make
@@ -19,7 +19,7 @@ for any h (for an undamped mode it is symplectic Euler with ω² replaced by k/(
 unlike backward Euler, adds no numerical damping; frequencies drop by ≈ (hω)²/2 relative.
 The contact forces f are solved within the same operator (:mod:`pipeline.engines.bullet.contact`:
 non-penetration and Coulomb friction μ as configured); Bullet's own contact solver, which would
-see the links' inertia but not the springs, never sees a contact. M·a + b is Bullet's
+see the links' inertia but not the springs, never sees a contact. M_·D·a_D + b is Bullet's
 inverse dynamics at every step (driven joints land exactly); the free–free block M_FF inside
 the implicit operator, a function of the free angles only, is recomputed when one of them has
 moved by :data:`~pipeline.engines.bullet.whisker.MASS_REFRESH_RAD` (every ≈ 10th step of a
@@ -40,7 +40,7 @@ against them ×1.05, the passive peg through it ×1.08–1.16).
 
 Base wrench. The follicle's force and moment about the base point are Newton–Euler of the
 step that starts at the sample's time (:mod:`pipeline.engines.bullet.wrench`: the links'
-accelerations from the joint accelerations Bullet took, less the loads and contact forces), as
+accelerations from the step's joint accelerations, less the loads and contact forces), as
 MuJoCo's: sample k is recorded after the step that starts at t_k (one extra step at the end of
 a trial), its node positions before it.
 pybullet's force/torque sensor (on the fixed joint to link 1) is not used: it reads the step

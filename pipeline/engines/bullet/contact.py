@@ -15,9 +15,8 @@ not close the gap g (mm, < 0: penetration) within the step: u_n ≥ −g/h for g
 u_n ≥ −:data:`PENETRATION_ERP`·g/h inside (pushed out over a few steps, no pop); friction
 opposes sliding relative to the obstacle's surface (u_t = its velocity while |f_t| < μ·f_n).
 Projected Gauss–Seidel over the points (at most ``engine.solver_iterations`` sweeps) solves
-this small problem (a few points per whisker). The forces are applied to the links as external
-forces at the points and enter the joint torques as −Jᵀ·f, exactly as the loads do, so the base
-sensor feels them. At rest a = 0 and the springs balance the contact: K·q = Jᵀ·f.
+this small problem (a few points per whisker). The forces enter the step's accelerations
+through W·J_Fᵀ·f and the base wrench as external forces at the points, exactly as the loads do. At rest a = 0 and the springs balance the contact: K·q = Jᵀ·f.
 
 Contacts are looked for within :data:`CONTACT_REACH_MM` of the surface (farther than any link
 moves in a step), so that a link is caught before it crosses a thin peg or a triangle; a
@@ -59,8 +58,8 @@ def find_contacts(client: BulletClient, obstacles, whisker_bodies: dict) -> dict
     ``obstacles``: (body id, velocity [3] mm/s, :class:`~pipeline.engines.one_sided.OneSidedMesh` or None, offset [3] mm of
     the mesh frame) of each; ``whisker_bodies``: body id → its
     :class:`~pipeline.engines.bullet.whisker.BulletWhisker`.
-    A broadphase query per obstacle selects the candidate whiskers (cheap; the whiskers' boxes
-    there are a step old, hence twice the reach), then ``getClosestPoints`` gives the points.
+    A broadphase query per obstacle selects the candidate whiskers (cheap; twice the reach: a margin
+    on the boxes), then ``getClosestPoints`` gives the points.
     On a mesh they only name the links near it: the contacts are those of :func:`~pipeline.engines.one_sided.one_sided` at
     the capsule axis points Bullet found and at both nodes of each such link (the deepest
     point of a link that crosses a face is an end, where Bullet's witness point is not).
@@ -132,19 +131,22 @@ def contact_frame(normal: np.ndarray, with_tangents: bool) -> np.ndarray:
 
 
 def solve_forces(G: np.ndarray, u0: np.ndarray, gaps_mm: np.ndarray, h: float, mu: float,
-                 iterations: int) -> np.ndarray:
+                 iterations: int, start: np.ndarray | None = None) -> np.ndarray:
     """Contact forces f of the step (module docstring): per point the normal force, and with
     μ > 0 two tangential ones ([P] or [3P], the rows of :func:`contact_frame`).
 
     ``G``: velocity after the step per unit force; ``u0``: velocity after the step without
-    contact; ``gaps_mm`` [P]. A point that no spring joint can move (on link 1 with a rigid
+    contact; ``gaps_mm`` [P]; ``start``: forces to start the sweeps from (a guess, e.g. the
+    step before's; zeros without). A point that no spring joint can move (on link 1 with a rigid
     follicle: the drive is rigid) gets no force. Plain Python floats: the problem is a few
     rows, where numpy's per-call overhead would dominate."""
     per_point = 3 if mu > 0 else 1
     rows = per_point * len(gaps_mm)
     columns = G.T.tolist()                   # columns[j]: velocity change per unit force j
-    u = u0.tolist()
-    f = [0.0] * rows
+    if start is None or not start.any():
+        u, f = u0.tolist(), [0.0] * rows
+    else:
+        u, f = (u0 + G @ start).tolist(), start.tolist()
     bias = [(g if g >= 0 else PENETRATION_ERP * g) / h for g in gaps_mm.tolist()]
     diagonal = [columns[j][j] for j in range(rows)]
     # (normal row, bias) of the points a spring joint can move (not link 1 with a rigid follicle)

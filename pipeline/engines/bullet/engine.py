@@ -196,10 +196,11 @@ class BulletWorld(World):
                 w = self.bodies[k]
                 target = held[k] if held[k] is not None else w.rest_driven + w.rates * plan.theta[step, k]
                 points = contacts.get(w.body, ())
-                normal = w.apply_implicit_torques(target, h, loads[k], points, config.contact_friction,
-                                                  config.solver_iterations, records)
+                normal = w.step(target, h, loads[k], points, config.contact_friction,
+                                config.solver_iterations, records)
                 self._flag_contacts(k, points, normal, flags, result.touched)
-            c.stepSimulation()
+            if obstacles:
+                c.performCollisionDetection()            # the links' bounding boxes, for find_contacts
             if setup.hold_on_contact:
                 for k in np.flatnonzero(flags.touching.any(axis=1)):
                     if held[k] is None:
