@@ -37,6 +37,7 @@ from pipeline.engines.bullet.client import BulletClient
 from pipeline.engines.one_sided import MERGE_MM, one_sided
 
 CONTACT_REACH_MM = 0.25      # speculative contact distance (a tip moves ≲ 0.15 mm per step)
+CLEARANCE_MM = 1.0           # distance queried: a gap found up to this is a whisker's leeway (find_contacts)
 PENETRATION_ERP = 0.2        # fraction of a penetration removed per step
 TOLERANCE = 1e-6             # Gauss–Seidel stops when no force changes by more than this × the largest
 
@@ -52,14 +53,15 @@ class ContactPoint:
     surface_velocity: np.ndarray   # [3] mm/s, the obstacle's (friction acts on the relative sliding)
 
 
-def find_contacts(client: BulletClient, obstacles, whisker_bodies: dict) -> dict[int, list[ContactPoint]]:
+def find_contacts(client: BulletClient, obstacles, whiskers, still: bool) -> dict[int, list[ContactPoint]]:
     """Contact points within :data:`CONTACT_REACH_MM` of the obstacles, per whisker body id.
 
     ``obstacles``: (body id, velocity [3] mm/s, :class:`~pipeline.engines.one_sided.OneSidedMesh` or None, offset [3] mm of
-    the mesh frame) of each; ``whisker_bodies``: body id → its
-    :class:`~pipeline.engines.bullet.whisker.BulletWhisker`.
-    A broadphase query per obstacle selects the candidate whiskers (cheap; twice the reach: a margin
-    on the boxes), then ``getClosestPoints`` gives the points.
+    the mesh frame) of each; ``whiskers``: the :class:`~pipeline.engines.bullet.whisker.BulletWhisker`
+    to look at. ``getClosestPoints`` (within :data:`CLEARANCE_MM`) gives the points. With ``still``
+    (obstacles and bases at rest) a whisker–obstacle pair is not looked at again until the
+    whisker's travel bound (:attr:`~pipeline.engines.bullet.whisker.BulletWhisker.travel_mm`) could
+    have closed the gap found last down to the reach: the same contacts, fewer queries.
     On a mesh they only name the links near it: the contacts are those of :func:`~pipeline.engines.one_sided.one_sided` at
     the capsule axis points Bullet found and at both nodes of each such link (the deepest
     point of a link that crosses a face is an end, where Bullet's witness point is not).
@@ -70,15 +72,16 @@ def find_contacts(client: BulletClient, obstacles, whisker_bodies: dict) -> dict
     bounded solution; the deeper side pushes it out)."""
     found: dict[int, list[ContactPoint]] = {}
     for obstacle, velocity, mesh, offset in obstacles:
-        low, high = client.getAABB(obstacle, -1)
-        low = [v - 2 * CONTACT_REACH_MM for v in low]
-        high = [v + 2 * CONTACT_REACH_MM for v in high]
-        near = {body for body, _ in (client.getOverlappingObjects(low, high) or ())
-                if body in whisker_bodies}
-        for body in near:
-            whisker = whisker_bodies[body]
-            points = [point for point in client.getClosestPoints(obstacle, body, CONTACT_REACH_MM)
+        for whisker in whiskers:
+            if still and whisker.travel_mm < whisker.next_query_mm.get(obstacle, 0.0):
+                continue
+            whisker.sync()
+            body = whisker.body
+            points = [point for point in client.getClosestPoints(obstacle, body, CLEARANCE_MM)
                       if point[4] in whisker.local_link]
+            gap = min((point[8] for point in points), default=CLEARANCE_MM)
+            whisker.next_query_mm[obstacle] = whisker.travel_mm + gap - CONTACT_REACH_MM
+            points = [point for point in points if point[8] <= CONTACT_REACH_MM]
             if not points:
                 continue
             link_of = np.array([whisker.local_link[point[4]] for point in points])

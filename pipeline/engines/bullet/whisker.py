@@ -124,6 +124,13 @@ class BulletWhisker:
         self._link_inertia = chain.link_inertia_kg_m2 * U.INERTIA
         self._step = None
         self._last_contacts = None      # (links [P], points [P, 3], forces [P, 3]) of the step before
+        # travel_mm: since reset, Σ over steps of reach_mm·Σ_j |Δq_j|, a bound on how far any point
+        # of the whisker has moved relative to its base (a joint turned by Δq moves a point at
+        # distance r from its axis by ≤ r·|Δq|, r ≤ the arc length plus the radius: every joint
+        # sits at or beyond the base); next_query_mm: per obstacle body, the travel at which its
+        # gap may have closed to the reach (:func:`~pipeline.engines.bullet.contact.find_contacts`)
+        self.reach_mm = float(chain.link_lengths_m.sum() * U.LENGTH + self.capsule_radii.max())
+        self.travel_mm, self.next_query_mm = 0.0, {}
         if built:
             self.build()
 
@@ -154,13 +161,20 @@ class BulletWhisker:
         v_driven = self.rates * start_rate(drive, h)
         self._lhs_inverse = None                            # the next step computes M afresh
         self._last_contacts = None
+        self.travel_mm, self.next_query_mm = 0.0, {}
         self._set_state(np.concatenate([q_driven, free_angles]), np.concatenate([v_driven, free_rates]))
 
     def _set_state(self, q: np.ndarray, v: np.ndarray) -> None:
-        """Joint angles q and rates v [n_dof] (rad, rad/s), kept here and written to Bullet's joints
-        (for its link frames and collision queries)."""
-        self.q, self.v = q, v
-        self.client.resetJointStatesMultiDof(self.body, self.dofs, q[:, None].tolist(), v[:, None].tolist())
+        """Joint angles q and rates v [n_dof] (rad, rad/s), kept here; written to Bullet's joints
+        by :meth:`sync`, before Bullet's link frames or collision queries are asked for."""
+        self.q, self.v, self._synced = q, v, False
+
+    def sync(self) -> None:
+        """Bullet's joints at :attr:`q`, :attr:`v` (a no-op when they are already)."""
+        if not self._synced:
+            self.client.resetJointStatesMultiDof(self.body, self.dofs, self.q[:, None].tolist(),
+                                                 self.v[:, None].tolist())
+            self._synced = True
 
     def driven_angles(self) -> np.ndarray:
         return self.q[:3].copy()
@@ -203,6 +217,7 @@ class BulletWhisker:
         if record:
             self._record_wrench(q_list, v, accel, external)
         v_after = v + h * accel
+        self.travel_mm += self.reach_mm * h * float(np.abs(v_after).sum())
         self._set_state(q + h * v_after, v_after)
         return normal_forces
 
@@ -217,6 +232,7 @@ class BulletWhisker:
         beyond l (not l's ancestors in the serial chain) zeroed."""
         c = self.client
         farthest = self.whisker_links[max(contact.link for contact in contacts)]
+        self.sync()
         origin = np.asarray(c.getLinkState(self.body, farthest, computeForwardKinematics=True)[4])
         linear, angular = self.jacobian(farthest, [0.0, 0.0, 0.0], q)
         frames = np.concatenate([contact_frame(contact.normal, friction > 0) for contact in contacts])
@@ -279,6 +295,7 @@ class BulletWhisker:
     def link_state(self, velocities: bool, base: bool = False) -> LinkState:
         """The whisker links' centres of mass, frames and velocities (world frame, SI); with
         ``base`` also the driven base frame's origin and motion (its centre of mass is its origin)."""
+        self.sync()
         states = self.client.getLinkStates(self.body, self.whisker_links, computeLinkVelocity=int(velocities),
                                  computeForwardKinematics=True)
         frames = np.array([matrix_from_xyzw(s[1]) for s in states])
@@ -311,6 +328,7 @@ class BulletWhisker:
         """Keep what :meth:`base_wrench` needs of the step about to be taken from joint angles q,
         rates v and accelerations ``accel``: the chain's frames and the ``external`` (points,
         forces, torques) on the links (internal units, world frame)."""
+        self.sync()
         states = self.client.getLinkStates(self.body, self._chain_links, computeForwardKinematics=True)
         rotations = matrix_from_xyzw([s[5] for s in states])
         points, forces, torques = ([np.concatenate(part) for part in zip(*external)] if external
@@ -340,6 +358,7 @@ class BulletWhisker:
     def link_nodes(self, i: int) -> tuple[tuple[float, ...], tuple[float, ...]]:
         """Proximal and distal node of whisker link i, world frame, mm (internal units). Plain
         floats: it runs for every contact point of every step (numpy's call overhead tripled it)."""
+        self.sync()
         state = self.client.getLinkState(self.body, self.whisker_links[i], computeForwardKinematics=True)
         (px, py, pz), (x, y, z, w) = state[4], state[5]
         length = self.link_lengths[i]              # along the link frame's x axis, R(q)·(1, 0, 0):
@@ -348,6 +367,7 @@ class BulletWhisker:
 
     def node_positions(self) -> np.ndarray:
         """[N+1, 3] node positions, world frame, m."""
+        self.sync()
         states = self.client.getLinkStates(self.body, self.whisker_links, computeForwardKinematics=True)
         frames = np.array([s[4] for s in states])
         tip = frames[-1] + matrix_from_xyzw(states[-1][5])[:, 0] * self.tip_offset
