@@ -16,26 +16,43 @@ from __future__ import annotations
 import argparse
 import collections
 import time
+import types
 from pathlib import Path
 
-import pybullet
 from profile_mujoco_stepping import timed
 
 from pipeline.config.loader import load_config
 from pipeline.config.simulate import SimulateConfig
 from pipeline.engines.bullet import engine as bullet_engine, whisker as bullet_whisker
+from pipeline.engines.bullet.client import BulletClient
 from pipeline.runner.scenes import scene_catalogue
 from pipeline.runner.simulate import _layout
 from pipeline.runner.trial import RunSpec, Simulator
 
 REPO = Path(__file__).resolve().parents[1]
-PYBULLET_CALLS = ("stepSimulation", "performCollisionDetection", "resetJointStatesMultiDof", "getJointStates", "calculateInverseDynamics", "calculateMassMatrix",
-                  "calculateJacobian", "setJointMotorControlArray", "getLinkStates", "getLinkState",
+PYBULLET_CALLS = ("stepSimulation", "resetJointStatesMultiDof", "getJointStates", "calculateInverseDynamics",
+                  "calculateMassMatrix", "calculateJacobian", "setJointMotorControlArray", "getLinkStates", "getLinkState",
                   "getClosestPoints", "getOverlappingObjects", "applyExternalForce", "getBasePositionAndOrientation")
 ENGINE_CALLS = ((bullet_whisker, "solve_forces"), (bullet_engine, "find_contacts"),
                 *((bullet_whisker.BulletWhisker, name) for name in
                   ("step", "_contact_forces", "_factorise", "_record_wrench", "base_wrench", "build")),
                 (bullet_engine.BulletWorld, "_flag_contacts"), (bullet_engine.BulletWorld, "run"))
+
+
+def clock_client_calls(seconds: collections.Counter, calls: collections.Counter) -> None:
+    """Clock the PYBULLET_CALLS of every :class:`BulletClient` as its functions are bound (a
+    patched ``pybullet`` module function would lose the client id: pybullet_utils binds builtins only)."""
+    bind = BulletClient.__getattr__
+
+    def bound_and_clocked(client, name):
+        function = bind(client, name)
+        if name in PYBULLET_CALLS:
+            holder = types.SimpleNamespace(call=function)
+            timed(holder, "call", f"pybullet.{name}", seconds, calls)
+            function = client.__dict__[name] = holder.call
+        return function
+
+    BulletClient.__getattr__ = bound_and_clocked
 
 
 def main() -> None:
@@ -44,8 +61,7 @@ def main() -> None:
     args = parser.parse_args()
     first, last = (int(v) for v in args.trials.split("-"))
     seconds, calls = collections.Counter(), collections.Counter()
-    for name in PYBULLET_CALLS:
-        timed(pybullet, name, f"pybullet.{name}", seconds, calls)
+    clock_client_calls(seconds, calls)
     for owner, name in ENGINE_CALLS:
         timed(owner, name, name, seconds, calls)
     config, _ = load_config(SimulateConfig, REPO / "configs" / "simulate.yaml", env_prefix="PIPELINE_SIMULATE_",
