@@ -26,17 +26,15 @@ moved by :data:`~pipeline.engines.bullet.whisker.MASS_REFRESH_RAD` (every ≈ 10
 free whisk; base signals then within 5·10⁻⁵ RMS, nodes within 0.05 µm of recomputing it every
 step).
 
-Cost per whisker-step (41 joints, this machine, issue 16): ``stepSimulation`` ≈ 82 µs (the
-same with 1 or 50 solver iterations: Featherstone dynamics, collision detection and the
-force/torque sensor), the implicit torques ≈ 73 µs (joint states 10 µs and their conversion
-8 µs, two inverse dynamics 9 µs, torques 2.5 µs, the mass matrix's 35 µs query and 25–35 µs
-list→array conversion on ≈ 1 step in 10, numpy ≈ 15 µs). A full-array free
-whisk takes ≈ 1.2·10⁶ whisker-steps per simulated second under the default step plan, so the
-pybullet calls alone put a floor of ≈ 110 µs × 3·10⁵ ≈ 33 CPU-s under a 250 ms trial.
-A whisker-step within reach of an obstacle adds its contact query (``getClosestPoints``), one
-Jacobian and the solve, ≈ 1.5–2× a free whisker-step (issue 24, engine CPU-s of 250 ms trials,
-Bullet's own contact before → this: RC1 against the active pegs ×1.4–1.6, the right array
-against them ×1.05, the passive peg through it ×1.08–1.16).
+Cost per whisker-step: one inverse dynamics (M_·D·a_D + b), the mass matrix on the steps that
+refresh it (its query, list → array and inverse), numpy for the rest; Bullet never steps a whisker
+(no ``stepSimulation``, torques or external forces handed to it). Bullet's joints are written
+(``resetJointStatesMultiDof``) only before its link frames or collision are asked for: the
+contact search, a step with contacts or loads, a sample. The contact search
+(:func:`~pipeline.engines.bullet.contact.find_contacts`) looks at a whisker–obstacle pair only once
+the whisker could have moved within reach of it since the gap last found; a whisker-step within
+reach adds the query (``getClosestPoints``), one Jacobian and the solve. Measured shares:
+docs/scaling.md ("Issue 26, session 13: Bullet").
 
 Base wrench. The follicle's force and moment about the base point are Newton–Euler of the
 step that starts at the sample's time (:mod:`pipeline.engines.bullet.wrench`: the links'
