@@ -9,8 +9,8 @@ mode (:mod:`pipeline.engines.stepping`).
 Integration scheme (one step of size h, per whisker; q, v joint positions and velocities):
 
     (M_FF + h·C + h²·K) a_F = −K·q_F − C·v_F − b_F − M_FD·a_D + J_Fᵀ·f
-    τ = M·a + b − Jᵀ·f,  applied as joint torques, f as forces on the links, then Bullet's
-        semi-implicit Euler step (v ← v + h·a; q ← q + h·v)
+    then the semi-implicit Euler step v ← v + h·a; q ← q + h·v, taken by the engine itself
+        and written to Bullet's joints (resetJointStatesMultiDof)
 
 M is Bullet's joint-space mass matrix and b its bias forces (Coriolis, centrifugal) less the
 generalised loads Jᵀ·F (:mod:`pipeline.model.effects.loads`: gravity, drag, a tip force) at the current state; F are the spring joints, D the driven ones whose accelerations a_D make
@@ -19,28 +19,26 @@ for any h (for an undamped mode it is symplectic Euler with ω² replaced by k/(
 unlike backward Euler, adds no numerical damping; frequencies drop by ≈ (hω)²/2 relative.
 The contact forces f are solved within the same operator (:mod:`pipeline.engines.bullet.contact`:
 non-penetration and Coulomb friction μ as configured); Bullet's own contact solver, which would
-see the links' inertia but not the springs, never sees a contact. M·a + b is Bullet's
+see the links' inertia but not the springs, never sees a contact. M_·D·a_D + b is Bullet's
 inverse dynamics at every step (driven joints land exactly); the free–free block M_FF inside
 the implicit operator, a function of the free angles only, is recomputed when one of them has
 moved by :data:`~pipeline.engines.bullet.whisker.MASS_REFRESH_RAD` (every ≈ 10th step of a
 free whisk; base signals then within 5·10⁻⁵ RMS, nodes within 0.05 µm of recomputing it every
 step).
 
-Cost per whisker-step (41 joints, this machine, issue 16): ``stepSimulation`` ≈ 82 µs (the
-same with 1 or 50 solver iterations: Featherstone dynamics, collision detection and the
-force/torque sensor), the implicit torques ≈ 73 µs (joint states 10 µs and their conversion
-8 µs, two inverse dynamics 9 µs, torques 2.5 µs, the mass matrix's 35 µs query and 25–35 µs
-list→array conversion on ≈ 1 step in 10, numpy ≈ 15 µs). A full-array free
-whisk takes ≈ 1.2·10⁶ whisker-steps per simulated second under the default step plan, so the
-pybullet calls alone put a floor of ≈ 110 µs × 3·10⁵ ≈ 33 CPU-s under a 250 ms trial.
-A whisker-step within reach of an obstacle adds its contact query (``getClosestPoints``), one
-Jacobian and the solve, ≈ 1.5–2× a free whisker-step (issue 24, engine CPU-s of 250 ms trials,
-Bullet's own contact before → this: RC1 against the active pegs ×1.4–1.6, the right array
-against them ×1.05, the passive peg through it ×1.08–1.16).
+Cost per whisker-step: one inverse dynamics (M_·D·a_D + b), the mass matrix on the steps that
+refresh it (its query, list → array and inverse), numpy for the rest; Bullet never steps a whisker
+(no ``stepSimulation``, torques or external forces handed to it). Bullet's joints are written
+(``resetJointStatesMultiDof``) only before its link frames or collision are asked for: the
+contact search, a step with contacts or loads, a sample. The contact search
+(:func:`~pipeline.engines.bullet.contact.find_contacts`) looks at a whisker–obstacle pair only once
+the whisker could have moved within reach of it since the gap last found; a whisker-step within
+reach adds the query (``getClosestPoints``), one Jacobian and the solve. Measured shares:
+docs/scaling.md ("Issue 26, session 13: Bullet").
 
 Base wrench. The follicle's force and moment about the base point are Newton–Euler of the
 step that starts at the sample's time (:mod:`pipeline.engines.bullet.wrench`: the links'
-accelerations from the joint accelerations Bullet took, less the loads and contact forces), as
+accelerations from the step's joint accelerations, less the loads and contact forces), as
 MuJoCo's: sample k is recorded after the step that starts at t_k (one extra step at the end of
 a trial), its node positions before it.
 pybullet's force/torque sensor (on the fixed joint to link 1) is not used: it reads the step

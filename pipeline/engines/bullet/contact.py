@@ -15,9 +15,8 @@ not close the gap g (mm, < 0: penetration) within the step: u_n ≥ −g/h for g
 u_n ≥ −:data:`PENETRATION_ERP`·g/h inside (pushed out over a few steps, no pop); friction
 opposes sliding relative to the obstacle's surface (u_t = its velocity while |f_t| < μ·f_n).
 Projected Gauss–Seidel over the points (at most ``engine.solver_iterations`` sweeps) solves
-this small problem (a few points per whisker). The forces are applied to the links as external
-forces at the points and enter the joint torques as −Jᵀ·f, exactly as the loads do, so the base
-sensor feels them. At rest a = 0 and the springs balance the contact: K·q = Jᵀ·f.
+this small problem (a few points per whisker). The forces enter the step's accelerations
+through W·J_Fᵀ·f and the base wrench as external forces at the points, exactly as the loads do. At rest a = 0 and the springs balance the contact: K·q = Jᵀ·f.
 
 Contacts are looked for within :data:`CONTACT_REACH_MM` of the surface (farther than any link
 moves in a step), so that a link is caught before it crosses a thin peg or a triangle; a
@@ -38,6 +37,7 @@ from pipeline.engines.bullet.client import BulletClient
 from pipeline.engines.one_sided import MERGE_MM, one_sided
 
 CONTACT_REACH_MM = 0.25      # speculative contact distance (a tip moves ≲ 0.15 mm per step)
+CLEARANCE_MM = 1.0           # distance queried: a gap found up to this is a whisker's leeway (find_contacts)
 PENETRATION_ERP = 0.2        # fraction of a penetration removed per step
 TOLERANCE = 1e-6             # Gauss–Seidel stops when no force changes by more than this × the largest
 
@@ -53,14 +53,15 @@ class ContactPoint:
     surface_velocity: np.ndarray   # [3] mm/s, the obstacle's (friction acts on the relative sliding)
 
 
-def find_contacts(client: BulletClient, obstacles, whisker_bodies: dict) -> dict[int, list[ContactPoint]]:
+def find_contacts(client: BulletClient, obstacles, whiskers, still: bool) -> dict[int, list[ContactPoint]]:
     """Contact points within :data:`CONTACT_REACH_MM` of the obstacles, per whisker body id.
 
     ``obstacles``: (body id, velocity [3] mm/s, :class:`~pipeline.engines.one_sided.OneSidedMesh` or None, offset [3] mm of
-    the mesh frame) of each; ``whisker_bodies``: body id → its
-    :class:`~pipeline.engines.bullet.whisker.BulletWhisker`.
-    A broadphase query per obstacle selects the candidate whiskers (cheap; the whiskers' boxes
-    there are a step old, hence twice the reach), then ``getClosestPoints`` gives the points.
+    the mesh frame) of each; ``whiskers``: the :class:`~pipeline.engines.bullet.whisker.BulletWhisker`
+    to look at. ``getClosestPoints`` (within :data:`CLEARANCE_MM`) gives the points. With ``still``
+    (obstacles and bases at rest) a whisker–obstacle pair is not looked at again until the
+    whisker's travel bound (:attr:`~pipeline.engines.bullet.whisker.BulletWhisker.travel_mm`) could
+    have closed the gap found last down to the reach: the same contacts, fewer queries.
     On a mesh they only name the links near it: the contacts are those of :func:`~pipeline.engines.one_sided.one_sided` at
     the capsule axis points Bullet found and at both nodes of each such link (the deepest
     point of a link that crosses a face is an end, where Bullet's witness point is not).
@@ -71,15 +72,16 @@ def find_contacts(client: BulletClient, obstacles, whisker_bodies: dict) -> dict
     bounded solution; the deeper side pushes it out)."""
     found: dict[int, list[ContactPoint]] = {}
     for obstacle, velocity, mesh, offset in obstacles:
-        low, high = client.getAABB(obstacle, -1)
-        low = [v - 2 * CONTACT_REACH_MM for v in low]
-        high = [v + 2 * CONTACT_REACH_MM for v in high]
-        near = {body for body, _ in (client.getOverlappingObjects(low, high) or ())
-                if body in whisker_bodies}
-        for body in near:
-            whisker = whisker_bodies[body]
-            points = [point for point in client.getClosestPoints(obstacle, body, CONTACT_REACH_MM)
+        for whisker in whiskers:
+            if still and whisker.travel_mm < whisker.next_query_mm.get(obstacle, 0.0):
+                continue
+            whisker.sync()
+            body = whisker.body
+            points = [point for point in client.getClosestPoints(obstacle, body, CLEARANCE_MM)
                       if point[4] in whisker.local_link]
+            gap = min((point[8] for point in points), default=CLEARANCE_MM)
+            whisker.next_query_mm[obstacle] = whisker.travel_mm + gap - CONTACT_REACH_MM
+            points = [point for point in points if point[8] <= CONTACT_REACH_MM]
             if not points:
                 continue
             link_of = np.array([whisker.local_link[point[4]] for point in points])
@@ -132,19 +134,22 @@ def contact_frame(normal: np.ndarray, with_tangents: bool) -> np.ndarray:
 
 
 def solve_forces(G: np.ndarray, u0: np.ndarray, gaps_mm: np.ndarray, h: float, mu: float,
-                 iterations: int) -> np.ndarray:
+                 iterations: int, start: np.ndarray | None = None) -> np.ndarray:
     """Contact forces f of the step (module docstring): per point the normal force, and with
     μ > 0 two tangential ones ([P] or [3P], the rows of :func:`contact_frame`).
 
     ``G``: velocity after the step per unit force; ``u0``: velocity after the step without
-    contact; ``gaps_mm`` [P]. A point that no spring joint can move (on link 1 with a rigid
+    contact; ``gaps_mm`` [P]; ``start``: forces to start the sweeps from (a guess, e.g. the
+    step before's; zeros without). A point that no spring joint can move (on link 1 with a rigid
     follicle: the drive is rigid) gets no force. Plain Python floats: the problem is a few
     rows, where numpy's per-call overhead would dominate."""
     per_point = 3 if mu > 0 else 1
     rows = per_point * len(gaps_mm)
     columns = G.T.tolist()                   # columns[j]: velocity change per unit force j
-    u = u0.tolist()
-    f = [0.0] * rows
+    if start is None or not start.any():
+        u, f = u0.tolist(), [0.0] * rows
+    else:
+        u, f = (u0 + G @ start).tolist(), start.tolist()
     bias = [(g if g >= 0 else PENETRATION_ERP * g) / h for g in gaps_mm.tolist()]
     diagonal = [columns[j][j] for j in range(rows)]
     # (normal row, bias) of the points a spring joint can move (not link 1 with a rigid follicle)

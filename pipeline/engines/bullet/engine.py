@@ -69,7 +69,6 @@ class BulletWorld(World):
         self.client.setPhysicsEngineParameter(fixedTimeStep=dt_s, numSubSteps=0, deterministicOverlappingPairs=1)
         self.client.setGravity(0, 0, 0)
         self.bodies = [BulletWhisker(self.client, w, built=False) for w in whiskers]
-        self._links: dict[int, BulletWhisker] = {}            # body id → whisker, of those built
         self._scenes: dict[str, list[_Obstacle]] = {}
         self._scene_key: str | None = None
 
@@ -125,12 +124,11 @@ class BulletWorld(World):
             if w.body is not None:
                 self._remove(k)
             if active[k]:
-                self._links[w.build()] = w
+                w.build()
                 self._without_bullet_contact(w.body, w.whisker_links)
                 w.reset((position + rotation @ w.model.base_point_m) * U.LENGTH, orientation,
                         setup.drive, self.dt_s, setup.initial[k], setup.initial_rates[k])
         self._place_obstacles(0.0)
-        self.client.performCollisionDetection()    # bounding boxes, where contacts are looked up
 
     def _place_head(self, whiskers, position_m: np.ndarray, rotation: np.ndarray) -> None:
         """The bases of ``whiskers`` (indices) where a head at ``position_m`` (m), ``rotation`` has them."""
@@ -140,11 +138,8 @@ class BulletWorld(World):
             self.client.resetBasePositionAndOrientation(self.bodies[k].body, base.tolist(), orientation)
 
     def _remove(self, k: int) -> None:
-        """Take whisker k's multibody out of the world: it no longer touches anything, and Bullet
-        no longer steps it (a parked, sleeping whisker cost ≈ 55 µs per world step, module
-        :mod:`pipeline.engines.bullet.whisker`)."""
+        """Take whisker k's multibody out of the world: it no longer touches anything."""
         w = self.bodies[k]
-        del self._links[w.body]
         w.remove()
 
     def run(self, setup: TrialSetup, active: np.ndarray) -> WorldResult:
@@ -189,17 +184,19 @@ class BulletWorld(World):
                 self._place_head(running, plan.head_position_m[step], plan.head_rotation[step])
                 loads = [own + plan.head_inertia[step] for own in setup.loads]
                 twist = plan.head_twist(step)
-            contacts = find_contacts(c, obstacles, self._links) if obstacles else {}
+            contacts = (find_contacts(c, obstacles, [self.bodies[k] for k in running], not moving and head is None)
+                        if obstacles else {})
             if twist is not None and contacts:
                 contacts = relative_to_head(contacts, *twist)
             for k in running:
                 w = self.bodies[k]
                 target = held[k] if held[k] is not None else w.rest_driven + w.rates * plan.theta[step, k]
                 points = contacts.get(w.body, ())
-                normal = w.apply_implicit_torques(target, h, loads[k], points, config.contact_friction,
-                                                  config.solver_iterations, records)
-                self._flag_contacts(k, points, normal, flags, result.touched)
-            c.stepSimulation()
+                nodes = {link: w.link_nodes(link) for link in {point.link for point in points}}
+                segments = [nodes[point.link] for point in points]             # at the step's start
+                normal = w.step(target, h, loads[k], points, config.contact_friction,
+                                config.solver_iterations, records)
+                self._flag_contacts(k, points, segments, normal, flags, result.touched)
             if setup.hold_on_contact:
                 for k in np.flatnonzero(flags.touching.any(axis=1)):
                     if held[k] is None:
@@ -213,16 +210,19 @@ class BulletWorld(World):
                     running.remove(k)
                 yield sample - 1
 
-    def _flag_contacts(self, k: int, points, normal_forces: np.ndarray, flags: ContactFlags,
+    def _flag_contacts(self, k: int, points, segments: list, normal_forces: np.ndarray, flags: ContactFlags,
                        touched: np.ndarray) -> None:
         """Add whisker k's contacts of this step to ``flags``: a link touches when it penetrates or
         is pushed on (a resting contact can sit a hair above zero), at its point on the whisker's
-        surface; ``touched`` [w] marks whiskers with any contact point at all (within reach)."""
+        surface (``segments``: per point its link's nodes at the step's start); ``touched`` [w]
+        marks whiskers with any contact point at all (within reach)."""
         if points:
             touched[k] = True
-        pressed = [point for point, force in zip(points, normal_forces) if point.gap_mm <= 0.0 or force > 0.0]
+        pressed = [i for i, (point, force) in enumerate(zip(points, normal_forces))
+                   if point.gap_mm <= 0.0 or force > 0.0]
         if pressed:
-            segments = np.array([self.bodies[k].link_nodes(point.link) for point in pressed])
+            segments = np.array([segments[i] for i in pressed])
+            pressed = [points[i] for i in pressed]
             flags.add(k * flags.touching.shape[1] + np.array([point.link for point in pressed]),
                       np.array([point.point_mm for point in pressed]), segments[:, 0], segments[:, 1])
 

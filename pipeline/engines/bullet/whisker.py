@@ -7,7 +7,8 @@ any) on massless links, a fixed joint to link 1 (where the base wrench is taken)
 bending node one revolute joint per hinge of the node, all on massless links but the last,
 which carries the next whisker link. The implicit step is described in
 :mod:`pipeline.engines.bullet`; loads (:mod:`pipeline.model.effects.loads`) enter it as generalised
-forces Jᵀ·F and are applied to Bullet's bodies too. The base wrench is Newton–Euler of the
+forces Jᵀ·F. The step is integrated here and written to Bullet's joints (Bullet never steps a
+whisker: its multibody serves the dynamics queries, link frames and collision). The base wrench is Newton–Euler of the
 step (:mod:`pipeline.engines.bullet.wrench`) with these external forces and the contacts' (the
 step solves every contact itself: Bullet's own solver never sees one, module
 :mod:`pipeline.engines.bullet`).
@@ -22,7 +23,7 @@ import pybullet as p
 
 from pipeline.engines import units as U
 from pipeline.engines.bullet.client import BulletClient
-from pipeline.engines.bullet.contact import contact_frame, solve_forces
+from pipeline.engines.bullet.contact import CONTACT_REACH_MM, contact_frame, solve_forces
 from pipeline.engines.bullet.multibody import CAPSULE_ALONG_X, IDENTITY_QUAT, LinkList
 from pipeline.engines.bullet.wrench import chain_wrench
 from pipeline.engines.common import start_rate
@@ -122,6 +123,14 @@ class BulletWhisker:
         self._link_mass = chain.link_mass_kg * U.MASS
         self._link_inertia = chain.link_inertia_kg_m2 * U.INERTIA
         self._step = None
+        self._last_contacts = None      # (links [P], points [P, 3], forces [P, 3]) of the step before
+        # travel_mm: since reset, Σ over steps of reach_mm·Σ_j |Δq_j|, a bound on how far any point
+        # of the whisker has moved relative to its base (a joint turned by Δq moves a point at
+        # distance r from its axis by ≤ r·|Δq|, r ≤ the arc length plus the radius: every joint
+        # sits at or beyond the base); next_query_mm: per obstacle body, the travel at which its
+        # gap may have closed to the reach (:func:`~pipeline.engines.bullet.contact.find_contacts`)
+        self.reach_mm = float(chain.link_lengths_m.sum() * U.LENGTH + self.capsule_radii.max())
+        self.travel_mm, self.next_query_mm = 0.0, {}
         if built:
             self.build()
 
@@ -131,16 +140,8 @@ class BulletWhisker:
         self.body = c.createMultiBody(0.0, -1, -1, [0, 0, 0], IDENTITY_QUAT, **links.columns)
         if self.body < 0:
             raise RuntimeError(f"Bullet refused to build whisker {self.model.name}")
-        for index, inertia in enumerate(links.inertia):
-            # Two calls: pybullet 3.2.6 drops localInertiaDiagonal when damping or
-            # maxJointVelocity come in the same changeDynamics call (tested in test_engine_physics).
-            c.changeDynamics(self.body, index, linearDamping=0, angularDamping=0, maxJointVelocity=1e6,
-                             jointDamping=0)
-            c.changeDynamics(self.body, index, localInertiaDiagonal=inertia)
-        c.changeDynamics(self.body, -1, linearDamping=0, angularDamping=0,
-                         activationState=p.ACTIVATION_STATE_DISABLE_SLEEPING)
-        c.setJointMotorControlArray(self.body, self.dofs, p.VELOCITY_CONTROL,
-                                    forces=[0.0] * len(self.dofs))
+        for index, inertia in enumerate(links.inertia):    # alone: pybullet 3.2.6 drops it beside
+            c.changeDynamics(self.body, index, localInertiaDiagonal=inertia)   # damping settings
         return self.body
 
     def remove(self) -> None:
@@ -159,71 +160,79 @@ class BulletWhisker:
         q_driven = self.rest_driven + self.rates * float(drive(0.0))
         v_driven = self.rates * start_rate(drive, h)
         self._lhs_inverse = None                            # the next step computes M afresh
-        for k, joint in enumerate(self.dofs):
-            q, v = (q_driven[k], v_driven[k]) if k < 3 else (free_angles[k - 3], free_rates[k - 3])
-            self.client.resetJointState(self.body, joint, q, v)
+        self._last_contacts = None
+        self.travel_mm, self.next_query_mm = 0.0, {}
+        self._set_state(np.concatenate([q_driven, free_angles]), np.concatenate([v_driven, free_rates]))
+
+    def _set_state(self, q: np.ndarray, v: np.ndarray) -> None:
+        """Joint angles q and rates v [n_dof] (rad, rad/s), kept here; written to Bullet's joints
+        by :meth:`sync`, before Bullet's link frames or collision queries are asked for."""
+        self.q, self.v, self._synced = q, v, False
+
+    def sync(self) -> None:
+        """Bullet's joints at :attr:`q`, :attr:`v` (a no-op when they are already)."""
+        if not self._synced:
+            self.client.resetJointStatesMultiDof(self.body, self.dofs, self.q[:, None].tolist(),
+                                                 self.v[:, None].tolist())
+            self._synced = True
 
     def driven_angles(self) -> np.ndarray:
-        return np.array([s[0] for s in self.client.getJointStates(self.body, self.dofs[:3])])
+        return self.q[:3].copy()
 
-    def apply_implicit_torques(self, q_target: np.ndarray, h: float, loads=(), contacts=(),
-                               friction: float = 0.0, iterations: int = 50, record: bool = False) -> np.ndarray:
-        """Joint torques of one linearly implicit step of size h (s) toward driven angles q_target;
-        returns the normal force (internal units) at each of ``contacts``. With ``record`` the
-        step's frames and external forces are kept for :meth:`base_wrench` (the step that
-        starts at a sample's time).
+    def step(self, q_target: np.ndarray, h: float, loads=(), contacts=(),
+             friction: float = 0.0, iterations: int = 50, record: bool = False) -> np.ndarray:
+        """One linearly implicit step of size h (s) toward driven angles q_target, integrated here
+        (semi-implicit Euler v ← v + h·a, q ← q + h·v, as Bullet's own step with the torques
+        M·a + b − Jᵀ·f would: Bullet never steps a whisker); returns the normal force (internal
+        units) at each of ``contacts``. With ``record`` the step's frames, external forces and
+        accelerations are kept for :meth:`base_wrench` (the step that starts at a sample's time).
 
         ``loads`` (:mod:`pipeline.model.effects.loads`) enter the implicit solve as the generalised force
-        Jᵀ·F and are applied to Bullet's bodies too, so the step Bullet takes is the implicit one.
-        So do the forces at ``contacts`` (:class:`~pipeline.engines.bullet.contact.ContactPoint`),
+        Jᵀ·F. So do the forces at ``contacts`` (:class:`~pipeline.engines.bullet.contact.ContactPoint`),
         solved within the same implicit operator with Coulomb ``friction`` μ
-        (:mod:`pipeline.engines.bullet.contact`, ``iterations`` Gauss–Seidel sweeps at most).
-        M·a + b comes from Bullet's inverse dynamics (exact at every step). The free–free block
+        (:mod:`pipeline.engines.bullet.contact`, ``iterations`` Gauss–Seidel sweeps at most, from
+        the forces of the step before at the same points: :meth:`_warm_start`). The free–free block
         M_FF inside the implicit operator depends on the free angles q_F only (the driven joints
         turn the whole chain rigidly), so it is recomputed (Bullet's costliest query) only once
         some free angle has moved :data:`MASS_REFRESH_RAD` from where it was last computed. The
         driven joints land on q_target exactly."""
-        c = self.client
-        states = c.getJointStates(self.body, self.dofs)
-        q_list, v_list = [s[0] for s in states], [s[1] for s in states]
-        q, v = np.array((q_list, v_list))
+        q, v = self.q, self.v
+        q_list, v_list = q.tolist(), v.tolist()
         q_free = q[3:]
         if self._lhs_inverse is None or np.abs(q_free - self._factorised_at).max() > MASS_REFRESH_RAD:
             self._factorise(q_list, h)
         external = []                                   # (points, forces, torques) on the links
-        generalised = self._apply_loads(loads, q_list, external) if loads else 0.0   # Bullet adds Jᵀ·F itself
-        accel_driven = (((q_target - q[:3]) / h - v[:3]) / h).tolist()
-        driven_only = np.array(c.calculateInverseDynamics(self.body, q_list, v_list, accel_driven + self._free_zeros))   # M_·D·a_D + b
+        accel_driven = ((q_target - q[:3]) / h - v[:3]) / h
+        driven_only = np.array(self.client.calculateInverseDynamics(
+            self.body, q_list, v_list, accel_driven.tolist() + self._free_zeros))   # M_·D·a_D + b
         if loads:
-            driven_only -= generalised                                           # ... − Jᵀ·F
-        accel_free = self._lhs_inverse @ (self._minus_stiffness * q_free - self._free_damping * v[3:] - driven_only[3:])
-        normal_forces = np.zeros(len(contacts))
+            driven_only -= self._load_forces(loads, q_list, external)            # ... − Jᵀ·F
+        accel = np.concatenate([accel_driven, self._lhs_inverse @ (
+            self._minus_stiffness * q_free - self._free_damping * v[3:] - driven_only[3:])])
+        normal_forces = np.zeros(0)
         if contacts:
-            accel = np.concatenate([accel_driven, accel_free])
-            normal_forces, contact_generalised = self._contact_forces(contacts, q_list, v, accel, h,
-                                                                      friction, iterations, external)
-            generalised = generalised + contact_generalised
-            accel_free = accel[3:]
+            normal_forces = self._contact_forces(contacts, q_list, v, accel, h, friction, iterations, external)
+        else:
+            self._last_contacts = None                  # a contact that comes back starts afresh
         if record:
-            self._record_wrench(q_list, v, h, external)
-        torque = c.calculateInverseDynamics(self.body, q_list, v_list, accel_driven + accel_free.tolist())
-        if loads or contacts:                          # (x − 0.0 is x: skipped without them)
-            torque = (np.array(torque) - generalised).tolist()
-        c.setJointMotorControlArray(self.body, self.dofs, p.TORQUE_CONTROL, forces=torque)
+            self._record_wrench(q_list, v, accel, external)
+        v_after = v + h * accel
+        self.travel_mm += self.reach_mm * h * float(np.abs(v_after).sum())
+        self._set_state(q + h * v_after, v_after)
         return normal_forces
 
     def _contact_forces(self, contacts, q: list[float], v: np.ndarray, accel: np.ndarray, h: float,
-                        friction: float, iterations: int, external: list) -> tuple[np.ndarray, np.ndarray]:
+                        friction: float, iterations: int, external: list) -> np.ndarray:
         """Solve the contact forces of the step (:mod:`pipeline.engines.bullet.contact`), add
-        their free-joint response W·J_Fᵀ·f to ``accel`` (in place), apply them to the links and
-        append them to ``external`` as (points, forces, torques); returns the normal forces [P]
-        and their generalised force Jᵀ·f [n_dof].
+        their free-joint response W·J_Fᵀ·f to ``accel`` (in place) and append them to
+        ``external`` as (points, forces, torques); returns the normal forces [P].
 
         One Jacobian per step, at the frame origin o of the farthest touched link: a point p on
         link l has the row d·J_lin + ((p − o) × d)·J_ang along d, with the columns of the joints
         beyond l (not l's ancestors in the serial chain) zeroed."""
         c = self.client
         farthest = self.whisker_links[max(contact.link for contact in contacts)]
+        self.sync()
         origin = np.asarray(c.getLinkState(self.body, farthest, computeForwardKinematics=True)[4])
         linear, angular = self.jacobian(farthest, [0.0, 0.0, 0.0], q)
         frames = np.concatenate([contact_frame(contact.normal, friction > 0) for contact in contacts])
@@ -238,14 +247,33 @@ class BulletWhisker:
             surface = np.repeat([contact.surface_velocity for contact in contacts], 3, axis=0)
             velocity -= np.einsum("ij,ij->i", frames, surface) * (np.arange(len(frames)) % 3 > 0)
         forces = solve_forces(h * jacobian[:, 3:] @ response, velocity,
-                              np.array([contact.gap_mm for contact in contacts]), h, friction, iterations)
+                              np.array([contact.gap_mm for contact in contacts]), h, friction, iterations,
+                              self._warm_start(contacts, frames, per_point))
         accel[3:] += response @ forces
         world = np.einsum("ij,i->ij", frames, forces).reshape(len(contacts), per_point, 3).sum(axis=1)
+        self._last_contacts = (np.array([contact.link for contact in contacts]),
+                               np.array([contact.point_mm for contact in contacts]), world)
         external.append((np.array([contact.point_mm for contact in contacts]), world, np.zeros_like(world)))
-        for contact, force in zip(contacts, world):
-            c.applyExternalForce(self.body, self.whisker_links[contact.link], force.tolist(),
-                                 contact.point_mm.tolist(), p.WORLD_FRAME)
-        return forces[0::per_point], jacobian.T @ forces
+        return forces[0::per_point]
+
+    def _warm_start(self, contacts, frames: np.ndarray, per_point: int) -> np.ndarray | None:
+        """Forces to start the contact solve from: per point, the force of the step before at the
+        nearest point of the same link within :data:`CONTACT_REACH_MM` (each used once), in this
+        step's ``frames``; zero where there is none (rows as :func:`solve_forces`)."""
+        if self._last_contacts is None:
+            return None
+        links, points, forces = self._last_contacts
+        start, used = np.zeros(len(frames)), set()
+        for i, contact in enumerate(contacts):
+            same = np.flatnonzero(links == contact.link)
+            if len(same) == 0:
+                continue
+            distances = ((points[same] - contact.point_mm) ** 2).sum(axis=1)
+            j = same[np.argmin(distances)]
+            if j not in used and distances.min() <= CONTACT_REACH_MM ** 2:
+                used.add(j)
+                start[i * per_point:(i + 1) * per_point] = frames[i * per_point:(i + 1) * per_point] @ forces[j]
+        return start
 
     def jacobian(self, link: int, point: list[float], q: list[float]) -> tuple[np.ndarray, np.ndarray]:
         """Linear and angular Jacobian [3, n_dof] of ``point`` (link frame, mm) of Bullet ``link``
@@ -267,6 +295,7 @@ class BulletWhisker:
     def link_state(self, velocities: bool, base: bool = False) -> LinkState:
         """The whisker links' centres of mass, frames and velocities (world frame, SI); with
         ``base`` also the driven base frame's origin and motion (its centre of mass is its origin)."""
+        self.sync()
         states = self.client.getLinkStates(self.body, self.whisker_links, computeLinkVelocity=int(velocities),
                                  computeForwardKinematics=True)
         frames = np.array([matrix_from_xyzw(s[1]) for s in states])
@@ -279,10 +308,9 @@ class BulletWhisker:
                          np.array([s[6] for s in states]) / U.LENGTH if velocities else zeros,
                          np.array([s[7] for s in states]) if velocities else zeros, motion)
 
-    def _apply_loads(self, loads, q: list[float], external: list) -> np.ndarray:
-        """Apply the loads' per-link forces to Bullet's bodies for the next step and append them
-        to ``external`` as (points, forces, torques); returns their generalised force Jᵀ·F
-        [n_dof] (internal units). pybullet takes the Jacobian's point in
+    def _load_forces(self, loads, q: list[float], external: list) -> np.ndarray:
+        """The loads' per-link forces appended to ``external`` as (points, forces, torques); returns
+        their generalised force Jᵀ·F [n_dof] (internal units). pybullet takes the Jacobian's point in
         the link frame (not the centre-of-mass frame): checked by the static tip load test,
         whose deflection is then independent of the step size."""
         state = self.link_state(any(load.needs_velocity for load in loads), any(load.needs_base for load in loads))
@@ -294,29 +322,24 @@ class BulletWhisker:
             link = self.whisker_links[i]
             linear, angular = self.jacobian(link, [self.link_com[i], 0.0, 0.0], q)
             generalised += linear.T @ force[i] + angular.T @ torque[i]
-            self.client.applyExternalForce(self.body, link, force[i].tolist(), (state.com_m[i] * U.LENGTH).tolist(),
-                                 p.WORLD_FRAME)
-            self.client.applyExternalTorque(self.body, link, torque[i].tolist(), p.WORLD_FRAME)
         return generalised
 
-    def _record_wrench(self, q: list[float], v: np.ndarray, h: float, external: list) -> None:
-        """Keep what :meth:`base_wrench` needs of the step about to be taken from joint angles q
-        and rates v: the chain's frames and the ``external`` (points, forces, torques) on the
-        links (internal units, world frame)."""
+    def _record_wrench(self, q: list[float], v: np.ndarray, accel: np.ndarray, external: list) -> None:
+        """Keep what :meth:`base_wrench` needs of the step about to be taken from joint angles q,
+        rates v and accelerations ``accel``: the chain's frames and the ``external`` (points,
+        forces, torques) on the links (internal units, world frame)."""
+        self.sync()
         states = self.client.getLinkStates(self.body, self._chain_links, computeForwardKinematics=True)
         rotations = matrix_from_xyzw([s[5] for s in states])
         points, forces, torques = ([np.concatenate(part) for part in zip(*external)] if external
                                    else [np.zeros((0, 3))] * 3)
-        self._step = (q, v, h, rotations, np.asarray(states[0][4]), points, forces, torques)
+        self._step = (q, v, accel, rotations, np.asarray(states[0][4]), points, forces, torques)
 
     def base_wrench(self) -> np.ndarray:
         """Follicle → whisker force (N) and moment about the base point (N·m), whisker frame, in
-        the step recorded by :meth:`apply_implicit_torques` and just taken, by Newton–Euler
-        (:mod:`pipeline.engines.bullet.wrench`) with the joint accelerations Bullet took,
-        (v′ − v)/h."""
-        c = self.client
-        q, v, h, rotations, base, points, forces, torques = self._step
-        after = np.array([s[1] for s in c.getJointStates(self.body, self.dofs)])
+        the step recorded by :meth:`step` and just taken, by Newton–Euler
+        (:mod:`pipeline.engines.bullet.wrench`) with the step's joint accelerations."""
+        q, v, accel, rotations, base, points, forces, torques = self._step
         # origins from the base by the links' offsets (pybullet's link frame positions are off by
         # up to 10⁻⁵ relative), so that the wrench does not depend on where the base is
         origins = np.vstack([np.zeros(3), np.cumsum(np.einsum("lij,lj->li", rotations[:-1], self._link_offsets[1:]),
@@ -324,7 +347,7 @@ class BulletWhisker:
         bodies = np.asarray(self.whisker_links)
         com = origins[bodies] + rotations[bodies, :, 0] * self.link_com[:, None]
         rates, accelerations = np.zeros(len(rotations)), np.zeros(len(rotations))
-        rates[self.dofs], accelerations[self.dofs] = v, (after - v) / h
+        rates[self.dofs], accelerations[self.dofs] = v, accel
         world = chain_wrench(origins, rotations, self._local_axes, rates, accelerations, bodies, com,
                              self._link_mass, self._link_inertia, self.sensor_joint, points - base, forces, torques)
         rotation = rot_z(self.link1_angle) @ rotations[self.sensor_joint].T     # world → link 1 → whisker
@@ -335,6 +358,7 @@ class BulletWhisker:
     def link_nodes(self, i: int) -> tuple[tuple[float, ...], tuple[float, ...]]:
         """Proximal and distal node of whisker link i, world frame, mm (internal units). Plain
         floats: it runs for every contact point of every step (numpy's call overhead tripled it)."""
+        self.sync()
         state = self.client.getLinkState(self.body, self.whisker_links[i], computeForwardKinematics=True)
         (px, py, pz), (x, y, z, w) = state[4], state[5]
         length = self.link_lengths[i]              # along the link frame's x axis, R(q)·(1, 0, 0):
@@ -343,6 +367,7 @@ class BulletWhisker:
 
     def node_positions(self) -> np.ndarray:
         """[N+1, 3] node positions, world frame, m."""
+        self.sync()
         states = self.client.getLinkStates(self.body, self.whisker_links, computeForwardKinematics=True)
         frames = np.array([s[4] for s in states])
         tip = frames[-1] + matrix_from_xyzw(states[-1][5])[:, 0] * self.tip_offset

@@ -1,8 +1,8 @@
 """Base wrench of a Bullet whisker by Newton–Euler over one step of its serial chain (internal units).
 
 The chain is serial: link k's parent is link k − 1, link 0's the fixed base (zero velocity and
-acceleration). With joint rates q̇ and the step's accelerations q̈ (the ones Bullet took over
-the step, (q̇′ − q̇)/h), u_k link k's joint axis (world; zero for a fixed joint) and o_k its frame
+acceleration). With joint rates q̇ and the step's accelerations q̈ (the ones the step takes,
+(q̇′ − q̇)/h), u_k link k's joint axis (world; zero for a fixed joint) and o_k its frame
 origin (the joint's position), at the step's start q:
 
     ω_k = Σ_{j≤k} u_j·q̇_j,   α_k = Σ_{j≤k} (u_j·q̈_j + ω_{j−1} × u_j·q̇_j),
@@ -15,7 +15,7 @@ change and the external forces (F_ext, M_ext about p: loads, contacts) leave:
 
     F = Σ m·a_c − F_ext,   M = Σ ((c − p) × m·a_c + I·α + ω × I·ω) − M_ext.
 
-This is the reaction of the discrete step itself: with Bullet's semi-implicit Euler
+This is the reaction of the discrete step itself: with the engine's semi-implicit Euler
 (q̇′ = q̇ + h·q̈, q′ = q + h·q̇′) the second difference of the links' paths centred on the step's
 start is its q̈, so F is Σ m·a of the paths at that time.
 """
