@@ -139,7 +139,7 @@ constraint island: its result does not depend on which others are simulated with
 bit, for pegs and edges; against a mesh ≤ 5·10⁻⁷ of its peak on a wavy wall,
 tests/engines/test_engine_mujoco_contact.py), which the template's reuse of free motion relies
 on. MuJoCo solves the islands one by one but decides two things for the whole world (the warm
-start, the no-slip pass's stop); :mod:`pipeline.engines.mujoco.independent` turns both off.
+start, the no-slip pass's stop); :func:`~pipeline.engines.mujoco.spec.compile_model` turns both off.
 
 Contact loss. A step on which a whisker's last contacts open and, carried with its links to
 the step's end, would lie inside the obstacle is taken again for that whisker in sub-steps

@@ -13,7 +13,6 @@ from pipeline.engines.base import TrialSetup, World, WorldResult
 from pipeline.engines.common import (CLEARANCE_MARGIN_M, ContactFlags, implausible, jam_message, link_reach_m,
                                      node_arc_fractions, node_padding_m, start_rate)
 from pipeline.engines.mujoco.faces import FaceContacts
-from pipeline.engines.mujoco.independent import independent_islands
 from pipeline.engines.mujoco.loads import apply_link_loads
 from pipeline.engines.mujoco.plan import MujocoPlan, head_coordinates
 from pipeline.engines.mujoco.prisms import MeshPrisms, cached_prisms
@@ -41,11 +40,9 @@ class _Jam(Exception):
         self.messages = messages
 
 
-
 class MujocoWorld(World):
-    """One MjModel: whiskers stepping at one step size ``dt_s``, and what they can reach. The
-    model is compiled by :meth:`_prepare` for a trial's whiskers and parts, and again only when
-    they change (a world none of whose whiskers a trial needs compiles nothing)."""
+    """One MjModel of whiskers stepping at ``dt_s`` and what they can reach, compiled by
+    :meth:`_prepare` when a trial's whiskers or parts change (none needed: nothing compiled)."""
 
     joint_log: dict | None = None
     """When a dict: each recorded sample → per member its free joints' (angles rad, rates rad/s)
@@ -67,7 +64,6 @@ class MujocoWorld(World):
         """Compile the whiskers ``members`` (indices into this world's) and ``parts`` into a new
         model and data (:func:`~pipeline.engines.mujoco.spec.compile_model`)."""
         self.model = compile_model(self.whiskers, members, parts, self.config, self.dt_s, jointed_head)
-        independent_islands(self.model)
         self.data = mujoco.MjData(self.model)
         self.jointed_head = jointed_head
         self.members = members
