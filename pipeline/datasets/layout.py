@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from pipeline.datasets.schema import ARRAYS
+from pipeline.model import kinematics
 from pipeline.model.outputs import TrialOutput
 from pipeline.model.rotations import rotation_zyx
 
@@ -60,8 +61,6 @@ class Layout:
 def whisker_table(morphology: "Morphology") -> dict[str, np.ndarray]:
     """Whisker table columns of a (selected) morphology; base points relative to the array origin,
     rest frames and the drive's joint angles as :func:`pipeline.model.array.build_array` makes them."""
-    from pipeline.model import kinematics
-
     specs = list(morphology)
     rest = np.array([kinematics.euler_joint_angles(s.rest_angles_rad, s.row, s.side, 0.0) for s in specs])
     offsets = np.array([kinematics.WHISKER_FRAME_OFFSET[s.side] for s in specs])

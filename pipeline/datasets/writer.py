@@ -28,7 +28,10 @@ from pipeline.datasets.layout import Layout, trial_arrays, whisker_table
 from pipeline.datasets.schema import (ARRAYS, FAILED, LIBVER, OK, PENDING, SAMPLES, SCHEMA_VERSION, TRIAL_COLUMNS,
                                       TrialRecord, component_names, stored_columns)
 from pipeline.errors import UserError
+from pipeline.model.kinematics import sinusoidal_whisk
+from pipeline.model.morphology import load_morphology
 from pipeline.model.outputs import TrialOutput
+from pipeline.provenance import describe_environment
 from pipeline.storage import replacing, require_free_space
 
 if TYPE_CHECKING:
@@ -45,8 +48,6 @@ def model_file_record(model: ModelConfig) -> dict[str, Any] | None:
 
 def provenance(config: dict[str, Any], **extra: Any) -> dict[str, Any]:
     """What produced a dataset: config, package versions, git commit, host, command, time."""
-    from pipeline.provenance import describe_environment
-
     packages = describe_environment()
     return {"created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
             "host": socket.gethostname(), "command": sys.argv, "git_commit": packages.get("git-commit"),
@@ -89,6 +90,7 @@ class DatasetWriter:
     @classmethod
     def resume(cls, path: Path) -> "DatasetWriter":
         """Open an unfinished file for more trials, recovering it first if its writer was killed."""
+        # imported here, not at the top: h5py ≈0.07 CPU-s, not needed to import the datasets package
         import h5py
 
         try:
@@ -221,9 +223,6 @@ def write_single_trial(path: str | Path, output: TrialOutput, model: "ModelConfi
     ``drive``: the protraction drive the trial used; without it, ``model.whisk``'s sinusoid.
     ``head``: the head's trajectory, if it moved (stored per sample).
     """
-    from pipeline.model.kinematics import sinusoidal_whisk
-    from pipeline.model.morphology import load_morphology
-
     path = Path(path)
     refuse_existing(path)
     path.parent.mkdir(parents=True, exist_ok=True)

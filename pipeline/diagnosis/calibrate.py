@@ -15,11 +15,16 @@ from typing import get_args
 import numpy as np
 
 from pipeline.config.physics import MaterialConfig
+from pipeline.diagnosis.candidates import WhiskerScales, starts_for
 from pipeline.diagnosis.choices import FitMethod, ObjectiveName
+from pipeline.diagnosis.engine import EngineSimulator
 from pipeline.diagnosis.fitting import bootstrap as bootstrap_sd
 from pipeline.diagnosis.fitting import best_start, engine_check, fit, matched_start
+from pipeline.diagnosis.in_plane import first_damped_in_plane
 from pipeline.diagnosis.objective import FeatureObjective, TableObjective, TrajectoryObjective
 from pipeline.diagnosis.parameters import ModelSpec, parameter
+from pipeline.diagnosis.threads import single_threaded_blas
+from pipeline.engines.linear.chain import linearise
 from pipeline.errors import UserError
 from pipeline.measurements.table import ResonanceTable
 
@@ -45,9 +50,6 @@ def _table_sigma(objective) -> np.ndarray | None:
 def modal_summary(spec: ModelSpec, geometry) -> dict:
     """First in-plane mode of the fitted whisker: damped frequency (Hz) and damping ratio (both
     NaN, null in the JSON, when the fitted whisker is overdamped in-plane)."""
-    from pipeline.diagnosis.in_plane import first_damped_in_plane
-    from pipeline.engines.linear.chain import linearise
-
     f1, zeta1 = first_damped_in_plane(linearise(spec.physics(geometry)))
     return {"f1_hz": f1, "zeta1": zeta1}
 
@@ -71,16 +73,12 @@ def calibrate(measurement, names=("E", "zeta"), method: FitMethod = "optimizer",
               material: MaterialConfig | None = None, engine: str | None = None, bootstrap: int = 0,
               grid_points: int | None = None) -> dict:
     """Fit ``names`` to ``measurement`` (time series or resonance table); JSON-ready result."""
-    from pipeline.diagnosis.threads import single_threaded_blas
-
     with single_threaded_blas():
         return _calibrate(measurement, tuple(names), method, objective, material or MaterialConfig(),
                           engine, bootstrap, grid_points)
 
 
 def _calibrate(measurement, names, method, objective, material, engine, bootstrap, grid_points) -> dict:
-    from pipeline.diagnosis.candidates import WhiskerScales, starts_for
-
     target = _objective(measurement, objective)
     starter = target if isinstance(target, (TableObjective, FeatureObjective)) else FeatureObjective(measurement)
     start = matched_start(starter, ModelSpec(material), names=names)
@@ -105,8 +103,6 @@ def _calibrate(measurement, names, method, objective, material, engine, bootstra
     out["notes"] += [f"the fitted {w} is overdamped in-plane (no oscillating first mode): f1 and ζ1 are null"
                      for w, m in out["modes"].items() if not np.isfinite(m["f1_hz"])]
     if engine:
-        from pipeline.diagnosis.engine import EngineSimulator
-
         out["engine"] = engine_check(result, target, _objective(measurement, objective, EngineSimulator(engine)),
                                      engine)
     return out

@@ -70,6 +70,7 @@ def beyond_floor(evidence: dict, floor_fraction: float = None) -> dict[str, floa
 def family_z(tried: int, first_round: int) -> float:
     """The z threshold after ``tried`` candidates in all, ``first_round`` of them in the round that
     set ``Z_MIN``: the one-sided tail of ``Z_MIN`` shared out over all of them (Bonferroni)."""
+    # imported here, not at the top: scipy.stats ≈0.7 CPU-s on every command that imports the diagnosis
     from scipy.stats import norm
 
     return float(norm.isf(norm.sf(Z_MIN) * first_round / max(tried, first_round)))

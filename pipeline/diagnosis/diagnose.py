@@ -53,6 +53,7 @@ from pipeline.config.physics import MaterialConfig
 from pipeline.diagnosis.candidate_fits import (FINAL_ITERATIONS, CandidateScore, Session, corrected_leaders,
                                                evidence_of, fit_candidates, paired_z, split_trials)
 from pipeline.diagnosis.candidates import CANDIDATES, DAMPING_LAWS
+from pipeline.diagnosis.damping_laws import in_plane_modes
 from pipeline.diagnosis.decision import FLOOR_FRACTION, beyond_floor, decide
 from pipeline.diagnosis.deflection import amplitude, bend
 from pipeline.diagnosis.discretisation import with_modulus_discretisation
@@ -62,6 +63,8 @@ from pipeline.diagnosis.nonlinear import correct
 from pipeline.diagnosis.objective import RESIDUAL_UNIT_M, TrajectoryObjective
 from pipeline.diagnosis.parameters import BASELINE_NAMES, ModelSpec
 from pipeline.diagnosis.residuals import analyse, noise_estimate
+from pipeline.diagnosis.threads import single_threaded_blas
+from pipeline.engines.linear.chain import linearise
 from pipeline.errors import SimulationError, UserError
 from pipeline.measurements.timeseries import TimeSeriesMeasurement
 from pipeline.model.effects.base_segment import BaseSegment
@@ -110,8 +113,6 @@ def diagnose(measurement: TimeSeriesMeasurement, material: MaterialConfig | None
              candidates=None) -> Diagnosis:
     """Fit the baseline and every candidate (or those named in ``candidates``), name the cause
     (see the module docstring)."""
-    from pipeline.diagnosis.threads import single_threaded_blas
-
     with single_threaded_blas():
         return _diagnose(measurement, material or MaterialConfig(), candidates)
 
@@ -194,9 +195,6 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
 
 def _law_note(law: str, final: Fit, geometry) -> str:
     """The named damping law's first three in-plane modes (f, ζ) in the refitted model."""
-    from pipeline.diagnosis.damping_laws import in_plane_modes
-    from pipeline.engines.linear.chain import linearise
-
     f, z = in_plane_modes(linearise(final.spec.physics(geometry)), 3)
     modes = ", ".join(f"{fi:.1f} Hz ζ {zi:.3f}" for fi, zi in zip(f, z) if np.isfinite(fi))
     return f"damping law {law} ({final.spec.material.damping_model} joints" + \

@@ -25,11 +25,13 @@ one for a few trials: it follows the misfit, not the white-noise part alone.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import itertools
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from pipeline.diagnosis.parameters import ModelSpec, ParameterSpace
+from pipeline.errors import SimulationError, UserError
 
 FD_STEP = 1e-4
 GRID_SPAN = np.log(4.0)
@@ -142,6 +144,7 @@ def fit(objective, spec: ModelSpec, names, method: str = "optimizer", grid_point
         max_iterations: int = 15, sigma: np.ndarray | None = None) -> Fit:
     """Fit ``names`` of ``spec`` (others fixed) to ``objective``, starting from ``spec``'s values;
     ``sigma``: standard deviations of the residuals when known (then a χ² fit; optimizer and grid)."""
+    # imported here, not at the top: scipy.optimize ≈0.4 CPU-s
     from scipy.optimize import least_squares
 
     if method == "scaling":
@@ -159,8 +162,6 @@ def fit(objective, spec: ModelSpec, names, method: str = "optimizer", grid_point
         return _result(counted, x, r, jacobian(counted, x, r, bounds),
                        [f"grid of {_points(grid_points, len(x0)) ** len(x0)} points"])
     if method != "optimizer":
-        from pipeline.errors import UserError
-
         raise UserError(f"unknown fit method '{method}' (optimizer, grid or scaling)")
     loss, scale = (objective.loss, 1.0) if isinstance(objective.loss, str) else objective.loss
     solution = least_squares(counted, x0, bounds=bounds, method="trf", diff_step=FD_STEP, x_scale=1.0,
@@ -171,11 +172,10 @@ def fit(objective, spec: ModelSpec, names, method: str = "optimizer", grid_point
 
 def _scaling(objective, spec: ModelSpec, names: tuple[str, ...]) -> Fit:
     """The ``scaling`` method (module docstring) on an objective with a ``damping_mask``."""
+    # imported here, not at the top: scipy.optimize ≈0.4 CPU-s
     from scipy.optimize import minimize_scalar
 
     if sorted(names) != ["E", "zeta"]:
-        from pipeline.errors import UserError
-
         raise UserError(f"the scaling fit takes E and zeta together, not {', '.join(names)}")
     counted = _Counted(objective, spec, ParameterSpace(names))
     damping = objective.damping_mask()
@@ -199,8 +199,6 @@ def _points(grid_points: int | None, dims: int) -> int:
 
 
 def _grid(counted: _Counted, x0, bounds, grid_points):
-    import itertools
-
     axes = []
     for xi, lo, hi, p in zip(x0, bounds[0], bounds[1], counted.space.specs):
         span = (max(lo, xi - GRID_SPAN), min(hi, xi + GRID_SPAN)) if p.log else (lo, hi)
@@ -235,8 +233,6 @@ def block_sandwich_sd(result: Fit, blocks: np.ndarray, floor: float = 0.0) -> di
 def bootstrap(make_objective, measurement, spec: ModelSpec, names, samples: int, seed: int = 0,
               method: str = "optimizer") -> dict[str, float]:
     """Standard deviation of each fitted value over refits on trials resampled with replacement."""
-    from dataclasses import replace
-
     rng = np.random.default_rng(seed)
     count = len(measurement.trials)
     values = []
@@ -252,9 +248,6 @@ def bootstrap(make_objective, measurement, spec: ModelSpec, names, samples: int,
 def engine_check(fitted: Fit, fast_objective, engine_objective, engine: str) -> dict:
     """JSON-ready engine check and refinement of ``fitted``; an engine that cannot simulate the
     model, or fails, is reported, not raised (the fast result stands)."""
-    from pipeline.errors import SimulationError
-    from pipeline.errors import UserError
-
     try:
         refined = refine_with_engine(fitted, fast_objective, engine_objective)
     except (UserError, SimulationError) as exc:

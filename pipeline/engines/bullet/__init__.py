@@ -33,8 +33,7 @@ refresh it (its query, list → array and inverse), numpy for the rest; Bullet n
 contact search, a step with contacts or loads, a sample. The contact search
 (:func:`~pipeline.engines.bullet.contact.find_contacts`) looks at a whisker–obstacle pair only once
 the whisker could have moved within reach of it since the gap last found; a whisker-step within
-reach adds the query (``getClosestPoints``), one Jacobian and the solve. Measured shares:
-docs/scaling.md ("Issue 26, session 13: Bullet").
+reach adds the query (``getClosestPoints``), one Jacobian and the solve (costs: docs/scaling.md).
 
 Base wrench. The follicle's force and moment about the base point are Newton–Euler of the
 step that starts at the sample's time (:mod:`pipeline.engines.bullet.wrench`: the links'
@@ -53,9 +52,8 @@ Triangle meshes (scans) are the scanned surface itself, read as the surface of t
 behind their outward-wound faces (:func:`~pipeline.engines.one_sided.one_sided`): a link's
 contact is its axis points' distance to the nearest face, edge or vertex, and a link whose
 axis has crossed a face (which has no thickness) is pushed back out along that face's
-normal. Bullet's own solver on meshes (before issue 24's round 3) saw the links' inertia but
-not the joint springs: base moments 3–15 % low on a meshed peg, 23 % on a wall, the whisker
-0.1 mm in (docs/model.md §2).
+normal. Bullet's own solver would see the links' inertia but not the joint springs (base
+moments low, the whisker sinking in: docs/model.md §2).
 
 Obstacle shapes cannot be freed in pybullet (``removeBody`` on a static mesh body fails and
 ``removeCollisionShape`` refuses shapes in use), so each world keeps the bodies of every scene

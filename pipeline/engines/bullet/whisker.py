@@ -35,7 +35,7 @@ from pipeline.model.rotations import axis_rotation, matrix_from_xyzw, rot_z
 # Largest change of a free joint angle (rad) before M_FF of the implicit step is recomputed:
 # M_FF then changes by ≲ 0.5 × this, relative (measured on RC1); in a full-array free whisk it
 # is recomputed on ≈ 1 step in 10 and the base signals stay within 5·10⁻⁵ RMS of recomputing it
-# every step (issue 16; 1 ms-old matrices were 13× further off and failed the twist cross-check).
+# every step (1 ms-old matrices were 13× further off and failed the twist cross-check).
 MASS_REFRESH_RAD = 1e-4
 _AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
 

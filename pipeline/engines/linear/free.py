@@ -17,7 +17,7 @@ Accuracy (benchmarks/bench_free_whiskers.py --cheap linear: model rat, all 60 wh
 at 45°/20°; RMS difference over the whisker's RMS force or moment): against MuJoCo ≤ 0.26, 0.28,
 0.26 % at 6, 9, 12 Hz on the whiskers within MAX_BEND (the most bent, RA0 at 12 Hz with bend
 0.34, was 4.6 % off: second order in q); against Bullet the same except its axial force Fx
-(≤ 3.1 %), which is Bullet's base-sensor error (docs/scaling.md, issue 26, session 11). Safety:
+(≤ 3.1 %), which is Bullet's base-sensor error (docs/scaling.md). Safety:
 the node paths differ from MuJoCo's by at most 0.013 mm and from Bullet's by 0.1 mm, which
 LINEAR_PATH_MARGIN_M covers 10×.
 """
@@ -62,6 +62,7 @@ def free_response(whisker: WhiskerModel, lin: LinearWhisker, drive: ProtractionD
     times = np.arange(samples * m + 2) * h
     theta, rate, acceleration, jerk = (drive(times, d) for d in range(4))
     omega, alpha, _ = angular_motion(whisker, theta, rate[:, None], acceleration[:, None], jerk[:, None])
+    # imported here, not at the top: scipy.integrate ≈0.4 CPU-s on an engine's start-up
     from scipy.integrate import cumulative_trapezoid
 
     rotation = whisker_frames(whisker, theta)
@@ -110,7 +111,8 @@ class LinearFreePath:
         self.motion.select(drive, len(times_s), depends_on_pose=False)
         if not self.motion.motions:
             self.joints = {}
-            import scipy.linalg  # noqa: F401  (loads its BLAS now: the limit covers the libraries loaded when set)
+            # imported here, before the limit: it covers only the libraries loaded when it is set
+            import scipy.linalg  # noqa: F401
 
             with threadpool_limits(limits=1, user_api="blas"):     # ~100×100 matrices: threads cost more
                 self._compute(drive, times_s)

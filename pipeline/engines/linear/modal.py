@@ -42,6 +42,7 @@ class Modal:
 def modal(lin: LinearWhisker) -> Modal:
     """Undamped modes and modal input matrices (cached on ``lin``)."""
     if "modal" not in lin.cache:
+        # imported here, not at the top: scipy.linalg ≈0.24 CPU-s on an engine's start-up
         from scipy.linalg import eigh
 
         scale = 1.0 / np.sqrt(np.diag(lin.mass))           # unit diagonal: better conditioned
@@ -82,6 +83,7 @@ def discretise(lin: LinearWhisker, h: float, columns: tuple[int, ...], forces: b
     """(Φ, G0, G1, G_F) of one step h: y' = Φy + G0·u0 + G1·u1 + G_F·F (F held over the step)."""
     key = ("step", h, columns, forces)
     if key not in lin.cache:
+        # imported here, not at the top: scipy.linalg ≈0.24 CPU-s on an engine's start-up
         from scipy.linalg import expm
 
         mod = modal(lin)

@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.engines.one_sided import OneSidedMesh, one_sided
+import mujoco
 
 DUPLICATE_MM = 1e-3         # a link's contacts this close are one (two prisms' faces read at their shared edge)
 
@@ -70,8 +71,6 @@ class FaceContacts:
     def step(self, m, d) -> None:
         """One ``mj_step`` of the discrete integrator with the prism contacts rewritten
         (bit-identical to ``mj_step`` on a step without any)."""
-        import mujoco
-
         mujoco.mj_checkPos(m, d)
         mujoco.mj_checkVel(m, d)
         mujoco.mj_fwdPosition(m, d)

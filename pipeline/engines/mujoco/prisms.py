@@ -53,7 +53,8 @@ def _taper(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     neighbour's surface, so the taper there is cot φ; faces on the mesh boundary keep straight
     walls (a ledge beyond the scanned surface would be felt by whiskers reaching around it).
     """
-    import trimesh      # ≈ 0.5 CPU-s at import: only a scan's first prisms need it
+    # imported here, not at the top: trimesh ≈0.5 CPU-s, only a scan's first prisms need it
+    import trimesh
 
     mesh = trimesh.Trimesh(vertices, faces, process=False)
     taper = np.ones(len(faces))
@@ -70,7 +71,8 @@ def _depth_behind_m(vertices: np.ndarray, faces: np.ndarray, origins: np.ndarray
                     directions: np.ndarray) -> np.ndarray:
     """[F] distance (m) from each origin along its unit direction to the mesh (inf if none),
     the origin's own face excluded."""
-    import open3d as o3d      # ≈ 0.7 CPU-s at import: only a scan's first prisms need it
+    # imported here, not at the top: open3d ≈0.7 CPU-s, only a scan's first prisms need it
+    import open3d as o3d
 
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(o3d.core.Tensor(vertices.astype(np.float32)),
