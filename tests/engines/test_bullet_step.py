@@ -90,3 +90,25 @@ def test_skipping_clear_whiskers_finds_the_same_contacts(monkeypatch):
     assert np.array_equal(skipping.base_wrench, every_step.base_wrench)
     assert np.array_equal(skipping.contact, every_step.contact)
     assert np.array_equal(skipping.node_positions_m, every_step.node_positions_m)
+
+
+def test_a_trial_after_another_is_the_trial_alone(monkeypatch):
+    """RC1 and RC2 against pegs, then a whisk at another frequency with the pegs elsewhere: the
+    second trial is bit-identical to the same trial on a fresh engine, and each whisker keeps its
+    multibody (rebuilding bodies between trials let pybullet's reused memory change later trials
+    at random)."""
+    config = ModelConfig()
+    array = build_array(model_rat().select("RC1,RC2"), config.material)
+    first = (active_pegs(lateral_m=0.025, y_m=-0.012), sinusoidal_whisk(duration_s=0.02))
+    second = (active_pegs(lateral_m=0.027, y_m=-0.010), sinusoidal_whisk(frequency_hz=11.0, duration_s=0.02))
+    with create_engine(config, array) as fresh:
+        alone = fresh.run(second[0], Pose(), second[1], 0.02)
+    builds = []
+    build = BulletWhisker.build
+    monkeypatch.setattr(BulletWhisker, "build", lambda self: (builds.append(self.model.name), build(self))[1])
+    with create_engine(config, array) as bullet:
+        bullet.run(first[0], Pose(), first[1], 0.02)
+        after = bullet.run(second[0], Pose(), second[1], 0.02)
+    assert sorted(builds) == ["RC1", "RC2"]                  # built on the first trial, then kept
+    assert np.array_equal(after.base_wrench, alone.base_wrench)
+    assert np.array_equal(after.node_positions_m, alone.node_positions_m)

@@ -113,19 +113,21 @@ class BulletWorld(World):
 
     # -- trial ---------------------------------------------------------------------------
     def _reset(self, setup: TrialSetup, active: np.ndarray) -> None:
-        """Active whiskers built afresh at the head pose, driven as the drive at t = 0, free
-        joints at their initial angles and rates; the others out of the world. Rebuilt, not
-        reused: a multibody kept from an earlier trial carries Bullet state into this one's
-        contacts, a rebuilt one makes the trial a function of its own setup (≈ 3.5 ms per whisker)."""
+        """Active whiskers at the head pose, driven as the drive at t = 0, free joints at their
+        initial angles and rates. A whisker's multibody is built on its first trial and kept: Bullet
+        never steps it (the engine integrates), so its state is only what :meth:`BulletWhisker.reset`
+        sets. Removing and rebuilding multibodies between trials made results depend on earlier
+        trials at random (pybullet reuses the removed bodies' memory): a free whisker's trial
+        after another differed from the same trial alone in about half the runs, by up to 3× its
+        peak (tests/engines/test_bullet_step.py)."""
         rotation = setup.pose.rotation
         orientation = quat(rotation)
         position = np.asarray(setup.pose.position_m, float)
         for k, w in enumerate(self.bodies):
-            if w.body is not None:
-                self._remove(k)
             if active[k]:
-                w.build()
-                self._without_bullet_contact(w.body, w.whisker_links)
+                if w.body is None:
+                    w.build()
+                    self._without_bullet_contact(w.body, w.whisker_links)
                 w.reset((position + rotation @ w.model.base_point_m) * U.LENGTH, orientation,
                         setup.drive, self.dt_s, setup.initial[k], setup.initial_rates[k])
         self._place_obstacles(0.0)
