@@ -19,30 +19,30 @@ MERGE_MM = 0.1              # a link's contact points closer than this to a deep
 class OneSidedMesh:
     """A triangle mesh as the surface of the solid behind it (faces wound outward): the point of
     the surface nearest to given points and the outward normal of its face (mm, the mesh's
-    frame; Open3D's closest-point query, single precision). With ``double_precision``, Open3D
-    only finds the nearest face and the point on it is computed in double precision, so that a
-    contact's gap and normal change smoothly with the axis point (MuJoCo: single-precision
-    points made its contacts jitter by ~10⁻⁶ mm, and a whisker's result depend on the other
-    whiskers of its world by up to 8 % of its peak)."""
+    frame; Open3D's closest-point query, single precision). With ``double_precision``, it also
+    keeps each face's corners ``corners_mm`` [F, 3, 3] and unit normal ``normals`` [F, 3], so
+    that the point on the face :meth:`nearest_faces` finds can be computed in double precision
+    (:func:`~pipeline.engines.one_sided_kernels.closest_on_triangle`) and a contact's gap and
+    normal change smoothly with the axis point (MuJoCo: single-precision points made its
+    contacts jitter by ~10⁻⁶ mm, and a whisker's result depend on the other whiskers of its
+    world by up to 8 % of its peak)."""
 
     def __init__(self, mesh, double_precision: bool = False):
         self.surface = mesh.surface                 # metres, built once per mesh
-        self.double_precision = double_precision
-        if double_precision:                        # per face its corners [3, F, 3] and unit normal [F, 3]
-            self.corners_mm = np.moveaxis((np.asarray(mesh.vertices_m, float) * 1e3)[np.asarray(mesh.faces, np.int64)],
-                                          1, 0).copy()
-            a, b, c = self.corners_mm
+        if double_precision:
+            self.corners_mm = (np.asarray(mesh.vertices_m, float) * 1e3)[np.asarray(mesh.faces, np.int64)]
+            a, b, c = np.moveaxis(self.corners_mm, 1, 0)
             normals = _cross(b - a, c - a)
             self.normals = normals / np.sqrt(_dot(normals, normals))[:, None]
 
     def nearest(self, points_mm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """([P, 3] nearest surface point, [P, 3] its face's outward unit normal) of ``points_mm``."""
-        if not self.double_precision:
-            nearest_m, normals = self.surface.closest_points(points_mm / 1e3)
-            return nearest_m * 1e3, normals
-        faces = self.surface.closest_faces(points_mm / 1e3)
-        normals = self.normals[faces]
-        return closest_on_triangles(points_mm, self.corners_mm[:, faces], normals), normals
+        nearest_m, normals = self.surface.closest_points(points_mm / 1e3)
+        return nearest_m * 1e3, normals
+
+    def nearest_faces(self, points_mm: np.ndarray) -> np.ndarray:
+        """[P] the index of the face nearest each point [P, 3] (found in single precision)."""
+        return self.surface.closest_faces(points_mm / 1e3)
 
 
 def _dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -54,22 +54,6 @@ def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """[..., 3] the cross products of the vectors [..., 3]."""
     return np.stack([u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1], u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2],
                      u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]], axis=-1)
-
-
-def closest_on_triangles(points: np.ndarray, corners: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """[P, 3] the point of triangle ``corners`` [3, P, 3] (a, b, c; unit ``normals`` [P, 3] by
-    their winding) nearest each point [P, 3]: its projection on the plane when that lies
-    inside, else the nearest point of the three edges (the first of them at a tie)."""
-    projected = points - _dot(points - corners[0], normals)[:, None] * normals
-    edges = corners[[1, 2, 0]] - corners                                          # [3, P, 3]: ab, bc, ca
-    outside = np.flatnonzero(~(_dot(_cross(edges, projected - corners), normals) >= 0.0).all(axis=0))
-    if outside.size:
-        corners, edges, points = corners[:, outside], edges[:, outside], points[outside]
-        along = np.clip(_dot(points - corners, edges) / np.maximum(_dot(edges, edges), 1e-30), 0.0, 1.0)
-        on_edge = corners + along[..., None] * edges
-        away = points - on_edge
-        projected[outside] = np.take_along_axis(on_edge, np.argmin(_dot(away, away), axis=0)[None, :, None], axis=0)[0]
-    return projected
 
 
 def one_sided(axis_mm: np.ndarray, radii_mm: np.ndarray, mesh: OneSidedMesh, offset_mm: np.ndarray,
@@ -88,12 +72,9 @@ def one_sided(axis_mm: np.ndarray, radii_mm: np.ndarray, mesh: OneSidedMesh, off
     faces around a link pushing it from opposite sides the step's problem had no bounded
     solution (the jam). MuJoCo's convex prism per face pushes a link out through its nearest
     side wall (the wedge)."""
-    nearest, outward = mesh.nearest(axis_mm - offset_mm)
-    away = axis_mm - offset_mm - nearest
-    distance = np.sqrt(np.einsum("ij,ij->i", away, away))
-    behind = np.einsum("ij,ij->i", away, outward) < 0.0
-    along = np.where((distance > 1e-9)[:, None], away / np.maximum(distance, 1e-9)[:, None], outward)
-    normals = np.where(behind[:, None], outward, along)
-    gaps = np.where(behind, -distance, distance) - radii_mm
-    kept = (gaps <= reach_mm) & (~behind | (distance <= ONE_SIDED_DEPTH_MM))
-    return kept, axis_mm - radii_mm[:, None] * normals, normals, gaps
+    # imported here, not at the top: numba ≈0.17 CPU-s and the cached kernels, only meshes need them
+    from pipeline.engines.one_sided_kernels import one_sided_points
+
+    local = axis_mm - offset_mm
+    nearest, outward = mesh.nearest(local)
+    return one_sided_points(local, nearest, outward, axis_mm, radii_mm, reach_mm, ONE_SIDED_DEPTH_MM)

@@ -1,12 +1,18 @@
 """MuJoCo's scan contacts read as the triangles' (pipeline.engines.mujoco.faces, issue 24): no
-wedge between the prisms of two faces, and the split step is mj_step's when nothing is rewritten."""
+wedge between the prisms of two faces, the split step is mj_step's when nothing is rewritten, and
+the compiled rewrite is the plain numpy reference's (face_contacts_reference.py)."""
+
+import copy
 
 import numpy as np
 
 from pipeline.config.physics import EngineConfig, ModelConfig
 from pipeline.engines.mujoco import world as engine
-from pipeline.engines.mujoco.faces import FaceContacts, contact_frames
+import face_contacts_reference as reference
+from pipeline.engines.mujoco.face_kernels import contact_frame
+from pipeline.engines.mujoco.faces import DUPLICATE_MM, FaceContacts
 from pipeline.engines.one_sided import OneSidedMesh
+from pipeline.engines.one_sided_kernels import closest_on_triangle
 from pipeline.model.kinematics import Pose
 from pipeline.protocols.whisking import run_trial
 from pipeline.scenes.library import beside_right_array
@@ -70,7 +76,11 @@ def test_contact_frames_are_orthonormal_and_right_handed():
     rng = np.random.default_rng(2)
     normals = np.concatenate([np.eye(3), -np.eye(3), rng.normal(size=(50, 3))])
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    frames = contact_frames(normals).reshape(-1, 3, 3)
+    frames = np.zeros((len(normals), 9))
+    for normal, frame in zip(normals, frames):
+        contact_frame(*normal, frame)
+    assert np.array_equal(frames, reference.contact_frames(normals))
+    frames = frames.reshape(-1, 3, 3)
     assert np.allclose(frames @ frames.transpose(0, 2, 1), np.eye(3), atol=1e-12)
     assert np.allclose(np.linalg.det(frames), 1.0) and np.allclose(frames[:, 0], normals)
 
@@ -81,8 +91,37 @@ def test_the_nearest_point_in_double_precision_is_open3d_s_and_smooth():
     sheet = folded_sheet()
     rng = np.random.default_rng(3)
     points = np.column_stack([rng.uniform(-0.5, 2.0, 200), rng.uniform(-20, 20, 200), rng.uniform(-20, 20, 200)])
-    exact, single = OneSidedMesh(sheet, double_precision=True), OneSidedMesh(sheet)
-    (near, normals), (near_single, normals_single) = exact.nearest(points), single.nearest(points)
+    exact = OneSidedMesh(sheet, double_precision=True)
+
+    def nearest(points):
+        faces = exact.nearest_faces(points)
+        return np.array([closest_on_triangle(*p, exact.corners_mm[f], exact.normals[f]) for p, f in zip(points, faces)]), \
+            exact.normals[faces]
+
+    (near, normals), (near_single, normals_single) = nearest(points), exact.nearest(points)
     assert np.abs(near - near_single).max() < 1e-4 and np.abs(normals - normals_single).max() < 1e-5
-    moved, _ = exact.nearest(points + 1e-9)
+    faces = exact.nearest_faces(points)
+    assert np.array_equal(near, reference.closest_on_triangles(points, exact.corners_mm[faces], exact.normals[faces]))
+    moved, _ = nearest(points + 1e-9)
     assert np.abs(moved - near).max() < 3e-9
+
+
+def test_the_compiled_rewrite_is_the_numpy_reference_s(monkeypatch):
+    """At every step of RD3 and RB3 whisking into the folded sheet, the compiled rewrite writes
+    the contacts the plain numpy reference writes, bit for bit."""
+    fields = ("frame", "pos", "dist", "exclude", "efc_address")
+    compared = []
+    rewrite = FaceContacts.rewrite
+
+    def checked(self, d):
+        plain = copy.copy(d)
+        expected = reference.rewrite(self, plain, DUPLICATE_MM)
+        assert rewrite(self, d) == expected
+        compared.append(d.ncon)
+        for field in fields:
+            assert np.array_equal(getattr(d.contact, field), getattr(plain.contact, field)), field
+        return expected
+
+    monkeypatch.setattr(FaceContacts, "rewrite", checked)
+    assert _whisk(0.03).contact.any()
+    assert sum(compared) > 100
