@@ -9,7 +9,7 @@ builds the engine and is left out). Per trial (mean): CPU of the trial, of the c
 compile), of cropping the scan (pipeline/engines/swept_crop.py), of the full worlds' stepping
 split into the step's MuJoCo calls (position stage: kinematics, collision, constraints; the
 rewrite of prism contacts as triangle contacts and the constraints made again,
-pipeline/engines/mujoco/faces.py; velocity to the constraint solve and no-slip; the update) and
+pipeline/engines/mujoco/faces.py, and of it Open3D's nearest-face query; velocity to the constraint solve and no-slip; the update) and
 the Python of the loop (recording, contact flags); per full world run its whiskers, those that
 touched and their whisker-steps. Within the full worlds' steps, MuJoCo's stage timers
 (``MjData.timer``, wall-clock: shares only) and per step with contacts the contacts, constraint
@@ -29,7 +29,7 @@ import numpy as np
 
 from pipeline.config.loader import load_config
 from pipeline.config.simulate import SimulateConfig
-from pipeline.engines import free_path, swept_crop
+from pipeline.engines import free_path, one_sided, swept_crop
 from pipeline.engines.mujoco import faces, world as engine
 from pipeline.runner.scenes import scene_catalogue
 from pipeline.runner.simulate import _layout
@@ -79,6 +79,7 @@ def instrument() -> None:
     for name, label in STEP_CALLS.items():
         timed(mujoco, name, label, seconds=steps_cpu)
     timed(faces.FaceContacts, "rewrite", "rewrite: triangle contacts", seconds=steps_cpu)
+    timed(one_sided.OneSidedMesh, "nearest_faces", "rewrite: of it, nearest faces (Open3D)", seconds=steps_cpu)
 
     def counted(function):
         def counted_step(*args):
