@@ -26,20 +26,18 @@ def prism_candidates(geom: np.ndarray, frame: np.ndarray, pos: np.ndarray, dist:
     ``mesh_of_geom``, ``link_of_geom`` [ngeom + 1]: a geom's static mesh and flat link (−1: none;
     the last entry is geom −1's); ``link_bodies``, ``link_lengths``, ``link_radii`` per flat link;
     ``xpos`` [nbody, 3], ``xmat`` [nbody, 9] the bodies' frames."""
-    rows = np.empty(len(geom), np.int64)
+    size = len(geom)
+    rows, links, link_first, meshes = (np.empty(size, np.int64), np.empty(size, np.int64), np.empty(size, np.bool_),
+                                       np.empty(size, np.int64))
     count = 0
-    for i in range(len(geom)):
-        mesh = max(mesh_of_geom[geom[i, 0]], mesh_of_geom[geom[i, 1]])
-        if mesh >= 0 and max(link_of_geom[geom[i, 0]], link_of_geom[geom[i, 1]]) >= 0:
-            rows[count] = i
+    for i in range(size):
+        g0, g1 = geom[i, 0], geom[i, 1]
+        mesh, link = max(mesh_of_geom[g0], mesh_of_geom[g1]), max(link_of_geom[g0], link_of_geom[g1])
+        if mesh >= 0 and link >= 0:
+            rows[count], links[count], meshes[count] = i, link, mesh
+            link_first[count] = link_of_geom[g0] >= 0          # normals point from geom 0 to geom 1
             count += 1
-    rows = rows[:count]
-    links, link_first, meshes = np.empty(count, np.int64), np.empty(count, np.bool_), np.empty(count, np.int64)
-    for k in range(count):
-        g0, g1 = geom[rows[k], 0], geom[rows[k], 1]
-        links[k] = max(link_of_geom[g0], link_of_geom[g1])
-        link_first[k] = link_of_geom[g0] >= 0                 # normals point from geom 0 to geom 1
-        meshes[k] = max(mesh_of_geom[g0], mesh_of_geom[g1])
+    rows, links, link_first, meshes = rows[:count], links[:count], link_first[:count], meshes[:count]
     touched = np.unique(links)
     size = count + 2 * len(touched)
     axis, link_of, mesh_of = np.empty((size, 3)), np.empty(size, np.int64), np.empty(size, np.int64)
