@@ -70,15 +70,16 @@ def main() -> None:
     parser.add_argument("--whiskers", default="all")
     parser.add_argument("--duration", type=float, default=0.125, help="simulated seconds per trial")
     parser.add_argument("--engine", default="mujoco", choices=("mujoco", "bullet"))
-    parser.add_argument("--record-every", type=int, default=4)
+    parser.add_argument("--record-every", type=int, help="record every K-th trial [default: 4; --proof: the config's]")
     parser.add_argument("--proof", type=int, metavar="N", help="the proof run: `pipeline simulate --n N`")
     parser.add_argument("--workers", type=int, default=2, help="--proof: local worker processes")
     parser.add_argument("--out", type=Path, default=REPO / "outputs" / "proof", help="--proof: datasets root")
     parser.add_argument("--sample-s", type=float, default=2.0, help="--proof: memory sampling interval, s")
     args = parser.parse_args()
     if args.proof:
-        proof_run(args.proof, args.workers, args.out, args.sample_s, args.engine)
+        proof_run(args.proof, args.workers, args.out, args.sample_s, args.engine, args.record_every)
         return
+    args.record_every = 4 if args.record_every is None else args.record_every
     with tempfile.TemporaryDirectory() as scratch:
         meshes = mesh_folder(Path(scratch))
         rows = [run(workers, args, meshes, Path(scratch) / "datasets") for workers in (1, 2)]

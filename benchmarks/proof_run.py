@@ -75,11 +75,14 @@ def _memory_rows(log: dict[int, dict], wall_s: float, trials: int) -> list[str]:
     return rows
 
 
-def proof_run(n: int, workers: int, out: Path, sample_s: float, engine: str) -> None:
-    """Run and measure ``pipeline simulate --n n --workers workers`` into ``out`` (module docstring)."""
+def proof_run(n: int, workers: int, out: Path, sample_s: float, engine: str, record_every: int | None = None) -> None:
+    """Run and measure ``pipeline simulate --n n --workers workers`` into ``out`` (module docstring);
+    ``record_every``: ``--record-every`` (None: the config's)."""
     out.mkdir(parents=True, exist_ok=True)
     command = [sys.executable, "-m", "pipeline", "simulate", "--n", str(n), "--workers", str(workers),
                "--engine", engine, "--root", str(out), "--name", f"proof{n}", "--new-version", "--json"]
+    if record_every is not None:
+        command += ["--record-every", str(record_every)]
     print(" ".join(command[1:]), flush=True)
     load_before = os.getloadavg()
     children_before = resource.getrusage(resource.RUSAGE_CHILDREN)

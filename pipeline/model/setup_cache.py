@@ -91,7 +91,7 @@ def cached(kind: str, inputs, compute: Callable[[], T]) -> T:
         return compute()
     try:
         path = folder / f"{fingerprint(kind, inputs)}.pickle"
-    except TypeError:                 # an input without a fingerprint: not kept
+    except (TypeError, OSError):      # an input without a fingerprint, sources not readable: not kept
         return compute()
     try:
         with open(path, "rb") as stream:
