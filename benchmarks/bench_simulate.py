@@ -1,12 +1,17 @@
-"""Throughput of `pipeline simulate` on a scan scene with 1 and 2 local workers.
+"""Throughput of `pipeline simulate` on a scan scene with 1 and 2 local workers, or the proof run.
 
 Run: .venv/bin/python benchmarks/bench_simulate.py [--trials 8] [--whiskers all] [--duration 0.125]
      [--engine mujoco|bullet]
+     .venv/bin/python benchmarks/bench_simulate.py --proof 2000 [--workers 2] [--out FOLDER]
 
 Prints trials per hour (end to end: cluster start, engine builds, sampling, physics, recording,
 writing), the scaling efficiency from 1 to 2 workers, where the time goes outside the physics,
 and the extrapolated wall time of a 10 000-trial run. Meshes come from outputs/meshes/ if built,
 otherwise they are built from scans/ into a temporary folder.
+
+``--proof N`` runs the command itself, ``pipeline simulate --n N --workers K`` with
+configs/simulate.yaml, into ``--out`` (:mod:`proof_run`): trials/h, CPU-s per trial, the resident
+memory of every worker process over the run and the 10 000-trial projection.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ import numpy as np
 from pipeline.config.simulate import SimulateConfig
 from pipeline.datasets.reader import DatasetFile
 from pipeline.runner.simulate import simulate
+from proof_run import proof_run
 
 REPO = Path(__file__).resolve().parents[1]
 SCENE = "rock_pile"
@@ -64,8 +70,16 @@ def main() -> None:
     parser.add_argument("--whiskers", default="all")
     parser.add_argument("--duration", type=float, default=0.125, help="simulated seconds per trial")
     parser.add_argument("--engine", default="mujoco", choices=("mujoco", "bullet"))
-    parser.add_argument("--record-every", type=int, default=4)
+    parser.add_argument("--record-every", type=int, help="record every K-th trial [default: 4; --proof: the config's]")
+    parser.add_argument("--proof", type=int, metavar="N", help="the proof run: `pipeline simulate --n N`")
+    parser.add_argument("--workers", type=int, default=2, help="--proof: local worker processes")
+    parser.add_argument("--out", type=Path, default=REPO / "outputs" / "proof", help="--proof: datasets root")
+    parser.add_argument("--sample-s", type=float, default=2.0, help="--proof: memory sampling interval, s")
     args = parser.parse_args()
+    if args.proof:
+        proof_run(args.proof, args.workers, args.out, args.sample_s, args.engine, args.record_every)
+        return
+    args.record_every = 4 if args.record_every is None else args.record_every
     with tempfile.TemporaryDirectory() as scratch:
         meshes = mesh_folder(Path(scratch))
         rows = [run(workers, args, meshes, Path(scratch) / "datasets") for workers in (1, 2)]

@@ -2,10 +2,11 @@
 returning freed heap pages to the OS after each trial (pipeline/runner/memory.py).
 
 Run: .venv/bin/python benchmarks/bench_worker_memory.py [--trials 20] [--engine mujoco] [--no-trim]
+     [--recordings FOLDER --record-every 10]
 
 The trials are those of configs/simulate.yaml beside the built meshes (`pipeline build-meshes`
-first). Prints the RSS after each trial, untrimmed and after the trim, the process's peak RSS
-so far (the high-water mark, reached inside a trial) and the trim's cost; at the end the growth
+first); with ``--recordings`` every K-th trial is recorded (rerun) as a run records it. Prints
+the RSS after each trial, untrimmed and after the trim, the process's peak RSS so far (the high-water mark, reached inside a trial) and the trim's cost; at the end the growth
 of the RSS after the trim, least squares over the trials after the first ten (MB per 100 trials).
 """
 
@@ -34,10 +35,14 @@ def main() -> None:
     parser.add_argument("--trials", type=int, default=20)
     parser.add_argument("--engine", default="mujoco")
     parser.add_argument("--no-trim", action="store_true", help="never trim: see the heap grow")
+    parser.add_argument("--recordings", type=Path, help="record trials into this folder")
+    parser.add_argument("--record-every", type=int, default=10)
     args = parser.parse_args()
     config, _ = load_config(SimulateConfig, REPO / "configs" / "simulate.yaml", overrides={
-        "model": {"engine": {"name": args.engine}}, "scenes": {"folder": str(REPO / "outputs" / "meshes")}})
-    simulator = Simulator(RunSpec(config, scene_catalogue(config.scenes), _layout(config)))
+        "model": {"engine": {"name": args.engine}}, "scenes": {"folder": str(REPO / "outputs" / "meshes")},
+        "cluster": {"record_every": args.record_every}})
+    recordings = "" if args.recordings is None else str(args.recordings.resolve())
+    simulator = Simulator(RunSpec(config, scene_catalogue(config.scenes), _layout(config), recordings=recordings))
     process = psutil.Process()
     print("trial  status  cpu_s  rss_MB  rss_after_trim_MB  peak_MB  trim_ms")
     peak_untrimmed = peak_trimmed = 0.0

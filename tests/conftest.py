@@ -1,5 +1,7 @@
-"""Shared test fixtures: where ../shared lives (skip cleanly when it does not), the CLI as a user runs it."""
+"""Shared test fixtures: where ../shared lives (skip cleanly when it does not), the CLI as a user runs it;
+the set-up cache of every test session (and the processes it starts) in a folder of its own."""
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -8,6 +10,18 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
+
+
+@pytest.fixture(scope="session", autouse=True)
+def session_setup_cache(tmp_path_factory):
+    """Tests neither read nor fill the user's set-up cache (pipeline/model/setup_cache.py)."""
+    before = os.environ.get("PIPELINE_CACHE_DIR")
+    os.environ["PIPELINE_CACHE_DIR"] = str(tmp_path_factory.mktemp("setup-cache"))
+    yield
+    if before is None:
+        del os.environ["PIPELINE_CACHE_DIR"]
+    else:
+        os.environ["PIPELINE_CACHE_DIR"] = before
 
 
 @pytest.fixture

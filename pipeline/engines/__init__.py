@@ -42,10 +42,11 @@ def engine_class(name: str) -> type[Engine]:
     return importlib.import_module(f"pipeline.engines.{name}").ENGINE
 
 
-def create_engine(model_config, array) -> Engine:
+def create_engine(model_config, array, levels=None) -> Engine:
     """The engine named in ``model_config.engine.name``, built for ``array`` (a UserError when
-    the engine cannot hold it: :meth:`Engine.check`)."""
-    return engine_class(model_config.engine.name)(array, model_config.engine)
+    the engine cannot hold it: :meth:`Engine.check`); ``levels``: its :meth:`Engine.step_levels`
+    if already known."""
+    return engine_class(model_config.engine.name)(array, model_config.engine, levels)
 
 
 __all__ = ["ENGINE_NAMES", "Engine", "create_engine", "engine_class"]

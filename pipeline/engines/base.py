@@ -159,11 +159,12 @@ class Engine(ABC):
     """Called after each world of a trial with (whisker steps done, planned): the trial's
     fraction done, a few times per trial at no cost per step."""
 
-    def __init__(self, array: ArrayModel, config: EngineConfig):
+    def __init__(self, array: ArrayModel, config: EngineConfig, levels: np.ndarray | None = None):
+        """``levels``: :meth:`step_levels` of ``array`` and ``config`` if already known."""
         self.check(array)
         self.array, self.config = array, config
         steps_per_sample(config)                      # validates dt_s against the output rate
-        self.levels = self.step_levels(array, config)
+        self.levels = self.step_levels(array, config) if levels is None else levels
         start = time.perf_counter()
         self.worlds: list[tuple[np.ndarray, World]] = [
             (members, self.make_world([array.whiskers[k] for k in members], dt_s))
@@ -177,7 +178,8 @@ class Engine(ABC):
     def check(cls, array: ArrayModel) -> None:
         """Raise a UserError naming the setting when this engine cannot simulate ``array``."""
 
-    def step_levels(self, array: ArrayModel, config: EngineConfig) -> np.ndarray:
+    @classmethod
+    def step_levels(cls, array: ArrayModel, config: EngineConfig) -> np.ndarray:
         """[W] j per whisker: it steps at ``dt_s / 2**j`` (:mod:`pipeline.engines.stepping`)."""
         return refinement_levels(array, config)
 

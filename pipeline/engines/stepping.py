@@ -61,14 +61,15 @@ def damped_first_mode(physics) -> complex:
     return oscillating[np.argmin(np.abs(oscillating))] if oscillating.size else complex(np.nan, np.nan)
 
 
-def scheme_f1_error(physics, dt_s: float, folded: bool) -> float:
+def scheme_f1_error(physics, dt_s: float, folded: bool, first: complex | None = None) -> float:
     """Relative error of the first damped in-plane mode of a whisker (``physics``) integrated at
-    ``dt_s`` by the engines' step, against :func:`damped_first_mode`. The step is
+    ``dt_s`` by the engines' step, against :func:`damped_first_mode` (``first``, if already
+    known). The step is
     (M + h·D + h²·K)·a = −K·q − D·v (``folded`` False: linearly implicit) or
     (M + h·D)·a = −K·q − D·v (``folded``), then v ← v + h·a, q ← q + h·v; its modes are the
     logarithms of the eigenvalues of that update, divided by h. NaN if no mode oscillates
     (an overdamped chain)."""
-    first = damped_first_mode(physics)
+    first = damped_first_mode(physics) if first is None else first
     if np.isnan(first.imag):
         return float("nan")
     mass = physics.planar_mass_matrix()
@@ -95,22 +96,24 @@ def folded_refinement_levels(array: ArrayModel, config: EngineConfig, most: int 
         key = (chain.link_mass_kg.tobytes(), chain.link_lengths_m.tobytes(), chain.link_angles_rad.tobytes(),
                tuple((j.stiffness_nm_per_rad, j.damping_nms_per_rad) for j in whisker.layout.joints))
         if key not in known:
-            known[key] = next((j for j in range(most + 1) if _folded_step_fits(whisker, config, j)), None)
+            first = damped_first_mode(whisker.physics)
+            known[key] = next((j for j in range(most + 1) if _folded_step_fits(whisker, config, j, first)), None)
         if known[key] is not None:
             levels[w] = known[key]
     return levels
 
 
-def _folded_step_fits(whisker, config: EngineConfig, level: int) -> bool:
+def _folded_step_fits(whisker, config: EngineConfig, level: int, first: complex) -> bool:
     dt_s = config.dt_s / 2 ** level
     if not damping_folds(whisker, dt_s):
         return False
     if config.f1_tolerance == 0:
         return level == 0
-    return abs(scheme_f1_error(whisker.physics, dt_s, folded=True)) <= config.f1_tolerance
+    return abs(scheme_f1_error(whisker.physics, dt_s, folded=True, first=first)) <= config.f1_tolerance
 
 
 def step_groups(levels: np.ndarray, dt_s: float) -> list[tuple[np.ndarray, float]]:
     """(indices of the whiskers, their step in s) for each refinement level, coarsest first:
     the whiskers that share a step share one simulator world."""
-    return [(np.flatnonzero(levels == level), dt_s / 2 ** level) for level in np.unique(levels)]
+    # sorted(set()), not np.unique: that imports numpy.ma (≈ 0.01 CPU-s of a start-up)
+    return [(np.flatnonzero(levels == level), dt_s / 2 ** level) for level in sorted(set(levels.tolist()))]

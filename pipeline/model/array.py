@@ -8,7 +8,7 @@ that rotation times ``frame_offset`` (docs/model.md §4, :mod:`pipeline.model.ki
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass
 
 import numpy as np
 
@@ -72,15 +72,20 @@ class ArrayModel:
 
 def build_array(morphology: Morphology, material: MaterialConfig, extensions=()) -> ArrayModel:
     """Every whisker of ``morphology`` with ``material`` and model ``extensions``
-    (:mod:`pipeline.model.effects`); base points relative to the array origin."""
+    (:mod:`pipeline.model.effects`); base points relative to the array origin. Whiskers of the
+    same geometry (a left whisker and its right twin) share one immutable :class:`WhiskerPhysics`,
+    built once."""
     origin = morphology.origin_m
-    whiskers = []
+    whiskers, physics = [], {}
     for spec in morphology:
         geometry = WhiskerGeometry(spec.arc_length_m, spec.base_radius_m, spec.tip_radius_m,
                                    spec.curvature_per_m)
+        key = tuple(float(value).hex() for value in astuple(geometry))      # bit patterns: −0.0 ≠ 0.0
+        if key not in physics:
+            physics[key] = build_physics(geometry, material, extensions)
         whiskers.append(WhiskerModel(
             name=spec.name, side=spec.side, row=spec.row, col=spec.col,
-            physics=build_physics(geometry, material, extensions),
+            physics=physics[key],
             base_point_m=np.asarray(spec.base_point_m) - origin,
             rest_joint_angles=kinematics.euler_joint_angles(spec.rest_angles_rad, spec.row,
                                                             spec.side, 0.0),

@@ -59,16 +59,17 @@ class BaseInertia:
     """Mass matrix M [n, n] (kg·m²), base coupling M_qb [n, 3] and centrifugal loads H_cf [n, 6]
     of a whisker's spring joints at the rest shape, with their stiffness and damping [n].
 
-    :meth:`quasi_steady` remembers its last answer (one entry, keyed by the identity of the
+    :meth:`quasi_steady` remembers its last answer per whisker (keyed by the identity of the
     whisker and of the drive, which is immutable, and by the time): an engine and its coarse
-    free path start the same trial from the same state."""
+    free path start the same trial from the same state, also where whiskers of the same
+    geometry share these matrices."""
 
     mass: np.ndarray
     coupling: np.ndarray
     centrifugal: np.ndarray
     stiffness: np.ndarray
     damping: np.ndarray
-    _last: list = field(default_factory=list, init=False, repr=False, compare=False)
+    _last: dict = field(default_factory=dict, init=False, repr=False, compare=False)   # id(whisker) → answer
 
     @classmethod
     def of(cls, physics) -> "BaseInertia":
@@ -101,8 +102,9 @@ class BaseInertia:
     def quasi_steady(self, whisker, drive, t_s: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """(q₀ rad, q̇₀ rad/s) [n]: where ``drive`` keeps ``whisker``'s spring joints at ``t_s``
         (module docstring); read-only arrays."""
-        if self._last and self._last[0] is whisker and self._last[1] is drive and self._last[2] == t_s:
-            return self._last[3]
+        last = self._last.get(id(whisker))
+        if last is not None and last[0] is whisker and last[1] is drive and last[2] == t_s:
+            return last[3]
         theta = [float(drive(t_s, d)) for d in range(4)]
         omega, alpha, alpha_rate = angular_motion(whisker, *theta)
         force = self.generalised_force(omega, alpha)
@@ -110,7 +112,7 @@ class BaseInertia:
         state = ((force - self.damping * rate) / self.stiffness, rate)
         for array in state:
             array.flags.writeable = False
-        self._last[:] = [whisker, drive, t_s, state]
+        self._last[id(whisker)] = (whisker, drive, t_s, state)
         return state
 
 

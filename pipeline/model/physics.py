@@ -74,13 +74,27 @@ class WhiskerPhysics:
         return chain if self.follicle is None else np.concatenate([[self.follicle.c_f], chain])
 
     def planar_mass_matrix(self) -> np.ndarray:
-        """[J, J] in-plane mass matrix of the same joints at the rest shape (kg·m²)."""
-        return planar_mass_matrix(self.chain, base_joint=self.follicle is not None)
+        """[J, J] in-plane mass matrix of the same joints at the rest shape (kg·m²; computed
+        once, read-only)."""
+        return self._planar_mass
 
     def planar_modes(self):
         """Undamped in-plane frequencies (Hz, ascending) and mode shapes of the whisker on its
-        base spring (:func:`~pipeline.model.whisker.planar_modes`)."""
-        return planar_modes(self.chain, self.planar_stiffness_nm_per_rad)
+        base spring (:func:`~pipeline.model.whisker.planar_modes`; computed once, read-only)."""
+        return self._planar_modes
+
+    @cached_property
+    def _planar_mass(self) -> np.ndarray:
+        return _read_only(planar_mass_matrix(self.chain, base_joint=self.follicle is not None))
+
+    @cached_property
+    def _planar_modes(self) -> tuple[np.ndarray, np.ndarray]:
+        return tuple(map(_read_only, planar_modes(self.chain, self.planar_stiffness_nm_per_rad)))
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    array.flags.writeable = False
+    return array
 
 
 class _NoDamping:

@@ -182,13 +182,13 @@ def planar_mass_matrix(chain: WhiskerChain, base_joint: bool = False) -> np.ndar
     dof = chain.links - first
     mass = np.zeros((dof, dof))
     for i in range(chain.links):
-        active = np.arange(min(i + 1 - first, dof))      # joints proximal to link i
-        if active.size == 0:
+        active = min(i + 1 - first, dof)                 # joints proximal to link i: the first ones
+        if active == 0:
             continue
-        arm = com[i, :2] - pivots[active, :2]
+        arm = com[i, :2] - pivots[:active, :2]
         jac = np.stack([-arm[:, 1], arm[:, 0]], axis=0)  # ẑ × r, shape [2, active]
         block = chain.link_mass_kg[i] * jac.T @ jac + chain.link_inertia_kg_m2[i, 1]
-        mass[np.ix_(active, active)] += block
+        mass[:active, :active] += block
     return mass
 
 

@@ -5,14 +5,17 @@ from __future__ import annotations
 from collections.abc import Callable
 from functools import cached_property
 
+import numpy as np
+
 from pipeline.config.physics import ModelConfig
-from pipeline.engines import create_engine
+from pipeline.engines import create_engine, engine_class
 from pipeline.errors import UserError
 from pipeline.model.array import ArrayModel, build_array
 from pipeline.model.effects.registry import model_parts
 from pipeline.model.head_motion import HeadMotion
 from pipeline.model.kinematics import Pose, ProtractionDrive, sinusoidal_whisk, still
 from pipeline.model.morphology import load_morphology
+from pipeline.model.setup_cache import cached
 from pipeline.model.outputs import TrialOutput
 from pipeline.scenes import Scene, active_pegs, empty, mesh_scene, passive_peg, wall
 
@@ -47,16 +50,31 @@ class Whisking:
         self._engine = None
 
     @cached_property
-    def array(self) -> ArrayModel:
+    def _setup(self) -> tuple[ArrayModel, np.ndarray]:
+        """The array and its engine's step level per whisker, its base inertia computed: what
+        depends on the model alone, kept on disk between processes (:mod:`pipeline.model.setup_cache`)."""
         morphology = load_morphology(self.config.morphology).select(self.whiskers)
         if len(morphology) == 0:
             raise UserError(f"no whiskers selected by '{self.whiskers}'")
-        return build_array(morphology, *model_parts(self.config))
+        material, extensions = model_parts(self.config)
+        engine = self.config.engine
+
+        def compute() -> tuple[ArrayModel, np.ndarray]:
+            array = build_array(morphology, material, extensions)
+            for whisker in array.whiskers:
+                whisker.physics.base_inertia
+            return array, engine_class(engine.name).step_levels(array, engine)
+
+        return cached("array", (morphology.whiskers, morphology.origin_m, material, extensions, engine), compute)
+
+    @property
+    def array(self) -> ArrayModel:
+        return self._setup[0]
 
     @property
     def engine(self):
         if self._engine is None:
-            self._engine = create_engine(self.config, self.array)
+            self._engine = create_engine(self.config, *self._setup)
         return self._engine
 
     def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float,

@@ -147,7 +147,12 @@ the step's end, would lie inside the obstacle is taken again for that whisker in
 up to 0.2 mm into a peg within the step.
 """
 
-from pipeline.engines.mujoco.engine import MujocoEngine
+import os
+
+# The engine renders nothing: unless told otherwise MuJoCo loads its OpenGL backend (GLFW) on import.
+os.environ.setdefault("MUJOCO_GL", "disable")
+
+from pipeline.engines.mujoco.engine import MujocoEngine  # noqa: E402  (after MUJOCO_GL)
 
 ENGINE = MujocoEngine
 

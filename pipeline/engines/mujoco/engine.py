@@ -24,15 +24,16 @@ class MujocoEngine(Engine):
 
     name = "mujoco"
 
-    def __init__(self, array: ArrayModel, config: EngineConfig):
+    def __init__(self, array: ArrayModel, config: EngineConfig, levels: np.ndarray | None = None):
         # MuJoCo would print its warnings and append them to ./MUJOCO_LOG.TXT; the engine reads
         # the same conditions from data.warning and handles them (jam refinement)
         mujoco.set_mju_user_warning(lambda message: None)
         self._prisms: dict[tuple, MeshPrisms] = {}
         self._scene_keys: list = []               # the scenes whose prisms are kept, latest last
-        super().__init__(array, config)
+        super().__init__(array, config, levels)
 
-    def step_levels(self, array: ArrayModel, config: EngineConfig) -> np.ndarray:
+    @classmethod
+    def step_levels(cls, array: ArrayModel, config: EngineConfig) -> np.ndarray:
         return folded_refinement_levels(array, config)
 
     def make_world(self, whiskers: list[WhiskerModel], dt_s: float) -> MujocoWorld:
