@@ -14,8 +14,8 @@ The velocity after the step at a point, u = J·(v + h·a) = u₀ + G·f with G =
 not close the gap g (mm, < 0: penetration) within the step: u_n ≥ −g/h for g ≥ 0, and
 u_n ≥ −:data:`PENETRATION_ERP`·g/h inside (pushed out over a few steps, no pop); friction
 opposes sliding relative to the obstacle's surface (u_t = its velocity while |f_t| < μ·f_n).
-Projected Gauss–Seidel over the points (at most ``engine.solver_iterations`` sweeps) solves
-this small problem (a few points per whisker). The forces enter the step's accelerations
+Projected Gauss–Seidel over the points (at most ``engine.solver_iterations`` sweeps, compiled:
+:mod:`~pipeline.engines.bullet.gauss_seidel`) solves this small problem (a few points per whisker). The forces enter the step's accelerations
 through W·J_Fᵀ·f and the base wrench as external forces at the points, exactly as the loads do. At rest a = 0 and the springs balance the contact: K·q = Jᵀ·f.
 
 Contacts are looked for within :data:`CONTACT_REACH_MM` of the surface (farther than any link
@@ -28,12 +28,12 @@ Internal units mm–mg–s.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from pipeline.engines.bullet.client import BulletClient
+from pipeline.engines.bullet.gauss_seidel import gauss_seidel
 from pipeline.engines.one_sided import MERGE_MM, one_sided
 
 CONTACT_REACH_MM = 0.25      # speculative contact distance (a tip moves ≲ 0.15 mm per step)
@@ -136,50 +136,17 @@ def contact_frame(normal: np.ndarray, with_tangents: bool) -> np.ndarray:
 def solve_forces(G: np.ndarray, u0: np.ndarray, gaps_mm: np.ndarray, h: float, mu: float,
                  iterations: int, start: np.ndarray | None = None) -> np.ndarray:
     """Contact forces f of the step (module docstring): per point the normal force, and with
-    μ > 0 two tangential ones ([P] or [3P], the rows of :func:`contact_frame`).
+    μ > 0 two tangential ones ([P] or [3P], the rows of :func:`contact_frame`), by projected
+    Gauss–Seidel (:func:`~pipeline.engines.bullet.gauss_seidel.gauss_seidel`).
 
     ``G``: velocity after the step per unit force; ``u0``: velocity after the step without
     contact; ``gaps_mm`` [P]; ``start``: forces to start the sweeps from (a guess, e.g. the
     step before's; zeros without). A point that no spring joint can move (on link 1 with a rigid
-    follicle: the drive is rigid) gets no force. Plain Python floats: the problem is a few
-    rows, where numpy's per-call overhead would dominate."""
-    per_point = 3 if mu > 0 else 1
-    rows = per_point * len(gaps_mm)
-    columns = G.T.tolist()                   # columns[j]: velocity change per unit force j
+    follicle: the drive is rigid) gets no force."""
     if start is None or not start.any():
-        u, f = u0.tolist(), [0.0] * rows
+        u, f = u0.astype(float), np.zeros(len(u0))
     else:
-        u, f = (u0 + G @ start).tolist(), start.tolist()
-    bias = [(g if g >= 0 else PENETRATION_ERP * g) / h for g in gaps_mm.tolist()]
-    diagonal = [columns[j][j] for j in range(rows)]
-    # (normal row, bias) of the points a spring joint can move (not link 1 with a rigid follicle)
-    movable = [(per_point * i, b) for i, b in enumerate(bias) if diagonal[per_point * i] > 0.0]
-    for _ in range(iterations):
-        largest_change = 0.0
-        for r, b in movable:
-            normal = f[r]
-            change = max(0.0, normal - (u[r] + b) / diagonal[r]) - normal
-            if change:
-                f[r] = normal + change
-                u = [uk + ck * change for uk, ck in zip(u, columns[r])]
-                largest_change = max(largest_change, abs(change))
-            if per_point == 1:
-                continue
-            r1, r2 = r + 1, r + 2
-            bound = mu * f[r]
-            if bound == 0.0 and f[r1] == 0.0 and f[r2] == 0.0:    # stays unloaded: nothing changes
-                continue
-            t1 = f[r1] - u[r1] / diagonal[r1]
-            t2 = f[r2] - u[r2] / diagonal[r2]
-            size = math.hypot(t1, t2)
-            if size > bound:
-                t1, t2 = (t1 * bound / size, t2 * bound / size) if size > 0 else (0.0, 0.0)
-            for j, value in ((r1, t1), (r2, t2)):
-                if value != f[j]:
-                    change = value - f[j]
-                    largest_change = max(largest_change, abs(change))
-                    f[j] += change
-                    u = [uk + ck * change for uk, ck in zip(u, columns[j])]
-        if largest_change <= TOLERANCE * max(map(abs, f), default=0.0):
-            break
-    return np.array(f)
+        u, f = u0 + G @ start, start.astype(float)
+    bias = np.where(gaps_mm >= 0, gaps_mm, PENETRATION_ERP * gaps_mm) / h
+    gauss_seidel(np.ascontiguousarray(G, dtype=float), u, f, bias, 3 if mu > 0 else 1, mu, iterations, TOLERANCE)
+    return f

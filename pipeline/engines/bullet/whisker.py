@@ -16,7 +16,6 @@ step solves every contact itself: Bullet's own solver never sees one, module
 
 from __future__ import annotations
 
-import itertools
 
 import numpy as np
 import pybullet as p
@@ -24,6 +23,7 @@ import pybullet as p
 from pipeline.engines import units as U
 from pipeline.engines.bullet.client import BulletClient
 from pipeline.engines.bullet.contact import CONTACT_REACH_MM, contact_frame, solve_forces
+from pipeline.engines.bullet.mass_matrix import implicit_operator_inverse
 from pipeline.engines.bullet.multibody import CAPSULE_ALONG_X, IDENTITY_QUAT, LinkList
 from pipeline.engines.bullet.wrench import chain_wrench
 from pipeline.engines.common import start_rate
@@ -38,6 +38,21 @@ from pipeline.model.rotations import axis_rotation, matrix_from_xyzw, rot_z
 # every step (1 ms-old matrices were 13× further off and failed the twist cross-check).
 MASS_REFRESH_RAD = 1e-4
 _AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
+
+
+def _spring_chain(links: LinkList, base: int) -> tuple[np.ndarray, ...]:
+    """The arguments of :func:`~pipeline.engines.bullet.mass_matrix.chain_mass_matrix` after
+    the joint angles for the links beyond ``base`` (a serial chain) of ``links``."""
+    c = links.columns
+    beyond = slice(base + 1, len(links.inertia))
+    if c["linkParentIndices"][beyond] != list(range(base + 1, len(links.inertia))):
+        raise ValueError("the whisker's multibody is not a serial chain")
+    revolute = np.array(c["linkJointTypes"][beyond]) == p.JOINT_REVOLUTE
+    joint_of = np.where(revolute, np.cumsum(revolute) - 1, -1)
+    return (joint_of, np.array(c["linkPositions"][beyond], float),
+            matrix_from_xyzw(np.array(c["linkOrientations"][beyond], float)),
+            np.array(c["linkJointAxis"][beyond], float), np.array(c["linkMasses"][beyond], float),
+            np.array(c["linkInertialFramePositions"][beyond], float), np.array(links.inertia[beyond], float))
 
 
 class BulletWhisker:
@@ -115,6 +130,7 @@ class BulletWhisker:
         # dofs moving whisker link i: those of its joint and before (a serial chain)
         self.ancestor_dofs = np.searchsorted(self.dofs, self.whisker_links, side="right")
         self._lhs_inverse, self._factorised_at = None, None
+        self._mass_chain = _spring_chain(links, roll)
         # Newton–Euler base wrench (:mod:`pipeline.engines.bullet.wrench`): the chain's links
         revolute = np.array(links.columns["linkJointTypes"]) == p.JOINT_REVOLUTE
         self._chain_links = list(range(len(links.inertia)))
@@ -285,12 +301,12 @@ class BulletWhisker:
         return base @ np.asarray(linear), base @ np.asarray(angular)
 
     def _factorise(self, q: list[float], h: float) -> None:
-        """(M_FF + h·C + h²·K)⁻¹ at joint angles q (F: the free joints)."""
-        rows = self.client.calculateMassMatrix(self.body, q)
-        n = self.n_dof                                       # a flat iterator: a third of np.array's cost
-        mass_free = np.fromiter(itertools.chain.from_iterable(rows), float, n * n).reshape(n, n)[3:, 3:]
+        """(M_FF + h·C + h²·K)⁻¹ at joint angles q (F: the free joints), M_FF compiled from the
+        chain's links (:func:`~pipeline.engines.bullet.mass_matrix.implicit_operator_inverse`:
+        Bullet's ``calculateMassMatrix`` to round-off)."""
         self._factorised_at = np.array(q[3:])
-        self._lhs_inverse = np.linalg.inv(mass_free + np.diag(h * self.damping[3:] + h * h * self.stiffness[3:]))
+        self._lhs_inverse = implicit_operator_inverse(self._factorised_at, h * self.damping[3:] + h * h * self.stiffness[3:],
+                                                      *self._mass_chain)
 
     def link_state(self, velocities: bool, base: bool = False) -> LinkState:
         """The whisker links' centres of mass, frames and velocities (world frame, SI); with
