@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.engines.bullet.client import BulletClient
+from pipeline.engines.bullet.distinct import distinct_points
 from pipeline.engines.bullet.gauss_seidel import gauss_seidel
 from pipeline.engines.one_sided import MERGE_MM, one_sided
 
@@ -103,40 +104,33 @@ def find_contacts(client: BulletClient, obstacles, whiskers, still: bool) -> dic
 def _distinct(kept: np.ndarray, link_of: np.ndarray, where: np.ndarray, normals: np.ndarray, gaps: np.ndarray,
               velocity: np.ndarray) -> list[ContactPoint]:
     """The ``kept`` points, deepest first, less those within :data:`MERGE_MM` of a deeper one of
-    the same link or with a normal opposing its (:func:`find_contacts`). Plain floats: a few
-    points compared pairwise, where numpy's per-call overhead dominated the contact search."""
-    chosen: list[tuple[int, float, float, float, float, float, float, int]] = []
-    points = where.tolist()
-    directions = normals.tolist()
-    links = link_of.tolist()
-    for i in np.argsort(gaps, kind="stable").tolist():
-        if not kept[i]:
-            continue
-        link, (px, py, pz), (nx, ny, nz) = links[i], points[i], directions[i]
-        if any(other == link and ((ox - px) ** 2 + (oy - py) ** 2 + (oz - pz) ** 2 < MERGE_MM ** 2
-                                  or mx * nx + my * ny + mz * nz < 0.0)
-               for other, ox, oy, oz, mx, my, mz, _ in chosen):
-            continue
-        chosen.append((link, px, py, pz, nx, ny, nz, i))
-    return [ContactPoint(link, where[i], normals[i], float(gaps[i]), velocity) for link, *_, i in chosen]
+    the same link or with a normal opposing its (:func:`find_contacts`,
+    :func:`~pipeline.engines.bullet.distinct.distinct_points`)."""
+    order = np.argsort(gaps, kind="stable")
+    order = order[np.asarray(kept, bool)[order]]
+    chosen = distinct_points(order, link_of, np.asarray(where, float), np.asarray(normals, float), MERGE_MM)
+    return [ContactPoint(int(link_of[i]), where[i], normals[i], float(gaps[i]), velocity) for i in chosen]
 
 
-def contact_frame(normal: np.ndarray, with_tangents: bool) -> np.ndarray:
-    """[1, 3] the unit ``normal``, or [3, 3] it and two unit tangents (rows, right-handed)."""
+def contact_frames(normals: np.ndarray, with_tangents: bool) -> np.ndarray:
+    """[P, 3] the unit ``normals`` [P, 3], or [3P, 3] per point its normal and two unit tangents
+    (rows, right-handed; all points at once: per point, numpy's call overhead dominated a step)."""
     if not with_tangents:
-        return normal[None, :]
-    nx, ny, nz = normal
+        return normals
+    nx, ny, nz = normals.T
+    zeros = np.zeros_like(nx)
     # a tangent ⟂ normal: x × normal, or y × normal when the normal is closer to x than to y
-    t1 = np.array([0.0, -nz, ny]) if abs(nx) <= abs(ny) else np.array([nz, 0.0, -nx])
-    t1 /= np.sqrt(t1 @ t1)
-    t2 = np.array([ny * t1[2] - nz * t1[1], nz * t1[0] - nx * t1[2], nx * t1[1] - ny * t1[0]])
-    return np.array([normal, t1, t2])
+    t1 = np.where((np.abs(nx) <= np.abs(ny))[:, None], np.stack([zeros, -nz, ny], axis=1),
+                  np.stack([nz, zeros, -nx], axis=1))
+    t1 /= np.sqrt(np.matmul(t1[:, None, :], t1[:, :, None]))[:, 0]      # as t1 @ t1, to the bit
+    t2 = np.stack([ny * t1[:, 2] - nz * t1[:, 1], nz * t1[:, 0] - nx * t1[:, 2], nx * t1[:, 1] - ny * t1[:, 0]], axis=1)
+    return np.stack([normals, t1, t2], axis=1).reshape(-1, 3)
 
 
 def solve_forces(G: np.ndarray, u0: np.ndarray, gaps_mm: np.ndarray, h: float, mu: float,
                  iterations: int, start: np.ndarray | None = None) -> np.ndarray:
     """Contact forces f of the step (module docstring): per point the normal force, and with
-    μ > 0 two tangential ones ([P] or [3P], the rows of :func:`contact_frame`), by projected
+    μ > 0 two tangential ones ([P] or [3P], the rows of :func:`contact_frames`), by projected
     Gauss–Seidel (:func:`~pipeline.engines.bullet.gauss_seidel.gauss_seidel`).
 
     ``G``: velocity after the step per unit force; ``u0``: velocity after the step without

@@ -22,7 +22,7 @@ import pybullet as p
 
 from pipeline.engines import units as U
 from pipeline.engines.bullet.client import BulletClient
-from pipeline.engines.bullet.contact import CONTACT_REACH_MM, contact_frame, solve_forces
+from pipeline.engines.bullet.contact import CONTACT_REACH_MM, contact_frames, solve_forces
 from pipeline.engines.bullet.mass_matrix import implicit_operator_inverse
 from pipeline.engines.bullet.multibody import CAPSULE_ALONG_X, IDENTITY_QUAT, LinkList
 from pipeline.engines.bullet.wrench import chain_wrench
@@ -247,15 +247,17 @@ class BulletWhisker:
         link l has the row d·J_lin + ((p − o) × d)·J_ang along d, with the columns of the joints
         beyond l (not l's ancestors in the serial chain) zeroed."""
         c = self.client
-        farthest = self.whisker_links[max(contact.link for contact in contacts)]
+        links = np.array([contact.link for contact in contacts])
+        points = np.array([contact.point_mm for contact in contacts])
+        farthest = self.whisker_links[links.max()]
         self.sync()
         origin = np.asarray(c.getLinkState(self.body, farthest, computeForwardKinematics=True)[4])
         linear, angular = self.jacobian(farthest, [0.0, 0.0, 0.0], q)
-        frames = np.concatenate([contact_frame(contact.normal, friction > 0) for contact in contacts])
+        frames = contact_frames(np.array([contact.normal for contact in contacts]), friction > 0)
         per_point = len(frames) // len(contacts)                     # rows n (, t1, t2) per point
-        arms = np.repeat([contact.point_mm for contact in contacts], per_point, axis=0) - origin
+        arms = np.repeat(points, per_point, axis=0) - origin
         jacobian = frames @ linear + np.cross(arms, frames) @ angular          # [P or 3P, n_dof]
-        ancestors = np.repeat([self.ancestor_dofs[contact.link] for contact in contacts], per_point)
+        ancestors = np.repeat(self.ancestor_dofs[links], per_point)
         jacobian[np.arange(self.n_dof) >= ancestors[:, None]] = 0.0
         response = self._lhs_inverse @ jacobian[:, 3:].T             # W·J_Fᵀ
         velocity = jacobian @ (v + h * accel)                         # after the step, without contact
@@ -264,32 +266,31 @@ class BulletWhisker:
             velocity -= np.einsum("ij,ij->i", frames, surface) * (np.arange(len(frames)) % 3 > 0)
         forces = solve_forces(h * jacobian[:, 3:] @ response, velocity,
                               np.array([contact.gap_mm for contact in contacts]), h, friction, iterations,
-                              self._warm_start(contacts, frames, per_point))
+                              self._warm_start(links, points, frames, per_point))
         accel[3:] += response @ forces
         world = np.einsum("ij,i->ij", frames, forces).reshape(len(contacts), per_point, 3).sum(axis=1)
-        self._last_contacts = (np.array([contact.link for contact in contacts]),
-                               np.array([contact.point_mm for contact in contacts]), world)
-        external.append((np.array([contact.point_mm for contact in contacts]), world, np.zeros_like(world)))
+        self._last_contacts = (links, points, world)
+        external.append((points, world, np.zeros_like(world)))
         return forces[0::per_point]
 
-    def _warm_start(self, contacts, frames: np.ndarray, per_point: int) -> np.ndarray | None:
-        """Forces to start the contact solve from: per point, the force of the step before at the
-        nearest point of the same link within :data:`CONTACT_REACH_MM` (each used once), in this
+    def _warm_start(self, links: np.ndarray, points: np.ndarray, frames: np.ndarray,
+                    per_point: int) -> np.ndarray | None:
+        """Forces to start the contact solve from: per point (whisker ``links`` [P], ``points``
+        [P, 3] mm), the force of the step before at the nearest point of the same link if within
+        :data:`CONTACT_REACH_MM` (each used once, by the first point it is nearest to), in this
         step's ``frames``; zero where there is none (rows as :func:`solve_forces`)."""
         if self._last_contacts is None:
             return None
-        links, points, forces = self._last_contacts
-        start, used = np.zeros(len(frames)), set()
-        for i, contact in enumerate(contacts):
-            same = np.flatnonzero(links == contact.link)
-            if len(same) == 0:
-                continue
-            distances = ((points[same] - contact.point_mm) ** 2).sum(axis=1)
-            j = same[np.argmin(distances)]
-            if j not in used and distances.min() <= CONTACT_REACH_MM ** 2:
-                used.add(j)
-                start[i * per_point:(i + 1) * per_point] = frames[i * per_point:(i + 1) * per_point] @ forces[j]
-        return start
+        last_links, last_points, last_forces = self._last_contacts
+        distances = ((points[:, None, :] - last_points[None, :, :]) ** 2).sum(axis=2)
+        distances[links[:, None] != last_links[None, :]] = np.inf
+        nearest = distances.argmin(axis=1)
+        near = np.flatnonzero(distances[np.arange(len(points)), nearest] <= CONTACT_REACH_MM ** 2)
+        chosen = near[np.unique(nearest[near], return_index=True)[1]]
+        start = np.zeros((len(points), per_point))
+        start[chosen] = np.matmul(frames.reshape(len(points), per_point, 3)[chosen],
+                                  last_forces[nearest[chosen]][:, :, None])[..., 0]
+        return start.reshape(-1)
 
     def jacobian(self, link: int, point: list[float], q: list[float]) -> tuple[np.ndarray, np.ndarray]:
         """Linear and angular Jacobian [3, n_dof] of ``point`` (link frame, mm) of Bullet ``link``
