@@ -93,7 +93,7 @@ def find_contacts(client: BulletClient, obstacles, whiskers, still: bool) -> dic
             if mesh is not None:
                 touched = np.unique(link_of)
                 axis = np.concatenate([where + whisker.capsule_radii[link_of, None] * normals,
-                                       np.array([whisker.link_nodes(i) for i in touched]).reshape(-1, 3)])
+                                       whisker.link_nodes(touched).reshape(-1, 3)])
                 link_of = np.concatenate([link_of, np.repeat(touched, 2)])
                 kept, where, normals, gaps = one_sided(axis, whisker.capsule_radii[link_of], mesh, offset,
                                                        CONTACT_REACH_MM)

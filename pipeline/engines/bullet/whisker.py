@@ -123,13 +123,14 @@ class BulletWhisker:
         self.rates = np.asarray(model.joint_rates, float)
         self.link_com = chain.link_com_m * U.LENGTH
         self.link1_angle = chain.link_angles_rad[0]
-        self.link_lengths = (chain.link_lengths_m * U.LENGTH).tolist()
-        self.tip_offset = self.link_lengths[-1]
+        self.link_lengths = chain.link_lengths_m * U.LENGTH
+        self.tip_offset = float(self.link_lengths[-1])
         self.local_link = {link: i for i, link in enumerate(self.whisker_links)}
         self.capsule_radii = 0.5 * (chain.node_radii_m[:-1] + chain.node_radii_m[1:]) * U.LENGTH
         # dofs moving whisker link i: those of its joint and before (a serial chain)
         self.ancestor_dofs = np.searchsorted(self.dofs, self.whisker_links, side="right")
         self._lhs_inverse, self._factorised_at = None, None
+        self._base_orientation, self._base_rotation = None, None    # (x, y, z, w) and its matrix
         self._mass_chain = _spring_chain(links, roll)
         # Newton–Euler base wrench (:mod:`pipeline.engines.bullet.wrench`): the chain's links
         revolute = np.array(links.columns["linkJointTypes"]) == p.JOINT_REVOLUTE
@@ -298,8 +299,10 @@ class BulletWhisker:
         pose otherwise turns every contact and load by the head's rotation)."""
         zeros = [0.0] * self.n_dof
         linear, angular = self.client.calculateJacobian(self.body, link, point, q, zeros, zeros)
-        base = matrix_from_xyzw(self.client.getBasePositionAndOrientation(self.body)[1])
-        return base @ np.asarray(linear), base @ np.asarray(angular)
+        orientation = self.client.getBasePositionAndOrientation(self.body)[1]
+        if orientation != self._base_orientation:             # the head has turned (or a new trial)
+            self._base_orientation, self._base_rotation = orientation, matrix_from_xyzw(orientation)
+        return self._base_rotation @ np.asarray(linear), self._base_rotation @ np.asarray(angular)
 
     def _factorise(self, q: list[float], h: float) -> None:
         """(M_FF + h·C + h²·K)⁻¹ at joint angles q (F: the free joints), M_FF compiled from the
@@ -372,15 +375,16 @@ class BulletWhisker:
             rotation = axis_rotation(axis, angle) @ rotation
         return np.concatenate([rotation @ world[:3] / U.FORCE, rotation @ world[3:] / U.TORQUE])
 
-    def link_nodes(self, i: int) -> tuple[tuple[float, ...], tuple[float, ...]]:
-        """Proximal and distal node of whisker link i, world frame, mm (internal units). Plain
-        floats: it runs for every contact point of every step (numpy's call overhead tripled it)."""
+    def link_nodes(self, links: list[int]) -> np.ndarray:
+        """[L, 2, 3] proximal and distal node of each whisker link in ``links`` (0-based), world
+        frame, mm (internal units): one query of Bullet's frames for them all."""
         self.sync()
-        state = self.client.getLinkState(self.body, self.whisker_links[i], computeForwardKinematics=True)
-        (px, py, pz), (x, y, z, w) = state[4], state[5]
-        length = self.link_lengths[i]              # along the link frame's x axis, R(q)·(1, 0, 0):
-        return (px, py, pz), (px + length * (1 - 2 * (y * y + z * z)), py + length * 2 * (x * y + w * z),
-                              pz + length * 2 * (x * z - w * y))
+        states = self.client.getLinkStates(self.body, [self.whisker_links[i] for i in links],
+                                           computeForwardKinematics=True)
+        origins = np.array([state[4] for state in states])
+        x, y, z, w = np.array([state[5] for state in states]).T
+        along = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)], axis=1)  # R(q)·(1, 0, 0)
+        return np.stack([origins, origins + self.link_lengths[links, None] * along], axis=1)
 
     def node_positions(self) -> np.ndarray:
         """[N+1, 3] node positions, world frame, m."""
