@@ -40,12 +40,12 @@ MASS_REFRESH_RAD = 1e-4
 _AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
 
 
-def _spring_chain(links: LinkList, base: int) -> tuple[np.ndarray, ...]:
-    """The arguments of :func:`~pipeline.engines.bullet.mass_matrix.chain_mass_matrix` after
-    the joint angles for the links beyond ``base`` (a serial chain) of ``links``."""
+def _chain(links: LinkList, first: int) -> tuple[np.ndarray, ...]:
+    """The chain arguments of :mod:`pipeline.engines.bullet.mass_matrix` (after the joint angles)
+    for the links from ``first`` on of ``links`` (a serial chain; frames relative to ``first``'s parent)."""
     c = links.columns
-    beyond = slice(base + 1, len(links.inertia))
-    if c["linkParentIndices"][beyond] != list(range(base + 1, len(links.inertia))):
+    beyond = slice(first, len(links.inertia))
+    if c["linkParentIndices"][beyond] != list(range(first, len(links.inertia))):
         raise ValueError("the whisker's multibody is not a serial chain")
     revolute = np.array(c["linkJointTypes"][beyond]) == p.JOINT_REVOLUTE
     joint_of = np.where(revolute, np.cumsum(revolute) - 1, -1)
@@ -131,7 +131,7 @@ class BulletWhisker:
         self.ancestor_dofs = np.searchsorted(self.dofs, self.whisker_links, side="right")
         self._lhs_inverse, self._factorised_at = None, None
         self._base_orientation, self._base_rotation = None, None    # (x, y, z, w) and its matrix
-        self._mass_chain = _spring_chain(links, roll)
+        self._mass_chain = _chain(links, roll + 1)      # the spring joints' (M_FF)
         # Newton–Euler base wrench (:mod:`pipeline.engines.bullet.wrench`): the chain's links
         revolute = np.array(links.columns["linkJointTypes"]) == p.JOINT_REVOLUTE
         self._chain_links = list(range(len(links.inertia)))
