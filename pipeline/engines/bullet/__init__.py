@@ -12,7 +12,7 @@ Integration scheme (one step of size h, per whisker; q, v joint positions and ve
     then the semi-implicit Euler step v ← v + h·a; q ← q + h·v, taken by the engine itself
         and written to Bullet's joints (resetJointStatesMultiDof)
 
-M is Bullet's joint-space mass matrix and b its bias forces (Coriolis, centrifugal) less the
+M is the chain's joint-space mass matrix (Bullet's, to round-off) and b its bias forces (Coriolis, centrifugal) less the
 generalised loads Jᵀ·F (:mod:`pipeline.model.effects.loads`: gravity, drag, a tip force) at the current state; F are the spring joints, D the driven ones whose accelerations a_D make
 them land exactly on the prescribed angles at t + h. This linearly implicit scheme is stable
 for any h (for an undamped mode it is symplectic Euler with ω² replaced by k/(m + h²k)) and,
@@ -26,8 +26,10 @@ moved by :data:`~pipeline.engines.bullet.whisker.MASS_REFRESH_RAD` (every ≈ 10
 free whisk; base signals then within 5·10⁻⁵ RMS, nodes within 0.05 µm of recomputing it every
 step).
 
-Cost per whisker-step: one inverse dynamics (M_·D·a_D + b), the mass matrix on the steps that
-refresh it (its query, list → array and inverse), numpy for the rest; Bullet never steps a whisker
+Cost per whisker-step: one inverse dynamics (M_·D·a_D + b), the mass matrix and its inverse on
+the steps that refresh it (compiled from the multibody's links by composite rigid bodies:
+:mod:`~pipeline.engines.bullet.mass_matrix`, Bullet's ``calculateMassMatrix`` to round-off),
+numpy for the rest; Bullet never steps a whisker
 (no ``stepSimulation``, torques or external forces handed to it). Bullet's joints are written
 (``resetJointStatesMultiDof``) only before its link frames or collision are asked for: the
 contact search, a step with contacts or loads, a sample. The contact search

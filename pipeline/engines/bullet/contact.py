@@ -14,8 +14,8 @@ The velocity after the step at a point, u = J·(v + h·a) = u₀ + G·f with G =
 not close the gap g (mm, < 0: penetration) within the step: u_n ≥ −g/h for g ≥ 0, and
 u_n ≥ −:data:`PENETRATION_ERP`·g/h inside (pushed out over a few steps, no pop); friction
 opposes sliding relative to the obstacle's surface (u_t = its velocity while |f_t| < μ·f_n).
-Projected Gauss–Seidel over the points (at most ``engine.solver_iterations`` sweeps) solves
-this small problem (a few points per whisker). The forces enter the step's accelerations
+Projected Gauss–Seidel over the points (at most ``engine.solver_iterations`` sweeps, compiled:
+:mod:`~pipeline.engines.bullet.gauss_seidel`) solves this small problem (a few points per whisker). The forces enter the step's accelerations
 through W·J_Fᵀ·f and the base wrench as external forces at the points, exactly as the loads do. At rest a = 0 and the springs balance the contact: K·q = Jᵀ·f.
 
 Contacts are looked for within :data:`CONTACT_REACH_MM` of the surface (farther than any link
@@ -28,12 +28,13 @@ Internal units mm–mg–s.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from pipeline.engines.bullet.client import BulletClient
+from pipeline.engines.bullet.distinct import distinct_points
+from pipeline.engines.bullet.gauss_seidel import gauss_seidel
 from pipeline.engines.one_sided import MERGE_MM, one_sided
 
 CONTACT_REACH_MM = 0.25      # speculative contact distance (a tip moves ≲ 0.15 mm per step)
@@ -92,7 +93,7 @@ def find_contacts(client: BulletClient, obstacles, whiskers, still: bool) -> dic
             if mesh is not None:
                 touched = np.unique(link_of)
                 axis = np.concatenate([where + whisker.capsule_radii[link_of, None] * normals,
-                                       np.array([whisker.link_nodes(i) for i in touched]).reshape(-1, 3)])
+                                       whisker.link_nodes(touched).reshape(-1, 3)])
                 link_of = np.concatenate([link_of, np.repeat(touched, 2)])
                 kept, where, normals, gaps = one_sided(axis, whisker.capsule_radii[link_of], mesh, offset,
                                                        CONTACT_REACH_MM)
@@ -103,83 +104,43 @@ def find_contacts(client: BulletClient, obstacles, whiskers, still: bool) -> dic
 def _distinct(kept: np.ndarray, link_of: np.ndarray, where: np.ndarray, normals: np.ndarray, gaps: np.ndarray,
               velocity: np.ndarray) -> list[ContactPoint]:
     """The ``kept`` points, deepest first, less those within :data:`MERGE_MM` of a deeper one of
-    the same link or with a normal opposing its (:func:`find_contacts`). Plain floats: a few
-    points compared pairwise, where numpy's per-call overhead dominated the contact search."""
-    chosen: list[tuple[int, float, float, float, float, float, float, int]] = []
-    points = where.tolist()
-    directions = normals.tolist()
-    links = link_of.tolist()
-    for i in np.argsort(gaps, kind="stable").tolist():
-        if not kept[i]:
-            continue
-        link, (px, py, pz), (nx, ny, nz) = links[i], points[i], directions[i]
-        if any(other == link and ((ox - px) ** 2 + (oy - py) ** 2 + (oz - pz) ** 2 < MERGE_MM ** 2
-                                  or mx * nx + my * ny + mz * nz < 0.0)
-               for other, ox, oy, oz, mx, my, mz, _ in chosen):
-            continue
-        chosen.append((link, px, py, pz, nx, ny, nz, i))
-    return [ContactPoint(link, where[i], normals[i], float(gaps[i]), velocity) for link, *_, i in chosen]
+    the same link or with a normal opposing its (:func:`find_contacts`,
+    :func:`~pipeline.engines.bullet.distinct.distinct_points`)."""
+    order = np.argsort(gaps, kind="stable")
+    order = order[np.asarray(kept, bool)[order]]
+    chosen = distinct_points(order, link_of, np.asarray(where, float), np.asarray(normals, float), MERGE_MM)
+    return [ContactPoint(int(link_of[i]), where[i], normals[i], float(gaps[i]), velocity) for i in chosen]
 
 
-def contact_frame(normal: np.ndarray, with_tangents: bool) -> np.ndarray:
-    """[1, 3] the unit ``normal``, or [3, 3] it and two unit tangents (rows, right-handed)."""
+def contact_frames(normals: np.ndarray, with_tangents: bool) -> np.ndarray:
+    """[P, 3] the unit ``normals`` [P, 3], or [3P, 3] per point its normal and two unit tangents
+    (rows, right-handed; all points at once: per point, numpy's call overhead dominated a step)."""
     if not with_tangents:
-        return normal[None, :]
-    nx, ny, nz = normal
+        return normals
+    nx, ny, nz = normals.T
+    zeros = np.zeros_like(nx)
     # a tangent ⟂ normal: x × normal, or y × normal when the normal is closer to x than to y
-    t1 = np.array([0.0, -nz, ny]) if abs(nx) <= abs(ny) else np.array([nz, 0.0, -nx])
-    t1 /= np.sqrt(t1 @ t1)
-    t2 = np.array([ny * t1[2] - nz * t1[1], nz * t1[0] - nx * t1[2], nx * t1[1] - ny * t1[0]])
-    return np.array([normal, t1, t2])
+    t1 = np.where((np.abs(nx) <= np.abs(ny))[:, None], np.stack([zeros, -nz, ny], axis=1),
+                  np.stack([nz, zeros, -nx], axis=1))
+    t1 /= np.sqrt(np.matmul(t1[:, None, :], t1[:, :, None]))[:, 0]      # as t1 @ t1, to the bit
+    t2 = np.stack([ny * t1[:, 2] - nz * t1[:, 1], nz * t1[:, 0] - nx * t1[:, 2], nx * t1[:, 1] - ny * t1[:, 0]], axis=1)
+    return np.stack([normals, t1, t2], axis=1).reshape(-1, 3)
 
 
 def solve_forces(G: np.ndarray, u0: np.ndarray, gaps_mm: np.ndarray, h: float, mu: float,
                  iterations: int, start: np.ndarray | None = None) -> np.ndarray:
     """Contact forces f of the step (module docstring): per point the normal force, and with
-    μ > 0 two tangential ones ([P] or [3P], the rows of :func:`contact_frame`).
+    μ > 0 two tangential ones ([P] or [3P], the rows of :func:`contact_frames`), by projected
+    Gauss–Seidel (:func:`~pipeline.engines.bullet.gauss_seidel.gauss_seidel`).
 
     ``G``: velocity after the step per unit force; ``u0``: velocity after the step without
     contact; ``gaps_mm`` [P]; ``start``: forces to start the sweeps from (a guess, e.g. the
     step before's; zeros without). A point that no spring joint can move (on link 1 with a rigid
-    follicle: the drive is rigid) gets no force. Plain Python floats: the problem is a few
-    rows, where numpy's per-call overhead would dominate."""
-    per_point = 3 if mu > 0 else 1
-    rows = per_point * len(gaps_mm)
-    columns = G.T.tolist()                   # columns[j]: velocity change per unit force j
+    follicle: the drive is rigid) gets no force."""
     if start is None or not start.any():
-        u, f = u0.tolist(), [0.0] * rows
+        u, f = u0.astype(float), np.zeros(len(u0))
     else:
-        u, f = (u0 + G @ start).tolist(), start.tolist()
-    bias = [(g if g >= 0 else PENETRATION_ERP * g) / h for g in gaps_mm.tolist()]
-    diagonal = [columns[j][j] for j in range(rows)]
-    # (normal row, bias) of the points a spring joint can move (not link 1 with a rigid follicle)
-    movable = [(per_point * i, b) for i, b in enumerate(bias) if diagonal[per_point * i] > 0.0]
-    for _ in range(iterations):
-        largest_change = 0.0
-        for r, b in movable:
-            normal = f[r]
-            change = max(0.0, normal - (u[r] + b) / diagonal[r]) - normal
-            if change:
-                f[r] = normal + change
-                u = [uk + ck * change for uk, ck in zip(u, columns[r])]
-                largest_change = max(largest_change, abs(change))
-            if per_point == 1:
-                continue
-            r1, r2 = r + 1, r + 2
-            bound = mu * f[r]
-            if bound == 0.0 and f[r1] == 0.0 and f[r2] == 0.0:    # stays unloaded: nothing changes
-                continue
-            t1 = f[r1] - u[r1] / diagonal[r1]
-            t2 = f[r2] - u[r2] / diagonal[r2]
-            size = math.hypot(t1, t2)
-            if size > bound:
-                t1, t2 = (t1 * bound / size, t2 * bound / size) if size > 0 else (0.0, 0.0)
-            for j, value in ((r1, t1), (r2, t2)):
-                if value != f[j]:
-                    change = value - f[j]
-                    largest_change = max(largest_change, abs(change))
-                    f[j] += change
-                    u = [uk + ck * change for uk, ck in zip(u, columns[j])]
-        if largest_change <= TOLERANCE * max(map(abs, f), default=0.0):
-            break
-    return np.array(f)
+        u, f = u0 + G @ start, start.astype(float)
+    bias = np.where(gaps_mm >= 0, gaps_mm, PENETRATION_ERP * gaps_mm) / h
+    gauss_seidel(np.ascontiguousarray(G, dtype=float), u, f, bias, 3 if mu > 0 else 1, mu, iterations, TOLERANCE)
+    return f

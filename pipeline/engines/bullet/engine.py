@@ -194,8 +194,7 @@ class BulletWorld(World):
                 w = self.bodies[k]
                 target = held[k] if held[k] is not None else w.rest_driven + w.rates * plan.theta[step, k]
                 points = contacts.get(w.body, ())
-                nodes = {link: w.link_nodes(link) for link in {point.link for point in points}}
-                segments = [nodes[point.link] for point in points]             # at the step's start
+                segments = w.link_nodes([point.link for point in points]) if points else ()   # at the step's start
                 normal = w.step(target, h, loads[k], points, config.contact_friction,
                                 config.solver_iterations, records)
                 self._flag_contacts(k, points, segments, normal, flags, result.touched)

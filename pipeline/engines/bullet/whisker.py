@@ -16,14 +16,14 @@ step solves every contact itself: Bullet's own solver never sees one, module
 
 from __future__ import annotations
 
-import itertools
 
 import numpy as np
 import pybullet as p
 
 from pipeline.engines import units as U
 from pipeline.engines.bullet.client import BulletClient
-from pipeline.engines.bullet.contact import CONTACT_REACH_MM, contact_frame, solve_forces
+from pipeline.engines.bullet.contact import CONTACT_REACH_MM, contact_frames, solve_forces
+from pipeline.engines.bullet.mass_matrix import implicit_operator_inverse
 from pipeline.engines.bullet.multibody import CAPSULE_ALONG_X, IDENTITY_QUAT, LinkList
 from pipeline.engines.bullet.wrench import chain_wrench
 from pipeline.engines.common import start_rate
@@ -38,6 +38,21 @@ from pipeline.model.rotations import axis_rotation, matrix_from_xyzw, rot_z
 # every step (1 ms-old matrices were 13× further off and failed the twist cross-check).
 MASS_REFRESH_RAD = 1e-4
 _AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
+
+
+def _chain(links: LinkList, first: int) -> tuple[np.ndarray, ...]:
+    """The chain arguments of :mod:`pipeline.engines.bullet.mass_matrix` (after the joint angles)
+    for the links from ``first`` on of ``links`` (a serial chain; frames relative to ``first``'s parent)."""
+    c = links.columns
+    beyond = slice(first, len(links.inertia))
+    if c["linkParentIndices"][beyond] != list(range(first, len(links.inertia))):
+        raise ValueError("the whisker's multibody is not a serial chain")
+    revolute = np.array(c["linkJointTypes"][beyond]) == p.JOINT_REVOLUTE
+    joint_of = np.where(revolute, np.cumsum(revolute) - 1, -1)
+    return (joint_of, np.array(c["linkPositions"][beyond], float),
+            matrix_from_xyzw(np.array(c["linkOrientations"][beyond], float)),
+            np.array(c["linkJointAxis"][beyond], float), np.array(c["linkMasses"][beyond], float),
+            np.array(c["linkInertialFramePositions"][beyond], float), np.array(links.inertia[beyond], float))
 
 
 class BulletWhisker:
@@ -108,13 +123,15 @@ class BulletWhisker:
         self.rates = np.asarray(model.joint_rates, float)
         self.link_com = chain.link_com_m * U.LENGTH
         self.link1_angle = chain.link_angles_rad[0]
-        self.link_lengths = (chain.link_lengths_m * U.LENGTH).tolist()
-        self.tip_offset = self.link_lengths[-1]
+        self.link_lengths = chain.link_lengths_m * U.LENGTH
+        self.tip_offset = float(self.link_lengths[-1])
         self.local_link = {link: i for i, link in enumerate(self.whisker_links)}
         self.capsule_radii = 0.5 * (chain.node_radii_m[:-1] + chain.node_radii_m[1:]) * U.LENGTH
         # dofs moving whisker link i: those of its joint and before (a serial chain)
         self.ancestor_dofs = np.searchsorted(self.dofs, self.whisker_links, side="right")
         self._lhs_inverse, self._factorised_at = None, None
+        self._base_orientation, self._base_rotation = None, None    # (x, y, z, w) and its matrix
+        self._mass_chain = _chain(links, roll + 1)      # the spring joints' (M_FF)
         # Newton–Euler base wrench (:mod:`pipeline.engines.bullet.wrench`): the chain's links
         revolute = np.array(links.columns["linkJointTypes"]) == p.JOINT_REVOLUTE
         self._chain_links = list(range(len(links.inertia)))
@@ -231,15 +248,17 @@ class BulletWhisker:
         link l has the row d·J_lin + ((p − o) × d)·J_ang along d, with the columns of the joints
         beyond l (not l's ancestors in the serial chain) zeroed."""
         c = self.client
-        farthest = self.whisker_links[max(contact.link for contact in contacts)]
+        links = np.array([contact.link for contact in contacts])
+        points = np.array([contact.point_mm for contact in contacts])
+        farthest = self.whisker_links[links.max()]
         self.sync()
         origin = np.asarray(c.getLinkState(self.body, farthest, computeForwardKinematics=True)[4])
         linear, angular = self.jacobian(farthest, [0.0, 0.0, 0.0], q)
-        frames = np.concatenate([contact_frame(contact.normal, friction > 0) for contact in contacts])
+        frames = contact_frames(np.array([contact.normal for contact in contacts]), friction > 0)
         per_point = len(frames) // len(contacts)                     # rows n (, t1, t2) per point
-        arms = np.repeat([contact.point_mm for contact in contacts], per_point, axis=0) - origin
+        arms = np.repeat(points, per_point, axis=0) - origin
         jacobian = frames @ linear + np.cross(arms, frames) @ angular          # [P or 3P, n_dof]
-        ancestors = np.repeat([self.ancestor_dofs[contact.link] for contact in contacts], per_point)
+        ancestors = np.repeat(self.ancestor_dofs[links], per_point)
         jacobian[np.arange(self.n_dof) >= ancestors[:, None]] = 0.0
         response = self._lhs_inverse @ jacobian[:, 3:].T             # W·J_Fᵀ
         velocity = jacobian @ (v + h * accel)                         # after the step, without contact
@@ -248,32 +267,31 @@ class BulletWhisker:
             velocity -= np.einsum("ij,ij->i", frames, surface) * (np.arange(len(frames)) % 3 > 0)
         forces = solve_forces(h * jacobian[:, 3:] @ response, velocity,
                               np.array([contact.gap_mm for contact in contacts]), h, friction, iterations,
-                              self._warm_start(contacts, frames, per_point))
+                              self._warm_start(links, points, frames, per_point))
         accel[3:] += response @ forces
         world = np.einsum("ij,i->ij", frames, forces).reshape(len(contacts), per_point, 3).sum(axis=1)
-        self._last_contacts = (np.array([contact.link for contact in contacts]),
-                               np.array([contact.point_mm for contact in contacts]), world)
-        external.append((np.array([contact.point_mm for contact in contacts]), world, np.zeros_like(world)))
+        self._last_contacts = (links, points, world)
+        external.append((points, world, np.zeros_like(world)))
         return forces[0::per_point]
 
-    def _warm_start(self, contacts, frames: np.ndarray, per_point: int) -> np.ndarray | None:
-        """Forces to start the contact solve from: per point, the force of the step before at the
-        nearest point of the same link within :data:`CONTACT_REACH_MM` (each used once), in this
+    def _warm_start(self, links: np.ndarray, points: np.ndarray, frames: np.ndarray,
+                    per_point: int) -> np.ndarray | None:
+        """Forces to start the contact solve from: per point (whisker ``links`` [P], ``points``
+        [P, 3] mm), the force of the step before at the nearest point of the same link if within
+        :data:`CONTACT_REACH_MM` (each used once, by the first point it is nearest to), in this
         step's ``frames``; zero where there is none (rows as :func:`solve_forces`)."""
         if self._last_contacts is None:
             return None
-        links, points, forces = self._last_contacts
-        start, used = np.zeros(len(frames)), set()
-        for i, contact in enumerate(contacts):
-            same = np.flatnonzero(links == contact.link)
-            if len(same) == 0:
-                continue
-            distances = ((points[same] - contact.point_mm) ** 2).sum(axis=1)
-            j = same[np.argmin(distances)]
-            if j not in used and distances.min() <= CONTACT_REACH_MM ** 2:
-                used.add(j)
-                start[i * per_point:(i + 1) * per_point] = frames[i * per_point:(i + 1) * per_point] @ forces[j]
-        return start
+        last_links, last_points, last_forces = self._last_contacts
+        distances = ((points[:, None, :] - last_points[None, :, :]) ** 2).sum(axis=2)
+        distances[links[:, None] != last_links[None, :]] = np.inf
+        nearest = distances.argmin(axis=1)
+        near = np.flatnonzero(distances[np.arange(len(points)), nearest] <= CONTACT_REACH_MM ** 2)
+        chosen = near[np.unique(nearest[near], return_index=True)[1]]
+        start = np.zeros((len(points), per_point))
+        start[chosen] = np.matmul(frames.reshape(len(points), per_point, 3)[chosen],
+                                  last_forces[nearest[chosen]][:, :, None])[..., 0]
+        return start.reshape(-1)
 
     def jacobian(self, link: int, point: list[float], q: list[float]) -> tuple[np.ndarray, np.ndarray]:
         """Linear and angular Jacobian [3, n_dof] of ``point`` (link frame, mm) of Bullet ``link``
@@ -281,16 +299,18 @@ class BulletWhisker:
         pose otherwise turns every contact and load by the head's rotation)."""
         zeros = [0.0] * self.n_dof
         linear, angular = self.client.calculateJacobian(self.body, link, point, q, zeros, zeros)
-        base = matrix_from_xyzw(self.client.getBasePositionAndOrientation(self.body)[1])
-        return base @ np.asarray(linear), base @ np.asarray(angular)
+        orientation = self.client.getBasePositionAndOrientation(self.body)[1]
+        if orientation != self._base_orientation:             # the head has turned (or a new trial)
+            self._base_orientation, self._base_rotation = orientation, matrix_from_xyzw(orientation)
+        return self._base_rotation @ np.asarray(linear), self._base_rotation @ np.asarray(angular)
 
     def _factorise(self, q: list[float], h: float) -> None:
-        """(M_FF + h·C + h²·K)⁻¹ at joint angles q (F: the free joints)."""
-        rows = self.client.calculateMassMatrix(self.body, q)
-        n = self.n_dof                                       # a flat iterator: a third of np.array's cost
-        mass_free = np.fromiter(itertools.chain.from_iterable(rows), float, n * n).reshape(n, n)[3:, 3:]
+        """(M_FF + h·C + h²·K)⁻¹ at joint angles q (F: the free joints), M_FF compiled from the
+        chain's links (:func:`~pipeline.engines.bullet.mass_matrix.implicit_operator_inverse`:
+        Bullet's ``calculateMassMatrix`` to round-off)."""
         self._factorised_at = np.array(q[3:])
-        self._lhs_inverse = np.linalg.inv(mass_free + np.diag(h * self.damping[3:] + h * h * self.stiffness[3:]))
+        self._lhs_inverse = implicit_operator_inverse(self._factorised_at, h * self.damping[3:] + h * h * self.stiffness[3:],
+                                                      *self._mass_chain)
 
     def link_state(self, velocities: bool, base: bool = False) -> LinkState:
         """The whisker links' centres of mass, frames and velocities (world frame, SI); with
@@ -355,15 +375,16 @@ class BulletWhisker:
             rotation = axis_rotation(axis, angle) @ rotation
         return np.concatenate([rotation @ world[:3] / U.FORCE, rotation @ world[3:] / U.TORQUE])
 
-    def link_nodes(self, i: int) -> tuple[tuple[float, ...], tuple[float, ...]]:
-        """Proximal and distal node of whisker link i, world frame, mm (internal units). Plain
-        floats: it runs for every contact point of every step (numpy's call overhead tripled it)."""
+    def link_nodes(self, links: list[int]) -> np.ndarray:
+        """[L, 2, 3] proximal and distal node of each whisker link in ``links`` (0-based), world
+        frame, mm (internal units): one query of Bullet's frames for them all."""
         self.sync()
-        state = self.client.getLinkState(self.body, self.whisker_links[i], computeForwardKinematics=True)
-        (px, py, pz), (x, y, z, w) = state[4], state[5]
-        length = self.link_lengths[i]              # along the link frame's x axis, R(q)·(1, 0, 0):
-        return (px, py, pz), (px + length * (1 - 2 * (y * y + z * z)), py + length * 2 * (x * y + w * z),
-                              pz + length * 2 * (x * z - w * y))
+        states = self.client.getLinkStates(self.body, [self.whisker_links[i] for i in links],
+                                           computeForwardKinematics=True)
+        origins = np.array([state[4] for state in states])
+        x, y, z, w = np.array([state[5] for state in states]).T
+        along = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)], axis=1)  # R(q)·(1, 0, 0)
+        return np.stack([origins, origins + self.link_lengths[links, None] * along], axis=1)
 
     def node_positions(self) -> np.ndarray:
         """[N+1, 3] node positions, world frame, m."""
