@@ -2,7 +2,7 @@
 and on the other engine, compared the way a neuroscientist would plot them.
 
 Run: .venv/bin/python benchmarks/bench_statistics.py [--trials 0-11] [--variants half,bullet]
-     [--cache DIR] [--json out.json]
+     [--base default] [--cache DIR] [--json out.json]
 
 The trials are those of configs/simulate.yaml (as `pipeline simulate` draws them: scene, head
 pose, whisk; run `pipeline build-meshes` first). Variants: ``default`` (the config), ``half``
@@ -11,9 +11,12 @@ pose, whisk; run `pipeline build-meshes` first). Variants: ``default`` (the conf
 cannot touch on the full step instead of the cheap path, pipeline/engines/free_path.py),
 ``linear-free`` (``free_whiskers: linear``, pipeline/engines/linear/free.py), ``early`` (``late_start:
 false``: whiskers that can touch run from t = 0, pipeline/engines/late_start.py; the default is
-off, so run it with PIPELINE_SIMULATE_LATE_START=true). Per (trial, whisker): touched or not, contact onset and
+off, so run it with PIPELINE_SIMULATE_LATE_START=true), ``tip``, ``tip-half``, ``tip-bullet`` (the
+``tip_segment`` effect on, pipeline/model/effects/tip_segment.py; at the default step, half of it, on
+Bullet: compare the last two with ``--base tip``). Per (trial, whisker): touched or not, contact onset and
 duration (samples of 1 ms), peak |M| (N·m), peak transverse force |F_t| = |(F_y, F_z)| (N) and
-the point of contact at the peak |M| (fraction of S). Each variant is compared with ``default``:
+the point of contact at the peak |M| (fraction of S). Each variant is compared with ``--base``
+(``default`` unless given):
 
 - contact map: share of pairs touched in one and not the other; onset identical; paired
   duration difference (median, P90 of |d| / duration);
@@ -44,9 +47,14 @@ from pipeline.runner.simulate import _layout
 from pipeline.runner.trial import RunSpec, Simulator
 
 REPO = Path(__file__).resolve().parents[1]
-VARIANTS = {"default": {}, "half": {"model": {"engine": {"dt_s": 5e-5, "f1_tolerance": 0.005}}},
+HALF_STEP = {"dt_s": 5e-5, "f1_tolerance": 0.005}
+TIP_SEGMENT = {"tip_segment": {}}
+VARIANTS = {"default": {}, "half": {"model": {"engine": HALF_STEP}},
             "bullet": {"model": {"engine": {"name": "bullet"}}}, "full-free": {"free_whiskers": "engine"},
-            "linear-free": {"free_whiskers": "linear"}, "early": {"late_start": False}}
+            "linear-free": {"free_whiskers": "linear"}, "early": {"late_start": False},
+            "tip": {"model": {"extensions": TIP_SEGMENT}},
+            "tip-half": {"model": {"extensions": TIP_SEGMENT, "engine": HALF_STEP}},
+            "tip-bullet": {"model": {"extensions": TIP_SEGMENT, "engine": {"name": "bullet"}}}}
 FIELDS = ("touched", "onset", "duration", "peak_moment", "peak_transverse", "poc_at_peak")
 
 
@@ -139,10 +147,10 @@ def compare(base: dict[str, np.ndarray], other: dict[str, np.ndarray]) -> dict[s
     return out
 
 
-def report(name: str, stats: dict[str, float]) -> str:
+def report(base: str, name: str, stats: dict[str, float]) -> str:
     pct = {k: 100 * v for k, v in stats.items()}
     return "\n".join([
-        f"default vs {name}: {stats['pairs_touched_both']} pairs touched in both, "
+        f"{base} vs {name}: {stats['pairs_touched_both']} pairs touched in both, "
         f"{stats['pairs_touched_one_only']} in one only ({stats['trials_compared']} trials; "
         f"{stats['trials_failed']} failed in either); CPU {stats['cpu_s_per_trial']:.2f} s per trial",
         f"  contact: onset identical {pct['onset_identical_share']:.0f} %, duration |d| median "
@@ -161,18 +169,19 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", default="0-11", help="first-last trial index")
     parser.add_argument("--variants", default="half,bullet", help=f"compared with default: {', '.join(VARIANTS)}")
+    parser.add_argument("--base", default="default", choices=list(VARIANTS), help="the variant compared against")
     parser.add_argument("--cache", type=Path, default=None, help="folder for each variant's per-pair table")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
     first, last = map(int, args.trials.split("-"))
     trials = list(range(first, last + 1))
-    base = run_variant("default", trials, args.cache)
+    base = run_variant(args.base, trials, args.cache)
     results = {}
     for name in args.variants.split(","):
         results[name] = compare(base, run_variant(name, trials, args.cache))
-        print(report(name, results[name]), flush=True)
+        print(report(args.base, name, results[name]), flush=True)
     if args.json:
-        args.json.write_text(json.dumps({"trials": args.trials, "comparisons": results}, indent=1))
+        args.json.write_text(json.dumps({"trials": args.trials, "base": args.base, "comparisons": results}, indent=1))
 
 
 if __name__ == "__main__":

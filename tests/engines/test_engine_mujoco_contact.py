@@ -6,11 +6,13 @@ import pytest
 
 from pipeline.config.physics import EngineConfig, MaterialConfig, ModelConfig
 from pipeline.engines import create_engine
+from pipeline.engines.mujoco.substeps import ContactLossSubsteps
 from pipeline.model.array import build_array, single_whisker
 from pipeline.model.kinematics import Pose, ProtractionDrive, sinusoidal_whisk
 from pipeline.model.morphology import model_rat
 from pipeline.model.rotations import rot_z
 from pipeline.model.whisker import WhiskerGeometry, rest_nodes
+from pipeline.reports.contact_statics import bench_config, geometry_of, obstacle_circle, rod_of, run_engine
 from pipeline.scenes import Scene
 from pipeline.scenes.obstacles import Cylinder
 
@@ -133,3 +135,27 @@ def test_a_whisker_sliding_off_a_peg_does_not_pass_through_it():
     result = run_case(ModelConfig(), Case("RC3", 0.85, 0.0, "mujoco"), speed_deg_s=40.0, sweep_deg=23.0)
     assert result.errors["slip_off_engine_deg"] == pytest.approx(21.9, abs=0.5)
     assert result.errors["deepest_mm"] < 0.02
+
+
+def test_contacts_found_in_sub_steps_enter_the_sample_flags(monkeypatch):
+    """RC3 sliding off a peg at 85 % of S: the steps taken again in sub-steps find contacts the
+    step's start did not (pipeline.engines.mujoco.substeps); each is flagged in the sample its
+    step belongs to."""
+    found: list[tuple[float, np.ndarray]] = []
+    step = ContactLossSubsteps.step
+
+    def recording(self, d, targets):
+        start = d.time
+        step(self, d, targets)
+        found.extend((start, links) for links, *_ in self.found if links.size)
+
+    monkeypatch.setattr(ContactLossSubsteps, "step", recording)
+    config = bench_config(ModelConfig(), "mujoco", 0.0)
+    geometry = geometry_of(config, "RC3")
+    peg = obstacle_circle(rod_of(geometry, config.material.youngs_modulus_gpa * 1e9), 0.85, False)
+    _, out = run_engine(config, geometry, peg, speed_deg_s=40.0, sweep_deg=23.0)
+    assert found                                                  # sub-steps ran and touched
+    period = 1.0 / config.engine.output_rate_hz
+    for start, links in found:
+        sample = int(np.floor(start / period + 1e-9))             # the steps starting in [t_k, t_k+1)
+        assert out.contact[sample, 0, links].all()

@@ -11,7 +11,8 @@ contact on ≈ 17 % of its steps; ≈ 2.5 % sink that deep), that step is taken 
 from, on a second ``MjData``, in :data:`SUBSTEPS` sub-steps of h/n, each with its own collision (and the scan
 contacts' rewrite, :mod:`pipeline.engines.mujoco.faces`); the joints of the whiskers that
 lost their contact (free and driven) take the sub-steps' end state, every other whisker keeps
-the full step's. Each whisker is its own kinematic tree and constraint island, so a whisker's
+the full step's, and the contacts the sub-steps found (read as the world reads a step's, at each
+sub-step's start) are kept in :attr:`ContactLossSubsteps.found` for the step's contact flags. Each whisker is its own kinematic tree and constraint island, so a whisker's
 result does not depend on another's sub-steps (Independence, :mod:`pipeline.engines.mujoco`).
 
 In a sub-step the driven joints land on the step's targets interpolated linearly from where
@@ -40,12 +41,18 @@ class ContactLossSubsteps:
     ``kinematic``, ``armature``: the driven dofs and their armatures (the step's kinematic
     force); ``stiffness`` [nv] each dof's spring, ``folded`` [nv] whether its damping has h·K
     folded in (otherwise it receives h·K·v); ``dof_member`` [nv] and ``member_of_geom``
-    [ngeom + 1] the member a dof or geom belongs to (−1: none); ``members`` how many."""
+    [ngeom + 1] the member a dof or geom belongs to (−1: none); ``members`` how many;
+    ``read_contacts(data)`` the penetrating contacts of a step's start as the world's contact
+    flags take them (:meth:`~pipeline.engines.common.ContactFlags.add`'s arguments)."""
+
+    found: list[tuple[np.ndarray, ...]]
+    """The contacts of the last step's sub-steps (``read_contacts`` of each; empty without sub-steps)."""
 
     def __init__(self, model: mujoco.MjModel, step_function: Callable, kinematic: np.ndarray,
                  armature: np.ndarray, stiffness: np.ndarray, folded: np.ndarray, dof_member: np.ndarray,
-                 member_of_geom: np.ndarray, members: int):
-        self.model, self.step_function = model, step_function
+                 member_of_geom: np.ndarray, members: int, read_contacts: Callable):
+        self.model, self.step_function, self.read_contacts = model, step_function, read_contacts
+        self.found = []
         self.kinematic, self.armature = kinematic, armature
         self.dof_member, self.member_of_geom = dof_member, member_of_geom
         self.h = float(model.opt.timestep)
@@ -60,11 +67,14 @@ class ContactLossSubsteps:
     def reset(self) -> None:
         """A new trial: no whisker touches."""
         self.touching[:] = False
+        self.found = []
 
     def step(self, d: mujoco.MjData, targets: np.ndarray) -> None:
         """One step of ``d`` whose driven joints land on ``targets``; a whisker that touched at
         the last step, does not at this one's start and would end it inside the obstacle takes
         this step in sub-steps."""
+        if self.found:
+            self.found = []
         had = self.touching.any()
         if had:
             for saved, now in zip(self._start, (d.qpos, d.qvel, d.qacc_warmstart)):
@@ -143,6 +153,7 @@ class ContactLossSubsteps:
                 e.qfrc_applied[kinematic] = self.armature * (((goal - e.qpos[kinematic]) / h - e.qvel[kinematic]) / h)
                 self.step_function(m, e)
                 touched[self._contacts(e)[0]] = True
+                self.found.append(self.read_contacts(e))
         finally:
             m.opt.timestep, m.opt.disableflags, m.dof_damping[:] = self.h, flags, damping
             m.geom_contype[:], m.body_contype[:] = geom_contype, body_contype

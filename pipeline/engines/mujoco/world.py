@@ -126,7 +126,7 @@ class MujocoWorld(World):
         self.substeps = ContactLossSubsteps(
             m, mujoco.mj_step if self.faces is None else self.faces.step, self.kinematic, self.armature, stiffness,
             (stiffness > 0) & (self.spring_rate == 0), self.dof_member,
-            np.where(self.link_of_geom >= 0, self.link_of_geom // self.links, -1), len(members))
+            np.where(self.link_of_geom >= 0, self.link_of_geom // self.links, -1), len(members), self._touched)
 
     def _face_contacts(self, parts: list[Part]) -> FaceContacts | None:
         """The rewrite of the static meshes' prism contacts as triangle contacts
@@ -309,7 +309,7 @@ class MujocoWorld(World):
                 self._unless_parked(lambda: self._record(result, sample - 1, *flags.take(), time_s=step * h),
                                     park, result)
             if d.ncon:
-                flags.add(*self._touched())
+                flags.add(*self._touched(d))
                 links = self.link_of_geom[d.contact.geom[d.contact.exclude == 0]]
                 result.touched[links[links >= 0] // self.links] = True
                 if setup.hold_on_contact:
@@ -318,6 +318,9 @@ class MujocoWorld(World):
                         rows = slice(3 * k, 3 * k + 3)
                         targets[step + 1:, rows] = qpos[kinematic[rows]]
                     held |= newly
+            for found in substeps.found:            # contacts within the step, after its start's
+                flags.add(*found)
+                result.touched[found[0] // self.links] = True
             if records:
                 yield sample - 1
 
@@ -358,11 +361,10 @@ class MujocoWorld(World):
         raise _Jam({int(self.members[j]): f"non-finite acceleration on {self.whiskers[self.members[j]].name} "
                     f"at t = {time_s:.4f} s" for j in members[members >= 0]})
 
-    def _touched(self) -> tuple[np.ndarray, ...]:
-        """The penetrating contacts of the current step: their links (flat indices whisker·N +
+    def _touched(self, d: mujoco.MjData) -> tuple[np.ndarray, ...]:
+        """The penetrating contacts of ``d``'s last step: their links (flat indices whisker·N +
         link), contact points (midway between the surfaces) and their links' proximal and
         distal nodes (mm; MuJoCo's contacts and positions are both those at the step's start)."""
-        d = self.data
         contact = d.contact
         pressed = (contact.dist <= 0.0) & (contact.exclude == 0)
         links = self.link_of_geom[contact.geom[pressed]].max(axis=1)   # the pair's whisker link, or −1
