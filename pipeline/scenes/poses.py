@@ -4,8 +4,12 @@ A candidate pose aims one side of the array at a surface point drawn uniformly o
 area (:class:`~pipeline.config.simulate.PoseSamplingConfig` describes the distributions). It
 is accepted when, checked in this order (the first failure is the rejection reason):
 
-``behind_surface``     the aim ray from the array origin meets the back of a face first
-                       (the head would sit inside an object or behind the scanned surface);
+``behind_surface``     the aim ray from the array origin meets the back of a face first (the
+                       head would sit inside an object or behind the scanned surface), or a
+                       node of a whisker's rest shape, swept from the drive's starting angle
+                       toward either end of the protraction range, first meets the back of a
+                       face (the whisker would reach the scan from behind, where an open scan
+                       has no outside: e.g. past a scan's cut edge, under its rim);
 ``head_in_surface``    the surface comes within the head sphere (radius around the array origin);
 ``surface_near_base``  the surface comes nearer a base point than the configured fraction of
                        that whisker's arc length;
@@ -92,10 +96,11 @@ class PoseSampler:
         origin = target - distance * aim
         return (Pose(tuple(origin.tolist()), orientation.euler_zyx_rad), side, distance, aim)
 
-    def check(self, pose: Pose, aim: np.ndarray, start: np.ndarray,
-              envelope: np.ndarray, head: HeadMotion | None = None) -> tuple[str | None, int]:
+    def check(self, pose: Pose, aim: np.ndarray, start: np.ndarray, envelope: np.ndarray,
+              away: tuple[np.ndarray, ...] = (), head: HeadMotion | None = None) -> tuple[str | None, int]:
         """(rejection reason or None, whiskers reaching) of a candidate pose; ``start`` and
-        ``envelope`` are :meth:`shapes` at the starting angle and over the protraction range;
+        ``envelope`` are :meth:`shapes` at the starting angle and over the protraction range,
+        ``away`` :meth:`shapes` from the starting angle toward each end of it (:meth:`away_from`);
         ``head`` the trajectory from ``pose`` (module docstring)."""
         path = [pose] if head is None else [head.pose(t) for t in np.linspace(0.0, head.duration_s, PATH_CHECKS)]
         origin = np.asarray(pose.position_m)
@@ -108,6 +113,8 @@ class PoseSampler:
             return "surface_near_base", 0
         if self.crossings(pose, start).any():
             return "starts_in_surface", 0
+        if any(self.meets_back(p, shapes).any() for p in path for shapes in away):
+            return "behind_surface", 0
         reaching = int(np.any([self.sweeps(p, envelope) for p in path], axis=0).sum())
         if reaching < self.config.min_whiskers_reaching:
             return "too_few_whiskers", reaching
@@ -117,6 +124,29 @@ class PoseSampler:
         """[K, W] whether a link of whisker w's rest shape at angle k crosses the surface."""
         return self.surface.segments_cross(pose.apply(shapes))
 
+
+    def away_from(self, theta_start_rad: float, thetas_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`shapes` at the starting angle, then at the angles of ``thetas_rad`` beyond it,
+        in the order the whisker reaches them: protracting, then retracting."""
+        thetas_rad = np.asarray(thetas_rad)
+        forward = np.sort(thetas_rad[thetas_rad > theta_start_rad])
+        backward = np.sort(thetas_rad[thetas_rad < theta_start_rad])[::-1]
+        return tuple(self.shapes([theta_start_rad, *side]) for side in (forward, backward))
+
+    def meets_back(self, pose: Pose, shapes: np.ndarray) -> np.ndarray:
+        """[W] whether a node of whisker w, moving through ``shapes`` [K, W, N+1, 3] (head frame,
+        in order), meets the back of a face (a face whose outward normal points along its path)
+        before any front."""
+        world = pose.apply(shapes)[:, :, 1:]                           # the base point stays put
+        if len(world) < 2:
+            return np.zeros(world.shape[1], bool)
+        step = np.diff(world, axis=0)
+        t_hit, normals = self.surface.cast(world[:-1], step)
+        k, w, n = step.shape[:3]
+        hit = (t_hit <= 1.0).reshape(k, w, n)
+        back = (np.einsum("ij,ij->i", normals, step.reshape(-1, 3)) > 0.0).reshape(k, w, n)
+        first = np.argmax(hit, axis=0)                                  # [W, N] first interval hit
+        return (hit.any(axis=0) & np.take_along_axis(back, first[None], axis=0)[0]).any(axis=1)
 
     def sweeps(self, pose: Pose, envelope: np.ndarray) -> np.ndarray:
         """[W] whether whisker w crosses the surface at an angle of the envelope, or one of its
@@ -134,12 +164,13 @@ class PoseSampler:
         :class:`~pipeline.model.head_motion.HeadMotion`; None: still); raises
         :class:`PoseSamplingError` after ``max_attempts``."""
         start = self.shapes([theta_start_rad])
-        envelope = self.shapes(np.linspace(*theta_range_rad, self.config.sweep_steps))
+        thetas = np.linspace(*theta_range_rad, self.config.sweep_steps)
+        envelope, away = self.shapes(thetas), self.away_from(theta_start_rad, thetas)
         rejections = dict.fromkeys(REASONS, 0)
         for attempt in range(1, self.config.max_attempts + 1):
             pose, side, distance, aim = self.draw_candidate(rng)
             head = None if path is None else path(pose, aim, duration_s)
-            reason, reaching = self.check(pose, aim, start, envelope, head)
+            reason, reaching = self.check(pose, aim, start, envelope, away, head)
             if reason is None:
                 return PoseSample(pose, side, distance, reaching, attempt, rejections, head)
             rejections[reason] += 1

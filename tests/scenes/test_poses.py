@@ -36,6 +36,7 @@ def test_accepted_poses_satisfy_every_rule(sampler):
     arc = np.array([w.chain.geometry.arc_length_m for w in sampler.array.whiskers])
     start = sampler.shapes([THETA[0]])
     envelope = sampler.shapes(np.linspace(*THETA, config.sweep_steps))
+    away = sampler.away_from(THETA[0], np.linspace(*THETA, config.sweep_steps))
     for i in range(5):
         sample = sampler.sample(np.random.default_rng([7, i]), THETA, THETA[0])
         pose = sample.pose
@@ -43,6 +44,7 @@ def test_accepted_poses_satisfy_every_rule(sampler):
         base_distance = sampler.surface.distance(pose.apply(sampler.base_points))
         assert np.all(base_distance >= config.min_base_distance_fraction * arc)
         assert not sampler.crossings(pose, start).any()
+        assert not any(sampler.meets_back(pose, shapes).any() for shapes in away)
         assert sample.whiskers_reaching == sampler.sweeps(pose, envelope).sum() >= config.min_whiskers_reaching
         assert 10e-3 <= sample.distance_m <= 35e-3 and sample.side in (1, -1)
         assert set(sample.rejections) == set(REASONS)
@@ -103,3 +105,42 @@ def test_head_inside_a_closed_object_or_too_near_is_rejected(sampler):
         assert sampler.check(inside, aim, start, envelope)[0] == "behind_surface"
     near = Pose((0.035, 0.0, 0.0))                       # 5 mm outside the +x face, head radius 8 mm
     assert sampler.check(near, np.array([-1.0, 0.0, 0.0]), start, envelope)[0] == "head_in_surface"
+
+
+def patch(centre_m, normal, half_m: float) -> TriangleMesh:
+    """A square of two triangles around ``centre_m``, wound so that its outward normal is ``normal``."""
+    normal = np.asarray(normal, float) / np.linalg.norm(normal)
+    u = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(normal, u)
+    corners = np.asarray(centre_m) + half_m * np.array([-u - v, u - v, u + v, -u + v])
+    return TriangleMesh(corners, np.array([[0, 1, 2], [0, 2, 3]]), source="patch")
+
+
+def joined(*meshes: TriangleMesh) -> TriangleMesh:
+    offsets = np.cumsum([0] + [len(m.vertices_m) for m in meshes[:-1]])
+    return TriangleMesh(np.concatenate([m.vertices_m for m in meshes]),
+                        np.concatenate([np.asarray(m.faces) + o for m, o in zip(meshes, offsets)]), source="joined")
+
+
+def test_a_whisker_that_would_reach_the_back_of_a_face_is_rejected():
+    """An open scan has no outside behind its faces (past a cut edge, under a rim): a whisker
+    whose sweep meets a face's back first would start the trial behind the surface, where both
+    engines' one-sided contact pushes it through (trial 5 of the default config, RB0: peaks
+    6.7× apart between the engines). A patch across the tip's path: wound toward the tip, the
+    pose passes; wound away from it, it is rejected."""
+    from pipeline.model.kinematics import Pose
+
+    array = build_array(model_rat().select("RC1"), MaterialConfig(links=10))
+    config = PoseSamplingConfig(min_whiskers_reaching=1, head_radius_mm=1.0, min_base_distance_fraction=0.0)
+    tip_start, tip_end = (w[0, -1] for w in PoseSampler(box_mesh((1, 1, 1)), array, config).shapes(THETA))
+    path = tip_end - tip_start
+    aim = np.array([0.0, 0.0, -1.0])                      # at a patch below the head, facing it
+    floor = patch([0.0, 0.0, -0.03], [0.0, 0.0, 1.0], 0.002)
+    for toward_tip, reason in ((True, None), (False, "behind_surface")):
+        across = patch(tip_start + 0.5 * path, -path if toward_tip else path, 0.003)
+        sampler = PoseSampler(joined(floor, across), array, config)
+        thetas = np.linspace(*THETA, config.sweep_steps)
+        away = sampler.away_from(THETA[0], thetas)
+        assert sampler.meets_back(Pose(), away[0]).tolist() == [not toward_tip]
+        assert sampler.check(Pose(), aim, sampler.shapes([THETA[0]]), sampler.shapes(thetas), away)[0] == reason
