@@ -11,7 +11,7 @@ from pathlib import Path
 
 from pipeline.diagnosis import saved_model
 from pipeline.diagnosis.calibrate import calibrate, modal_summary
-from pipeline.diagnosis.damping_evidence import C1_MODES_HZ, damping_law_evidence
+from pipeline.diagnosis.damping_evidence import c1_modes_hz, damping_law_evidence
 from pipeline.diagnosis.diagnose import diagnose
 from pipeline.diagnosis.engine import EngineSimulator
 from pipeline.diagnosis.fitting import engine_check
@@ -123,7 +123,7 @@ def _with_damping_laws(data: dict, lines: list[str], material) -> None:
     """Add which damping law the library supports (:func:`~.damping_evidence.damping_law_evidence`)."""
     evidence = damping_law_evidence(material)
     data["damping_laws"] = evidence
-    lines.append(f"  damping law (untrimmed whiskers; C1 measured {' / '.join(f'{f:.0f}' for f in C1_MODES_HZ)} Hz):")
+    lines.append(f"  damping law (untrimmed whiskers; C1 measured {' / '.join(f'{f:.0f}' for f in c1_modes_hz())} Hz):")
     for law, row in evidence["laws"].items():
         c1 = row["c1"]
         modes = " / ".join("overdamped" if not math.isfinite(f) else f"{f:.0f} Hz ζ {z:.3f}"

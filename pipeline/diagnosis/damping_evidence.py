@@ -7,11 +7,11 @@ library's untrimmed whiskers (f1 and ζ1; the held-out whiskers of
 linear in it), two passes. Then
 
 - held-out error: RMS of ln(model/measured) of f1 and ζ1 on the held-out whiskers;
-- multi-mode evidence, Hartmann et al. (2003) C1: three clear resonances at 40 / 94 / 188 Hz
-  whose peak magnification grew with mode number, so ζ2 and ζ3 do not exceed ζ1 (a law is
-  consistent when all three in-plane modes oscillate and ζ2, ζ3 ≤ ζ1, within :data:`ZETA_TIE`);
-  the C1 geometry is the
-  model rat's RC1 (the paper's whisker of that name; the measured whisker's size is not printed);
+- multi-mode evidence, Hartmann et al. (2003) C1 (:func:`~pipeline.measurements.library.c1_modes`:
+  its measured geometry, S 53 mm, D 220 / 6 µm, straight): three clear resonances at
+  40 / 94 / 188 Hz whose peak magnification grew with mode number, so ζ2 and ζ3 do not exceed ζ1
+  (a law is consistent when all three in-plane modes oscillate and ζ2, ζ3 ≤ ζ1, within
+  :data:`ZETA_TIE`);
 - the C1 check: f1–f3 within 15 % of the measured, ζ1 in the untrimmed whiskers'
   0.11–0.17.
 
@@ -29,11 +29,9 @@ import numpy as np
 from pipeline.config.physics import MaterialConfig
 from pipeline.diagnosis.damping_laws import LAWS, in_plane_modes, rayleigh_spec, with_law
 from pipeline.diagnosis.parameters import ModelSpec
-from pipeline.measurements.library import load_library, split_held_out
-from pipeline.model.morphology import model_rat
+from pipeline.measurements.library import c1_modes, load_library, split_held_out
 from pipeline.model.whisker import WhiskerGeometry
 
-C1_MODES_HZ = np.array([40.0, 94.0, 188.0])     # Hartmann et al. 2003, untrimmed C1
 C1_TOLERANCE = 0.15
 ZETA1_RANGE = (0.11, 0.17)                      # untrimmed whiskers, both methods (library D-row tables)
 EQ3_ZETA1_PER_THETA = 0.23                      # ζ1 ≈ 0.23·θ_ζ under eq. 3 (start of its fit only)
@@ -44,8 +42,11 @@ ENGINE_LAWS = ("eq3", "kelvin_voigt", "rayleigh")   # modal: the diagnosis' line
 
 
 def c1_geometry() -> WhiskerGeometry:
-    w = model_rat()["RC1"]
-    return WhiskerGeometry(w.arc_length_m, w.base_radius_m, w.tip_radius_m, w.curvature_per_m)
+    return c1_modes().geometry
+
+
+def c1_modes_hz() -> np.ndarray:
+    return np.array(c1_modes().frequencies_hz)
 
 
 def _first_modes(spec: ModelSpec, records, law: str) -> tuple[np.ndarray, np.ndarray]:
@@ -79,7 +80,7 @@ def held_out_error(spec: ModelSpec, records, law: str) -> float:
 def c1_check(spec: ModelSpec, law: str) -> dict:
     """f1–f3 and ζ1–ζ3 of C1 under ``law``; the multi-mode consistency and the issue's check."""
     f, z = in_plane_modes(with_law(spec, c1_geometry(), law), 3)
-    errors = f / C1_MODES_HZ - 1
+    errors = f / c1_modes_hz() - 1
     consistent = bool(np.all(np.isfinite(z)) and max(z[1], z[2]) <= (1 + ZETA_TIE) * z[0])
     within = bool(np.all(np.abs(errors) <= C1_TOLERANCE)) if np.all(np.isfinite(f)) else False
     return {"f_hz": f.tolist(), "zeta": z.tolist(), "f_error": errors.tolist(), "multi_mode_consistent": consistent,

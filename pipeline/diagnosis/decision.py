@@ -18,8 +18,10 @@ held-out error e_c, ΔBIC and n·ln(RSS_c/RSS₀) on its training trials, and it
 - Decision (:func:`decide`): the baseline is inadequate when X is significant or when a
   candidate that passes the training test has z beyond its floor > ``Z_MIN``; otherwise
   "none". Then the candidate with the lowest held-out error among those that pass the
-  training test, with z beyond its floor > ``Z_MIN`` and φ ≥ ``EXPLAINED_MIN``; none such →
-  "unexplained".
+  training test, with z beyond its floor > ``Z_MIN`` and that explain the misfit: φ ≥
+  ``EXPLAINED_MIN``, or no significant excess left, e_c² − σ̂² − f² within ``SIGNIFICANT``
+  standard errors (an excess that is itself within the noise has no share to take); none
+  such → "unexplained".
 """
 
 from __future__ import annotations
@@ -92,7 +94,8 @@ def decide(evidence: dict, floor_fraction: float = None, explained_min: float = 
              if trained(c["name"], c["bic_delta"], c.get("fit_delta", float("nan"))) and z_beyond[c["name"]] > z_min]
     if significance(e0, noise, floor, n) <= SIGNIFICANT and not beats:
         return "none", shares
-    supported = [c for c in beats if shares[c["name"]] >= explained_min]
+    supported = [c for c in beats if shares[c["name"]] >= explained_min
+                 or significance(c["heldout_m"], noise, floor, n) <= SIGNIFICANT]
     if not supported:
         return "unexplained", shares
     best = min(supported, key=lambda c: c["heldout_m"])

@@ -9,6 +9,9 @@ Resonance tables, each with its conditions (``# conditions:`` line):
   Belli et al. 2017, Table 3);
 - ``hartmann2003_Drow_pluck``: the same four whiskers plucked, f1 and ζ1 from the free decay.
 
+Multi-mode evidence, not fitted (:func:`c1_modes`): ``hartmann2003_C1_modes``, the same rat's
+untrimmed C1 on the vibration table, f1–f3 with its measured geometry (Belli et al. 2017, Table 3).
+
 ``material_properties.csv``: Young's modulus (tensile, quasi-static and resonance methods) and
 density, with source, method, SD and n (not a resonance table; read by :func:`material_table`).
 
@@ -24,11 +27,12 @@ import csv
 from dataclasses import replace
 from pathlib import Path
 
-from pipeline.measurements.table import ResonanceTable, combine, load_table
+from pipeline.measurements.table import ResonanceRecord, ResonanceTable, combine, load_table
 
 DATA = Path(__file__).parent / "data"
 RESONANCE_SETS = ("paper_alpha_b1", "hartmann2003_Drow_vibration_table", "hartmann2003_Drow_pluck")
 MATERIAL_PROPERTIES = DATA / "material_properties.csv"
+C1_MODES = DATA / "hartmann2003_C1_modes.csv"
 HELD_OUT = {"hartmann2003_Drow_vibration_table": ("D2", "D4"), "hartmann2003_Drow_pluck": ("D2", "D4")}
 
 
@@ -49,6 +53,11 @@ def split_held_out(tables: list[ResonanceTable]) -> tuple[ResonanceTable, Resona
 
 def load_library() -> list[ResonanceTable]:
     return [load_table(p) for p in library_paths()]
+
+
+def c1_modes() -> ResonanceRecord:
+    """The untrimmed C1 of Hartmann et al. (2003): measured geometry and f1–f3 (no ζ printed)."""
+    return load_table(C1_MODES).records[0]
 
 
 def material_table() -> list[dict]:

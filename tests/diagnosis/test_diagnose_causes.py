@@ -49,14 +49,20 @@ def test_a_second_cause_is_named_on_both_folds_and_only_when_present(gamma, caus
 
 
 @pytest.mark.slow
-def test_follicle_and_stiffness_gradient_are_both_named_and_recovered(tmp_path):
+def test_follicle_and_stiffness_gradient_are_both_named_recovered_saved_and_run(tmp_path):
     """Synth scenario 17 (k_f ≈ k_w, 54 µm noise) plus γ = −1.2: both causes, each parameter
-    within 20 % (measured: k_f −0.2 %, c_f −0.4 %, γ +3.2 %, E −0.1 %), both in the model file
-    that ``--model`` reads."""
+    within 20 % in the diagnosis and in the saved model file, and ``trial --model`` and
+    ``simulate --model`` run both effects."""
+    import pipeline.datasets as datasets
     from pipeline.config.model_file import read_model_file
+    from pipeline.config.physics import ModelConfig
     from pipeline.diagnosis.commands import _save_diagnosis
     from pipeline.diagnosis.diagnose import diagnose
     from pipeline.measurements.timeseries import write_timeseries
+    from pipeline.model.effects.follicle import CompliantFollicle
+    from pipeline.model.effects.registry import model_parts
+    from pipeline.model.effects.stiffness_gradient import StiffnessGradient
+    from tests.config.test_model_file import _simulate_records, ok
 
     truth, measurement = _follicle_draw(-1.2)
     result = diagnose(measurement)
@@ -65,9 +71,21 @@ def test_follicle_and_stiffness_gradient_are_both_named_and_recovered(tmp_path):
     for name in ("E", "follicle.k_f", "follicle.c_f", "stiffness_gradient.gamma"):
         assert result.final.values[name] == pytest.approx(truth[name], rel=0.2), name
     data = write_timeseries(tmp_path / "two.h5", measurement)
-    saved = read_model_file(_save_diagnosis(tmp_path / "M.yaml", result, data, measurement.geometry, "W"))
-    assert {"follicle", "stiffness_gradient"} <= set(saved.content.extension_values())
-    assert saved.content.provenance.fit.cause == "follicle+stiffness_gradient"
+    model = _save_diagnosis(tmp_path / "M.yaml", result, data, measurement.geometry, "W")
+    saved = read_model_file(model).content
+    assert saved.provenance.fit.cause == "follicle+stiffness_gradient"
+    values = saved.extension_values()
+    for name in ("follicle.k_f", "follicle.c_f", "stiffness_gradient.gamma"):
+        extension, parameter = name.split(".")
+        assert values[extension][parameter] == pytest.approx(truth[name], rel=0.2), name
+    assert saved.material.youngs_modulus_gpa * 1e9 == pytest.approx(truth["E"], rel=0.2)
+    kinds = {type(effect) for effect in model_parts(ModelConfig(file=model))[1]}
+    assert {CompliantFollicle, StiffnessGradient} <= kinds
+    out = tmp_path / "trial.h5"
+    ok("trial", "--model", model, "--engine", "mujoco", "--whiskers", "RC1", "--duration-s", "0.03", "--out", out)
+    with datasets.open_file(out) as ds:
+        assert {k: ds.provenance["config"]["extensions"][k] for k in values} == values
+    _simulate_records(tmp_path, model, trials=2)
 
 
 def test_a_damping_law_is_decided_on_the_held_out_trials():

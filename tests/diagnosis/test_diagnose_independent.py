@@ -65,6 +65,20 @@ def test_decision_names_a_cause_only_for_a_substantial_share_of_the_excess():
     assert decide(_evidence(baseline, noise, [("drag", leaving(0.8 * EXPLAINED_MIN))]))[0] == "unexplained"
 
 
+def test_a_cause_that_leaves_no_significant_excess_is_named_whatever_its_share():
+    """First generator, draw 1008 (twist): twist wins by z 5.65 (ΔBIC −30) with a gain of 46 % of
+    an excess that is itself 0.8 standard errors (σ̂ under the true noise by 0.3 µm): with the
+    share alone it was "unexplained"; it leaves no significant excess, so it is named."""
+    from pipeline.diagnosis.decision import EXPLAINED_MIN, decide, significance
+
+    evidence = _evidence(51.267e-6, 50.931e-6, [("twist", 51.131e-6), ("follicle", 51.266e-6)], 6.985e-5, 11277)
+    evidence["candidates"][0].update(z=5.65, bic_delta=-30.3, absorbs=0.0002)
+    evidence["candidates"][1].update(z=0.88, bic_delta=18.7)
+    named, shares = decide(evidence)
+    assert shares["twist"] < EXPLAINED_MIN and significance(51.131e-6, 50.931e-6, 0.0, 11277) < 3
+    assert named == "twist"
+
+
 def test_effect_free_noise_free_draw_gives_the_true_modulus():
     """The diagnosis (chain + continuum corrections) on an effect-free truth draw without
     tracking noise: "none", E within 0.5 % and within 2 of its SDs (measured +0.10 %, SD 0.12 %,

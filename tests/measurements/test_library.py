@@ -4,7 +4,7 @@ import pytest
 
 from pipeline.config.material import MATERIAL_PRESETS, MaterialConfig
 from pipeline.errors import UserError
-from pipeline.measurements.library import HELD_OUT, library_paths, load_library, material_table, split_held_out
+from pipeline.measurements.library import HELD_OUT, c1_modes, library_paths, load_library, material_table, split_held_out
 from pipeline.measurements.table import combine, load_table
 
 HEADER = "# whisker-pipeline/resonance-table version 1\n"
@@ -23,6 +23,14 @@ def test_library_ships_cited_sets_with_conditions():
     assert all(r.damping_measure == "modal" for r in vibration.records + pluck.records)
     moduli = [r for r in material_table() if r["quantity"] == "E" and r["method"] == "uniaxial tensile test"]
     assert moduli[0]["value"] == pytest.approx(3.34) and moduli[0]["sd"] == pytest.approx(1.48)
+
+
+def test_c1_has_three_measured_modes_and_its_own_geometry():
+    """Hartmann et al. 2003's C1 (not a fitted set): Belli et al. 2017 Table 3's row of that rat."""
+    c1 = c1_modes()
+    assert c1.frequencies_hz == (40.0, 94.0, 188.0)
+    assert (c1.geometry.arc_length_m, c1.geometry.base_radius_m, c1.geometry.tip_radius_m) == (0.053, 110e-6, 3e-6)
+    assert c1.source not in {r.source for t in load_library() for r in t.records}
 
 
 def test_held_out_whiskers_are_kept_apart():
