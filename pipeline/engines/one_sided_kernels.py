@@ -1,7 +1,8 @@
 """The per-point arithmetic of :mod:`pipeline.engines.one_sided`, compiled (numba): the point of
 a triangle nearest a point, in double precision, and a capsule axis point's one-sided contact
-with the surface. Plain scalar functions, called in loops by both engines' contacts (a few
-dozen points per call, where numpy's per-operation overhead dominated). Internal units mm.
+with the surface, and a link's distinct contact points. Plain scalar functions, called in loops
+by both engines' contacts (a few dozen points per call, where numpy's per-operation overhead
+dominated). Internal units mm.
 """
 
 from __future__ import annotations
@@ -84,3 +85,28 @@ def one_sided_points(local: np.ndarray, nearest: np.ndarray, outward: np.ndarray
         points[i, 0], points[i, 1], points[i, 2] = axis[i, 0] - radii[i] * nx, axis[i, 1] - radii[i] * ny, \
             axis[i, 2] - radii[i] * nz
     return kept, points, normals, gaps
+
+
+@numba.njit(cache=True)
+def distinct_points(order: np.ndarray, links: np.ndarray, points: np.ndarray, normals: np.ndarray,
+                    merge_mm: float) -> np.ndarray:
+    """Indices of the points kept, in ``order`` (deepest first): a point is dropped when an earlier
+    kept point of the same link (``links`` [N]) lies within ``merge_mm`` of it (``points`` [N, 3])
+    or has a normal opposing its (``normals`` [N, 3], negative dot product)."""
+    chosen = np.empty(len(order), np.int64)
+    count = 0
+    for i in order:
+        distinct = True
+        for c in range(count):
+            k = chosen[c]
+            if links[k] != links[i]:
+                continue
+            dx, dy, dz = points[k, 0] - points[i, 0], points[k, 1] - points[i, 1], points[k, 2] - points[i, 2]
+            if (dx * dx + dy * dy + dz * dz < merge_mm * merge_mm
+                    or normals[k, 0] * normals[i, 0] + normals[k, 1] * normals[i, 1] + normals[k, 2] * normals[i, 2] < 0.0):
+                distinct = False
+                break
+        if distinct:
+            chosen[count] = i
+            count += 1
+    return chosen[:count]

@@ -33,9 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.engines.bullet.client import BulletClient
-from pipeline.engines.bullet.distinct import distinct_points
 from pipeline.engines.bullet.gauss_seidel import gauss_seidel
 from pipeline.engines.one_sided import MERGE_MM, one_sided
+from pipeline.engines.one_sided_kernels import distinct_points
 
 CONTACT_REACH_MM = 0.25      # speculative contact distance (a tip moves ≲ 0.15 mm per step)
 CLEARANCE_MM = 1.0           # distance queried: a gap found up to this is a whisker's leeway (find_contacts)
@@ -105,7 +105,7 @@ def _distinct(kept: np.ndarray, link_of: np.ndarray, where: np.ndarray, normals:
               velocity: np.ndarray) -> list[ContactPoint]:
     """The ``kept`` points, deepest first, less those within :data:`MERGE_MM` of a deeper one of
     the same link or with a normal opposing its (:func:`find_contacts`,
-    :func:`~pipeline.engines.bullet.distinct.distinct_points`)."""
+    :func:`~pipeline.engines.one_sided_kernels.distinct_points`)."""
     order = np.argsort(gaps, kind="stable")
     order = order[np.asarray(kept, bool)[order]]
     chosen = distinct_points(order, link_of, np.asarray(where, float), np.asarray(normals, float), MERGE_MM)

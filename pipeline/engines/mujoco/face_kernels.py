@@ -11,7 +11,7 @@ import math
 import numba
 import numpy as np
 
-from pipeline.engines.one_sided_kernels import closest_on_triangle, one_sided_contact
+from pipeline.engines.one_sided_kernels import closest_on_triangle, distinct_points, one_sided_contact
 
 
 @numba.njit(cache=True)
@@ -120,23 +120,7 @@ def _distinct(kept: np.ndarray, link_of: np.ndarray, points: np.ndarray, normals
             order[j + 1] = order[j]
             j -= 1
         order[j + 1] = item
-    chosen = np.empty(len(order), np.int64)
-    count = 0
-    for i in order:
-        free = True
-        for c in range(count):
-            j = chosen[c]
-            if link_of[j] != link_of[i]:
-                continue
-            dx, dy, dz = points[i, 0] - points[j, 0], points[i, 1] - points[j, 1], points[i, 2] - points[j, 2]
-            if dx * dx + dy * dy + dz * dz < duplicate * duplicate or \
-                    normals[i, 0] * normals[j, 0] + normals[i, 1] * normals[j, 1] + normals[i, 2] * normals[j, 2] < 0.0:
-                free = False
-                break
-        if free:
-            chosen[count] = i
-            count += 1
-    return chosen[:count]
+    return distinct_points(order, link_of, points, normals, duplicate)
 
 
 @numba.njit(cache=True)
