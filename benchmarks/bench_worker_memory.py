@@ -5,7 +5,8 @@ Run: .venv/bin/python benchmarks/bench_worker_memory.py [--trials 20] [--engine 
      [--recordings FOLDER --record-every 10]
 
 The trials are those of configs/simulate.yaml beside the built meshes (`pipeline build-meshes`
-first); with ``--recordings`` every K-th trial is recorded (rerun) as a run records it. Prints
+first); with ``--recordings`` every K-th trial is also recorded (rerun) in this process, as a run's
+writer does it (pipeline/runner/recording.py; a run's workers never record). Prints
 the RSS after each trial, untrimmed and after the trim, the process's peak RSS so far (the high-water mark, reached inside a trial) and the trim's cost; at the end the growth
 of the RSS after the trim, least squares over the trials after the first ten (MB per 100 trials).
 """
@@ -23,6 +24,7 @@ import psutil
 from pipeline.config.loader import load_config
 from pipeline.config.simulate import SimulateConfig
 from pipeline.runner.memory import release_free_memory
+from pipeline.runner.recording import TrialRecorder
 from pipeline.runner.scenes import scene_catalogue
 from pipeline.runner.simulate import _layout
 from pipeline.runner.trial import RunSpec, Simulator
@@ -42,13 +44,15 @@ def main() -> None:
         "model": {"engine": {"name": args.engine}}, "scenes": {"folder": str(REPO / "outputs" / "meshes")},
         "cluster": {"record_every": args.record_every}})
     recordings = "" if args.recordings is None else str(args.recordings.resolve())
-    simulator = Simulator(RunSpec(config, scene_catalogue(config.scenes), _layout(config), recordings=recordings))
+    spec = RunSpec(config, scene_catalogue(config.scenes), _layout(config), recordings=recordings)
+    simulator, recorder = Simulator(spec), TrialRecorder(spec)
     process = psutil.Process()
     print("trial  status  cpu_s  rss_MB  rss_after_trim_MB  peak_MB  trim_ms")
     peak_untrimmed = peak_trimmed = 0.0
     kept = []
     for index in range(args.trials):
         result = simulator.run(index)
+        recorder.record(result)
         untrimmed = process.memory_info().rss / 1e6
         start = time.perf_counter()
         if not args.no_trim:

@@ -6,8 +6,9 @@ of the unfinished newest version, which must have been started with the same con
 time; each result is written as it arrives (``as_completed(..., with_results=True)``) and its
 future released once written, so a worker that dies only costs the trials it was running, which
 dask runs again; the writer never writes a trial twice. A finished version gets its manifest.
-The dataset's books (its folder, attributes, totals) are :mod:`pipeline.datasets.runs`.
-Workers of an existing scheduler must see the same paths (meshes, the version's recordings).
+The dataset's books (its folder, attributes, totals) are :mod:`pipeline.datasets.runs`; this
+process also writes the rerun recordings (:mod:`pipeline.runner.recording`), each before its
+trial's row. Workers of an existing scheduler must see the same paths (the version's meshes).
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from pipeline.model.morphology import load_morphology
 from pipeline.runner.cluster import dask_client
 from pipeline.runner.plugin import SimulatorPlugin, run_trial
 from pipeline.runner.progress import progress as run_progress, trials_per_hour
+from pipeline.runner.recording import TrialRecorder
 from pipeline.runner.scenes import SceneEntry, copy_meshes, scene_catalogue
 from pipeline.runner.trial import RunSpec, TrialResult, load_whisk_table
 from pipeline.scenes.head_paths import load_head_table
@@ -161,6 +163,7 @@ def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _T
     # Ctrl-C/SIGTERM while the cluster shuts down. Task errors reach the run through the futures.
     for logger in ("asyncio", "tornado.application"):
         logging.getLogger(logger).setLevel(logging.CRITICAL)
+    recorder = TrialRecorder(spec)
     with dask_client(config.cluster) as client:
         name = f"whisker-simulator-{uuid.uuid4().hex[:8]}"
         client.register_plugin(SimulatorPlugin(spec, name), name=name)
@@ -173,6 +176,7 @@ def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _T
                         status=FAILED, error=f"{type(result).__name__}: {result}",
                         scene=scenes[index % len(scenes)].name, seed=config.seed))
                 before = time.perf_counter()
+                recorder.record(result)
                 fresh = writer.write(index, result.record, result.arrays)
                 tally.write_seconds += time.perf_counter() - before
                 tally.written += fresh

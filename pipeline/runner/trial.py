@@ -10,7 +10,9 @@ the dataset stores the head's pose at every sample. The passive-peg scene has no
 :class:`~pipeline.protocols.whisking.Whisking` (array and engine), the loaded scenes and pose
 samplers per process, built on first use; a trial that raises comes back as a failed record
 carrying the error, never as an exception; a full disk or a :class:`RunAborted` (a mesh
-changed) comes back as ``abort``: the run stops, the trial pending.
+changed) comes back as ``abort``: the run stops, the trial pending. Every ``record_every``-th
+trial of a run with a recordings folder comes back with its output and pose, for the run's
+writer to record (:mod:`pipeline.runner.recording`): a worker never loads rerun.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from pipeline.datasets.schema import FAILED, OK, TrialRecord
 from pipeline.datasets.writer import Layout, trial_arrays
 from pipeline.errors import RunAborted, UserError
 from pipeline.model.kinematics import Pose, ProtractionDrive, sinusoidal_whisk, still
+from pipeline.model.outputs import TrialOutput
 from pipeline.protocols.whisking import Whisking
 from pipeline.runner.scenes import SceneEntry
 from pipeline.scenes.head_paths import draw_head_motion
@@ -55,6 +58,7 @@ class TrialResult:
     record: TrialRecord
     arrays: dict[str, np.ndarray] | None = None
     abort: Exception | None = None    # a full disk or RunAborted: the run stops, the trial stays pending
+    recording: tuple[TrialOutput, Pose] | None = None   # what the run's writer records (runner.recording)
 
 
 def load_whisk_table(path: Path) -> tuple[tuple[float, ...], tuple[float, ...]]:
@@ -115,7 +119,7 @@ class Simulator:
         start_wall, start_cpu = time.perf_counter(), time.process_time()
         entry = spec.scenes[index % len(spec.scenes)]
         record = TrialRecord(scene=entry.name, seed=config.seed, worker=f"{socket.gethostname()}:{os.getpid()}")
-        arrays = None
+        arrays = recording = None
         try:
             rng = np.random.default_rng([config.seed, index])
             scene = self.scene(entry)
@@ -145,7 +149,7 @@ class Simulator:
             arrays = trial_arrays(output, drive(output.time_s), spec.layout, head)
             every = config.cluster.record_every
             if spec.recordings and every and index % every == 0:
-                record.recording_seconds = self._record(index, output, scene, pose)
+                recording = (output, pose)
             record.status = OK
         except Exception as exc:          # a failed trial is data: recorded with its error
             if isinstance(exc, RunAborted) or is_disk_full(exc):
@@ -155,18 +159,7 @@ class Simulator:
                 record.pose_attempts, record.pose_rejections = exc.attempts, tuple(exc.rejections.values())
         record.cpu_seconds = time.process_time() - start_cpu
         record.wall_seconds = time.perf_counter() - start_wall
-        return TrialResult(index, record, arrays)
-
-    def _record(self, index: int, output, scene, pose) -> float:
-        # imported here, not at the top: rerun ≈0.29 CPU-s on a worker's start-up, paid only when recording
-        from pipeline.recordings import write_recording
-        from pipeline.recordings.viewer import recording_name
-
-        start = time.perf_counter()
-        write_recording(Path(self.spec.recordings) / recording_name(index), output, scene, pose,
-                        recording_id=f"{self.spec.title}/trial-{index}",
-                        title=f"{self.spec.title} trial {index} ({scene.name})")
-        return time.perf_counter() - start
+        return TrialResult(index, record, arrays, recording=None if arrays is None else recording)
 
     def close(self) -> None:
         self.whisking.close()
