@@ -29,9 +29,9 @@ sensors and link positions are those of the sub-steps at the step's start.
 In a sub-step the driven joints land on the step's targets interpolated linearly from where
 the step started, the springs are treated as in a step of h/n (the damping fold D − (h/n)·K,
 or the explicit (h/n)·K·v force, package docstring, Integration), the link loads are those of
-the step's start, the sensors are off (but at a recorded step's start), the solver makes all its
-sweeps (its stop, scaled by the world's inertia and dofs, made a whisker's sub-steps depend on the
-other whiskers of its world) and only the links of the
+the step's start, the sensors are off (but at a recorded step's start), the solver stops at
+:data:`SUBSTEP_SOLVER_TOLERANCE` (MuJoCo scales its stop by the world's inertia and dofs: at its
+default a whisker's sub-steps depended on the other whiskers of its world) and only the links of the
 whiskers sub-stepped collide (the others' sub-steps are not used). What a step records (sensors
 and node positions describe its start) is otherwise the full step's. Internal units mm–mg–s.
 """
@@ -46,6 +46,7 @@ import numpy as np
 SUBSTEPS = 4        # sub-steps of a step that lost a whisker's contact (0.16 → 0.011 mm, RC3 at 85 %)
 PREDICTED_DEPTH_MM = 0.05    # a lost contact carried to the step's end this deep (contact_statics: a pass-through)
 ENTRY_DEPTH_MM = 0.02        # a link's new contact this deep: the steps around its entry in sub-steps
+SUBSTEP_SOLVER_TOLERANCE = 1e-10   # sub-steps' PGS stop (MuJoCo scales it by the world's inertia: 1e-8 made them world-dependent)
 _SENSOR = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 
 
@@ -177,7 +178,7 @@ class ContactLossSubsteps:
         geom_contype, body_contype = m.geom_contype.copy(), m.body_contype.copy()
         others = np.flatnonzero((self.member_of_geom[:-1] >= 0) & ~chosen[self.member_of_geom[:-1]])
         m.geom_contype[others] = m.body_contype[m.geom_bodyid[others]] = 0      # only theirs collide
-        m.opt.timestep, m.opt.tolerance = h, 0.0       # every sweep: the solver's stop depends on the world
+        m.opt.timestep, m.opt.tolerance = h, SUBSTEP_SOLVER_TOLERANCE
         m.dof_damping[:] = damping + self.damping_change
         touched = np.zeros(len(self.touching), bool)
         try:
