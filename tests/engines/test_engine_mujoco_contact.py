@@ -6,7 +6,6 @@ import pytest
 
 from pipeline.config.physics import EngineConfig, MaterialConfig, ModelConfig
 from pipeline.engines import create_engine
-from pipeline.engines.mujoco import substeps
 from pipeline.engines.mujoco.substeps import ContactLossSubsteps
 from pipeline.model.array import build_array, single_whisker
 from pipeline.model.kinematics import Pose, ProtractionDrive, sinusoidal_whisk
@@ -160,35 +159,3 @@ def test_contacts_found_in_sub_steps_enter_the_sample_flags(monkeypatch):
     for start, links in found:
         sample = int(np.floor(start / period + 1e-9))             # the steps starting in [t_k, t_k+1)
         assert out.contact[sample, 0, links].all()
-
-
-
-def _continuing_depths_mm(monkeypatch, tmp_path, entry_depth_mm: float) -> np.ndarray:
-    """RC1 whisking at 12 Hz into the corrugated wall at the default step: the depths (mm) of
-    its contacts at every step's start on links that were in contact at the last step's start."""
-    from test_engine_mujoco import _wavy_wall
-
-    starts: list[tuple[np.ndarray, np.ndarray]] = []
-    step = ContactLossSubsteps.step
-
-    def recording(self, d, targets):
-        step(self, d, targets)
-        contacts = self._contacts(d) if d.ncon else (np.zeros(0, int),) * 6
-        starts.append((contacts[1], -np.asarray(contacts[-1], float)))
-
-    config = ModelConfig(engine=EngineConfig(name="mujoco"))
-    with monkeypatch.context() as patch:
-        patch.setattr(substeps, "ENTRY_DEPTH_MM", entry_depth_mm)
-        patch.setattr(ContactLossSubsteps, "step", recording)
-        with create_engine(config, build_array(model_rat().select("RC1"), config.material)) as engine:
-            engine.run(_wavy_wall(tmp_path), Pose(), sinusoidal_whisk(frequency_hz=12.0, duration_s=0.06), 0.06)
-    return np.concatenate([depth[np.isin(bodies, before)] for (before, _), (bodies, depth) in zip(starts, starts[1:])])
-
-
-def test_a_link_meeting_a_mesh_deep_is_met_again_in_sub_steps(monkeypatch, tmp_path):
-    """A tip that meets the wall during a step is found as deep as it travelled (up to 0.14 mm
-    here); the step before and that one are taken again in sub-steps
-    (pipeline.engines.mujoco.substeps, Contact entry), so the contact is not carried on from
-    that depth: the deepest a link in contact then sinks drops from 97 to 64 µm."""
-    assert _continuing_depths_mm(monkeypatch, tmp_path, np.inf).max() > 0.09
-    assert _continuing_depths_mm(monkeypatch, tmp_path, substeps.ENTRY_DEPTH_MM).max() < 0.08

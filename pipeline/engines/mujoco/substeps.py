@@ -1,6 +1,6 @@
-"""Steps on which a whisker's contact is lost, or enters deep, taken again for that whisker in sub-steps.
+"""A step on which a whisker lost its last contact, taken again for that whisker in sub-steps.
 
-Contact loss. A whisker pressed into an obstacle lets its contact drift out as it slides off (near
+A whisker pressed into an obstacle lets its contact drift out as it slides off (near
 slip-off): the first step whose collision finds none of its links penetrating integrates the
 whole step without the contact, and the light distal links, released, move up to a·h² into
 the obstacle before the next step's collision sees them (RC3 touching a peg at 85 % of S:
@@ -15,25 +15,12 @@ the full step's, and the contacts the sub-steps found (read as the world reads a
 sub-step's start) are kept in :attr:`ContactLossSubsteps.found` for the step's contact flags. Each whisker is its own kinematic tree and constraint island, so a whisker's
 result does not depend on another's sub-steps (Independence, :mod:`pipeline.engines.mujoco`).
 
-Contact entry. A link that meets an obstacle during a step is found by the next step's
-collision as deep as it travelled past the surface, up to its speed times h (a whisker tip
-chattering on a scan: 20–250 µm at h = 10⁻⁴ s, mostly below 20 µm at h/2), and the soft
-contact's push back, and with it the tip's next bounce and the base force, grows with that
-depth: the same trial's peak transverse force moved by up to 20 % when the step was halved.
-Where a step's start finds a link in contact that was not at the previous step's start, more
-than :data:`ENTRY_DEPTH_MM` deep, the previous step and this one are taken again for that
-whisker from the previous step's start, each in :data:`SUBSTEPS` sub-steps, so that the
-contact is met at most a quarter of a step's travel deep; on a recorded step the whisker's
-sensors and link positions are those of the sub-steps at the step's start.
-
 In a sub-step the driven joints land on the step's targets interpolated linearly from where
 the step started, the springs are treated as in a step of h/n (the damping fold D − (h/n)·K,
 or the explicit (h/n)·K·v force, package docstring, Integration), the link loads are those of
-the step's start, the sensors are off (but at a recorded step's start), the solver stops at
-:data:`SUBSTEP_SOLVER_TOLERANCE` (MuJoCo scales its stop by the world's inertia and dofs: at its
-default a whisker's sub-steps depended on the other whiskers of its world) and only the links of the
-whiskers sub-stepped collide (the others' sub-steps are not used). What a step records (sensors
-and node positions describe its start) is otherwise the full step's. Internal units mm–mg–s.
+the step's start, the sensors are off and only the links of the whiskers sub-stepped collide
+(the others' sub-steps are not used). What the step records (sensors and node positions
+describe its start) is the full step's. Internal units mm–mg–s.
 """
 
 from __future__ import annotations
@@ -45,15 +32,11 @@ import numpy as np
 
 SUBSTEPS = 4        # sub-steps of a step that lost a whisker's contact (0.16 → 0.011 mm, RC3 at 85 %)
 PREDICTED_DEPTH_MM = 0.05    # a lost contact carried to the step's end this deep (contact_statics: a pass-through)
-ENTRY_DEPTH_MM = 0.02        # a link's new contact this deep: the steps around its entry in sub-steps
-SUBSTEP_SOLVER_TOLERANCE = 1e-10   # sub-steps' PGS stop (MuJoCo scales it by the world's inertia: 1e-8 made them world-dependent)
-_SENSOR = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 
 
 class ContactLossSubsteps:
     """The step of a world (``step_function(m, d)``: ``mj_step`` or the scan contacts' step), with
-    the steps on which a whisker lost its last contact, or met a contact deep, taken again in
-    sub-steps for it (module docstring).
+    the steps on which a whisker lost its last contact taken again in sub-steps for it.
 
     ``kinematic``, ``armature``: the driven dofs and their armatures (the step's kinematic
     force); ``stiffness`` [nv] each dof's spring, ``folded`` [nv] whether its damping has h·K
@@ -77,54 +60,37 @@ class ContactLossSubsteps:
         self.damping_change = np.where(folded, (self.h - self.h_sub) * stiffness, 0.0)
         self.spring_rate_sub = np.where(folded, 0.0, self.h_sub * stiffness)
         self.touching = np.zeros(members, bool)
-        self.body_touching = np.zeros(model.nbody, bool)       # links in contact at the last step's start
-        self.entries = 0                                      # steps taken again for a deep entry
         self._last: tuple[np.ndarray, ...] = ()
         self._scratch: mujoco.MjData | None = None
-        self._starts = [_StepStart(model, len(kinematic)) for _ in range(2)]   # this step's, the last one's
-        self._last_valid = False
+        self._start = (np.empty(model.nq), np.empty(model.nv), np.empty(model.nv))
 
     def reset(self) -> None:
         """A new trial: no whisker touches."""
         self.touching[:] = False
-        self.body_touching[:] = False
         self.found = []
-        self._last_valid = False
 
     def step(self, d: mujoco.MjData, targets: np.ndarray) -> None:
         """One step of ``d`` whose driven joints land on ``targets``; a whisker that touched at
         the last step, does not at this one's start and would end it inside the obstacle takes
-        this step in sub-steps; one that meets a contact deeper than ENTRY_DEPTH_MM at this
-        step's start takes the last step and this one in sub-steps."""
+        this step in sub-steps."""
         if self.found:
             self.found = []
-        self._starts.reverse()
-        start, before = self._starts
-        start.save(d, targets)
-        records = not self.model.opt.disableflags & _SENSOR
         had = self.touching.any()
-        last = self._last
+        if had:
+            for saved, now in zip(self._start, (d.qpos, d.qvel, d.qacc_warmstart)):
+                np.copyto(saved, now)
+            start_time, last = d.time, self._last
         self.step_function(self.model, d)
         if not (had or d.ncon):
-            self._last_valid = True
             return
         self._last = self._contacts(d)
-        members, bodies, gaps = self._last[0], self._last[1], self._last[-1]
         now = np.zeros(len(self.touching), bool)
-        now[members] = True
-        entering = np.zeros(len(self.touching), bool)
-        entering[members[~self.body_touching[bodies] & (gaps < -ENTRY_DEPTH_MM)]] = True
-        self.body_touching[:] = False
-        self.body_touching[bodies] = True
+        now[self._last[0]] = True
         lost = self.touching & ~now
         if lost.any():
             lost &= self._sinking(d, last, lost)
             if lost.any():
-                now |= self._substeps(d, start, [start], lost, False) & lost
-        if entering.any() and self._last_valid and abs(start.time - before.time - self.h) < 1e-6 * self.h:
-            self.entries += 1
-            self._substeps(d, before, [before, start], entering, records)
-        self._last_valid = True
+                now |= self._substeps(d, targets, lost, start_time) & lost
         self.touching = now
 
     def _contacts(self, d: mujoco.MjData) -> tuple[np.ndarray, ...]:
@@ -161,74 +127,37 @@ class ContactLossSubsteps:
             self._scratch = mujoco.MjData(self.model)
         return self._scratch
 
-    def _substeps(self, d: mujoco.MjData, origin: _StepStart, steps: list[_StepStart], chosen: np.ndarray,
-                  records: bool) -> np.ndarray:
-        """The ``steps`` (each landing on its targets with its loads) taken again from ``origin``
-        in sub-steps, the ``chosen`` whiskers' joints set to the end state in ``d`` (with
-        ``records``, also their sensors and link positions at the last step's start); [members]
-        whether each touched in a sub-step."""
+    def _substeps(self, d: mujoco.MjData, targets: np.ndarray, lost: np.ndarray, start_time: float) -> np.ndarray:
+        """The step taken again from its start in sub-steps, the ``lost`` whiskers' joints set to
+        their end state in ``d``; [members] whether each touched in a sub-step."""
         m = self.model
         e = self._scratch_data()
-        e.time = origin.time
-        for into, saved in zip((e.qpos, e.qvel, e.qacc_warmstart), (origin.qpos, origin.qvel, origin.warmstart)):
+        e.time = start_time
+        for into, saved in zip((e.qpos, e.qvel, e.qacc_warmstart), self._start):
             np.copyto(into, saved)
-        e.mocap_pos[:], e.mocap_quat[:] = d.mocap_pos, d.mocap_quat
+        e.mocap_pos[:], e.mocap_quat[:], e.xfrc_applied[:] = d.mocap_pos, d.mocap_quat, d.xfrc_applied
         kinematic, h = self.kinematic, self.h_sub
-        flags, damping, tolerance = m.opt.disableflags, m.dof_damping.copy(), m.opt.tolerance
+        start = e.qpos[kinematic].copy()
+        flags, damping = m.opt.disableflags, m.dof_damping.copy()
         geom_contype, body_contype = m.geom_contype.copy(), m.body_contype.copy()
-        others = np.flatnonzero((self.member_of_geom[:-1] >= 0) & ~chosen[self.member_of_geom[:-1]])
+        others = np.flatnonzero((self.member_of_geom[:-1] >= 0) & ~lost[self.member_of_geom[:-1]])
         m.geom_contype[others] = m.body_contype[m.geom_bodyid[others]] = 0      # only theirs collide
-        m.opt.timestep, m.opt.tolerance = h, SUBSTEP_SOLVER_TOLERANCE
+        m.opt.timestep = h
+        m.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
         m.dof_damping[:] = damping + self.damping_change
         touched = np.zeros(len(self.touching), bool)
         try:
-            for n, step in enumerate(steps):
-                e.xfrc_applied[:] = step.loads
-                start = e.qpos[kinematic].copy()
-                for i in range(1, SUBSTEPS + 1):
-                    sensing = records and n == len(steps) - 1 and i == 1
-                    m.opt.disableflags = flags & ~_SENSOR if sensing else flags | _SENSOR
-                    goal = start + (step.targets - start) * (i / SUBSTEPS)
-                    np.multiply(self.spring_rate_sub, e.qvel, out=e.qfrc_applied)
-                    e.qfrc_applied[kinematic] = self.armature * (((goal - e.qpos[kinematic]) / h - e.qvel[kinematic]) / h)
-                    self.step_function(m, e)
-                    touched[self._contacts(e)[0]] = True
-                    self.found.append(self.read_contacts(e))
-                    if sensing:
-                        self._take_record(d, e, chosen)
+            for i in range(1, SUBSTEPS + 1):
+                goal = start + (targets - start) * (i / SUBSTEPS)
+                np.multiply(self.spring_rate_sub, e.qvel, out=e.qfrc_applied)
+                e.qfrc_applied[kinematic] = self.armature * (((goal - e.qpos[kinematic]) / h - e.qvel[kinematic]) / h)
+                self.step_function(m, e)
+                touched[self._contacts(e)[0]] = True
+                self.found.append(self.read_contacts(e))
         finally:
-            m.opt.timestep, m.opt.tolerance, m.opt.disableflags, m.dof_damping[:] = self.h, tolerance, flags, damping
+            m.opt.timestep, m.opt.disableflags, m.dof_damping[:] = self.h, flags, damping
             m.geom_contype[:], m.body_contype[:] = geom_contype, body_contype
-        dofs = np.isin(self.dof_member, np.flatnonzero(chosen))     # hinges and slides: qpos = dof address
+        dofs = np.isin(self.dof_member, np.flatnonzero(lost))     # hinges and slides: qpos = dof address
         for into, state in ((d.qpos, e.qpos), (d.qvel, e.qvel), (d.qacc_warmstart, e.qacc_warmstart)):
             into[dofs] = state[dofs]
         return touched
-
-    def _take_record(self, d: mujoco.MjData, e: mujoco.MjData, chosen: np.ndarray) -> None:
-        """The ``chosen`` whiskers' sensors (force and torque, 6 per member) and link and site
-        positions in ``d`` replaced by those of ``e`` (a sub-step's start)."""
-        m = self.model
-        rows = np.flatnonzero(chosen)
-        d.sensordata.reshape(-1, 6)[rows] = e.sensordata.reshape(-1, 6)[rows]
-        geoms = np.flatnonzero(chosen[self.member_of_geom[:-1]] & (self.member_of_geom[:-1] >= 0))
-        bodies = np.zeros(m.nbody, bool)
-        bodies[m.geom_bodyid[geoms]] = True
-        d.xpos[bodies], d.xmat[bodies] = e.xpos[bodies], e.xmat[bodies]
-        sites = bodies[m.site_bodyid]
-        d.site_xpos[sites] = e.site_xpos[sites]
-
-
-class _StepStart:
-    """The state a step started from (joints, warm start, time) and what it was given (driven
-    joints' targets, link loads)."""
-
-    def __init__(self, model: mujoco.MjModel, kinematic: int):
-        self.qpos, self.qvel, self.warmstart = np.empty(model.nq), np.empty(model.nv), np.empty(model.nv)
-        self.loads, self.targets = np.empty((model.nbody, 6)), np.empty(kinematic)
-        self.time = np.nan
-
-    def save(self, d: mujoco.MjData, targets: np.ndarray) -> None:
-        for saved, now in ((self.qpos, d.qpos), (self.qvel, d.qvel), (self.warmstart, d.qacc_warmstart),
-                           (self.loads, d.xfrc_applied), (self.targets, targets)):
-            np.copyto(saved, now)
-        self.time = d.time
