@@ -8,6 +8,9 @@ Run: .venv/bin/python benchmarks/bench_contact_friction.py [--whiskers RC1,RC3,R
 ``--faces``: the tip on a flat face at an incline instead (:mod:`pipeline.reports.tip_friction`),
 each engine on a Box and on the same box as a triangle mesh, against the frictional elastica:
 RMS errors, how often the tip's stick or slip disagrees with the elastica's, the slip onsets.
+``--sawtooth AMPLITUDE_UM,PERIOD_UM``: the face made rough (:func:`pipeline.reports.tip_friction.sawtooth_obstacle`),
+each engine at its default step and at every step halved: peak |Fy| and |Mz|, and the largest
+change of Fy between samples in % of its peak (spikes); no reference.
 
 A model-rat whisker alone (bench frame: base at the origin, along +x, curving toward +y) turns
 slowly about z (SWEEP_DEG_S) into a vertical peg that its rest shape meets at a fraction of its
@@ -139,6 +142,30 @@ def faces(whiskers, inclines, frictions, engines, extensions: dict) -> None:
                               f"{e['engine_stick_pct']:6.0f} | {e['end_deg']:.2f}° {e['path_end']}", flush=True)
 
 
+def sawtooth(whiskers, inclines, frictions, engines, extensions: dict, amplitude_um: float, period_um: float) -> None:
+    from benchmarks.bench_contact_statics import half_step
+    from pipeline.config.physics import ModelConfig
+    from pipeline.reports.contact_statics import bench_config, geometry_of, run_engine
+    from pipeline.reports.tip_friction import SWEEP_DEG, reference_of, sawtooth_obstacle
+
+    config = ModelConfig(extensions=extensions)
+    for whisker in whiskers:
+        for incline in inclines:
+            _, _, surface, normal = reference_of(config, whisker, incline, 0.0, sweep_deg=0.5)
+            rough = sawtooth_obstacle(surface, normal, amplitude_um * 1e-6, period_um * 1e-6)
+            for mu in frictions:
+                for engine in engines:
+                    for label, chosen in (("dt", bench_config(config, engine, mu)),
+                                          ("dt/2", half_step(bench_config(config, engine, mu)))):
+                        _, out = run_engine(chosen, geometry_of(config, whisker), None, sweep_deg=SWEEP_DEG,
+                                            obstacle=rough)
+                        w = out.base_wrench[:, 0].astype(float)
+                        peak = np.abs(w[:, 1]).max()
+                        print(f"{whisker} α={incline:g}° μ={mu:g} {engine:>6} {label:>4} | peak |Fy| {1e6 * peak:.3f} µN, "
+                              f"peak |Mz| {1e9 * np.abs(w[:, 5]).max():.2f} nN·m, largest sample-to-sample change of Fy "
+                              f"{100 * np.abs(np.diff(w[:, 1])).max() / peak:.0f} % of its peak", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--whiskers", default="RC1,RC3,RC5")
@@ -150,7 +177,14 @@ def main() -> None:
     parser.add_argument("--faces", action="store_true", help="the tip on inclined flat faces")
     parser.add_argument("--inclines", default="60,75,90", help="--faces: degrees between face and tip")
     parser.add_argument("--tip-segment", action="store_true", help="model extension tip_segment")
+    parser.add_argument("--sawtooth", default="", help="--faces made rough: amplitude,period in µm")
     args = parser.parse_args()
+    if args.sawtooth:
+        amplitude, period = map(float, args.sawtooth.split(","))
+        sawtooth(args.whiskers.split(","), [float(a) for a in args.inclines.split(",")],
+                 [float(m) for m in args.mu.split(",")], args.engine.split(","),
+                 {"tip_segment": {}} if args.tip_segment else {}, amplitude, period)
+        return
     if args.faces:
         faces(args.whiskers.split(","), [float(a) for a in args.inclines.split(",")],
               [float(m) for m in args.mu.split(",")], args.engine.split(","),

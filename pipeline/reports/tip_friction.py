@@ -72,6 +72,41 @@ def face_obstacle(surface_m: np.ndarray, normal: np.ndarray, meshed: bool):
                         source=f"face-{centre}-{normal}")
 
 
+def sawtooth_obstacle(surface_m: np.ndarray, normal: np.ndarray, amplitude_m: float, period_m: float) -> TriangleMesh:
+    """The face of :func:`face_obstacle` made rough: a closed slab whose top is a sawtooth
+    across the face (ridges on the face's plane through ``surface_m``, valleys ``amplitude_m``
+    below it, ``period_m`` apart, straight along z), faces wound outward: a tip on a scan's
+    facets, crossing ridges (convex edges) and valleys."""
+    half, depth, height = FACE_HALF_EXTENTS_M[0], 2 * FACE_HALF_EXTENTS_M[1], FACE_HALF_EXTENTS_M[2]
+    u = np.arange(-half, half + 1e-12, period_m / 2)
+    top = np.where(np.arange(len(u)) % 2 == 0, 0.0, -amplitude_m)
+    # vertex (k, level, side): level 0 the bottom, 1 the sawtooth; side 0 at −z, 1 at +z
+    grid = np.stack(np.meshgrid(np.arange(len(u)), [0, 1], [0, 1], indexing="ij"), axis=-1).reshape(-1, 3)
+    k, level, side = grid.T
+    local = np.stack([u[k], np.where(level == 1, top[k], -depth), (2 * side - 1) * height], axis=1)
+    index = np.arange(len(grid)).reshape(len(u), 2, 2)
+    quads, outward = [], []
+    for j in range(len(u) - 1):
+        for lv in (0, 1):
+            quads.append(index[[j, j + 1, j + 1, j], lv, [0, 0, 1, 1]])
+            outward.append((0.0, 1.0 if lv else -1.0, 0.0))
+        for sd in (0, 1):
+            quads.append(index[[j, j + 1, j + 1, j], [0, 0, 1, 1], sd])
+            outward.append((0.0, 0.0, 1.0 if sd else -1.0))
+    for j, sign in ((0, -1.0), (len(u) - 1, 1.0)):
+        quads.append(index[j, [0, 1, 1, 0], [0, 0, 1, 1]])
+        outward.append((sign, 0.0, 0.0))
+    faces = []
+    for (a, b, c, d), out in zip(quads, outward):
+        for tri in ((a, b, c), (a, c, d)):
+            turn = np.cross(local[tri[1]] - local[tri[0]], local[tri[2]] - local[tri[0]])
+            faces.append(tri if turn @ np.asarray(out) > 0 else tri[::-1])
+    along = np.array([normal[1], -normal[0]])
+    world = np.stack([surface_m[0] + local[:, 0] * along[0] + local[:, 1] * normal[0],
+                      surface_m[1] + local[:, 0] * along[1] + local[:, 1] * normal[1], local[:, 2]], axis=1)
+    return TriangleMesh(world, np.array(faces), source=f"sawtooth-{surface_m}-{normal}-{amplitude_m}-{period_m}")
+
+
 def slipping(angle_deg: np.ndarray, tip_m: np.ndarray, along: np.ndarray, lever_m: float) -> np.ndarray:
     """[T] the tip moves along the face (unit ``along``) faster than SLIP_FRACTION of the rigid
     turn's rate ``lever_m`` per radian (central differences of the tip points [T, 2])."""

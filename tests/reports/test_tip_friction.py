@@ -11,21 +11,23 @@ slip onset 4.45° against the elastica's 4.4°; Bullet the same to 0.3 points. W
 
 import numpy as np
 import pytest
+import trimesh
 
 from pipeline.config.physics import ModelConfig
-from pipeline.reports.tip_friction import FaceCase, reference_of, run_face_case
+from pipeline.reports.tip_friction import FACE_HALF_EXTENTS_M, FaceCase, reference_of, run_face_case, sawtooth_obstacle
 
 CONFIG = ModelConfig(extensions={"tip_segment": {}})
+SWEEP_DEG = 3.6                  # to 5.6°: the elastica's path ends at 5.4° (tip along the face)
 
 
 @pytest.fixture(scope="module")
 def reference():
-    return reference_of(CONFIG, "RC3", 60.0, 0.5)
+    return reference_of(CONFIG, "RC3", 60.0, 0.5, SWEEP_DEG)
 
 
 @pytest.mark.parametrize("engine", ["mujoco", "bullet"])
 def test_tip_on_a_face_sticks_and_slips_as_coulomb_friction(reference, engine):
-    errors = run_face_case(CONFIG, FaceCase("RC3", 60.0, 0.5, engine), reference=reference).errors
+    errors = run_face_case(CONFIG, FaceCase("RC3", 60.0, 0.5, engine), SWEEP_DEG, reference).errors
     assert errors["samples"] > 250
     assert errors["moment_rms_pct"] <= 3.0 and errors["transverse_rms_pct"] <= 6.0
     assert errors["axial_rms_pct_of_f"] <= 12.0
@@ -33,3 +35,15 @@ def test_tip_on_a_face_sticks_and_slips_as_coulomb_friction(reference, engine):
     assert 30.0 < errors["ref_stick_pct"] < 70.0        # the case does stick and slip
     assert abs(errors["slip_onset_engine_deg"] - errors["slip_onset_ref_deg"]) <= 0.25
     assert np.isfinite(errors["slip_onset_ref_deg"])
+
+
+def test_sawtooth_face_is_a_closed_outward_slab_with_its_ridges_on_the_face():
+    surface, normal = np.array([0.01, 0.002]), np.array([0.6, 0.8])
+    mesh = sawtooth_obstacle(surface, normal, 20e-6, 200e-6)
+    solid = trimesh.Trimesh(mesh.vertices_m, mesh.faces, process=False)
+    assert solid.is_watertight and solid.is_winding_consistent
+    width, height = 2 * FACE_HALF_EXTENTS_M[0], 2 * FACE_HALF_EXTENTS_M[2]
+    slab = width * 2 * FACE_HALF_EXTENTS_M[1] * height - 0.5 * 20e-6 * width * height   # less the grooves
+    assert solid.volume == pytest.approx(slab, rel=1e-9)                               # > 0: wound outward
+    above = (mesh.vertices_m[:, :2] - surface) @ normal
+    assert above.max() == pytest.approx(0.0, abs=1e-12)                               # ridges on the face
