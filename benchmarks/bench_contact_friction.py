@@ -2,6 +2,15 @@
 
 Run: .venv/bin/python benchmarks/bench_contact_friction.py [--whiskers RC1,RC3,RC5] [--mu 0,0.5]
      [--fractions 0.3,0.6,0.85] [--engine mujoco] [--dt 1e-4,5e-5]
+     .venv/bin/python benchmarks/bench_contact_friction.py --faces [--whiskers RC3] [--mu 0.2,0.5]
+     [--inclines 60,75,90] [--engine mujoco,bullet] [--tip-segment]
+
+``--faces``: the tip on a flat face at an incline instead (:mod:`pipeline.reports.tip_friction`),
+each engine on a Box and on the same box as a triangle mesh, against the frictional elastica:
+RMS errors, how often the tip's stick or slip disagrees with the elastica's, the slip onsets.
+``--sawtooth AMPLITUDE_UM,PERIOD_UM``: the face made rough (:func:`pipeline.reports.tip_friction.sawtooth_obstacle`),
+each engine at its default step and at every step halved: peak |Fy| and |Mz|, and the largest
+change of Fy between samples in % of its peak (spikes); no reference.
 
 A model-rat whisker alone (bench frame: base at the origin, along +x, curving toward +y) turns
 slowly about z (SWEEP_DEG_S) into a vertical peg that its rest shape meets at a fraction of its
@@ -111,6 +120,52 @@ def sweep(name: str, fraction: float, mu: float, dt_s: float, engine_name: str,
             "contact_ms": int(contact.sum()), "wrench": w}
 
 
+def faces(whiskers, inclines, frictions, engines, extensions: dict) -> None:
+    from pipeline.config.physics import ModelConfig
+    from pipeline.reports.tip_friction import FaceCase, reference_of, run_face_case
+
+    config = ModelConfig(extensions=extensions)
+    print(f"{'case':>34} | {'M rms %':>7} {'F⊥ rms %':>8} {'F∥ % |F|':>8} | {'slip ≠ %':>8} {'onset ref':>9} "
+          f"{'engine':>6} | {'stick ref %':>11} {'engine':>6} | end of the elastica's path")
+    for whisker in whiskers:
+        for incline in inclines:
+            for mu in frictions:
+                reference = reference_of(config, whisker, incline, mu)
+                for engine in engines:
+                    for meshed in (False, True):
+                        e = run_face_case(config, FaceCase(whisker, incline, mu, engine, meshed),
+                                          reference=reference).errors
+                        print(f"{FaceCase(whisker, incline, mu, engine, meshed).label:>34} | {e['moment_rms_pct']:7.1f} "
+                              f"{e['transverse_rms_pct']:8.1f} {e['axial_rms_pct_of_f']:8.1f} | "
+                              f"{e['slip_disagree_pct']:8.1f} {e['slip_onset_ref_deg']:9.2f} "
+                              f"{e['slip_onset_engine_deg']:6.2f} | {e['ref_stick_pct']:11.0f} "
+                              f"{e['engine_stick_pct']:6.0f} | {e['end_deg']:.2f}° {e['path_end']}", flush=True)
+
+
+def sawtooth(whiskers, inclines, frictions, engines, extensions: dict, amplitude_um: float, period_um: float) -> None:
+    from benchmarks.bench_contact_statics import half_step
+    from pipeline.config.physics import ModelConfig
+    from pipeline.reports.contact_statics import bench_config, geometry_of, run_engine
+    from pipeline.reports.tip_friction import SWEEP_DEG, reference_of, sawtooth_obstacle
+
+    config = ModelConfig(extensions=extensions)
+    for whisker in whiskers:
+        for incline in inclines:
+            _, _, surface, normal = reference_of(config, whisker, incline, 0.0, sweep_deg=0.5)
+            rough = sawtooth_obstacle(surface, normal, amplitude_um * 1e-6, period_um * 1e-6)
+            for mu in frictions:
+                for engine in engines:
+                    for label, chosen in (("dt", bench_config(config, engine, mu)),
+                                          ("dt/2", half_step(bench_config(config, engine, mu)))):
+                        _, out = run_engine(chosen, geometry_of(config, whisker), None, sweep_deg=SWEEP_DEG,
+                                            obstacle=rough)
+                        w = out.base_wrench[:, 0].astype(float)
+                        peak = np.abs(w[:, 1]).max()
+                        print(f"{whisker} α={incline:g}° μ={mu:g} {engine:>6} {label:>4} | peak |Fy| {1e6 * peak:.3f} µN, "
+                              f"peak |Mz| {1e9 * np.abs(w[:, 5]).max():.2f} nN·m, largest sample-to-sample change of Fy "
+                              f"{100 * np.abs(np.diff(w[:, 1])).max() / peak:.0f} % of its peak", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--whiskers", default="RC1,RC3,RC5")
@@ -119,7 +174,22 @@ def main() -> None:
     parser.add_argument("--dt", default="1e-4")
     parser.add_argument("--engine", default="mujoco")
     parser.add_argument("--base-segment", action="store_true", help="model extension base_segment")
+    parser.add_argument("--faces", action="store_true", help="the tip on inclined flat faces")
+    parser.add_argument("--inclines", default="60,75,90", help="--faces: degrees between face and tip")
+    parser.add_argument("--tip-segment", action="store_true", help="model extension tip_segment")
+    parser.add_argument("--sawtooth", default="", help="--faces made rough: amplitude,period in µm")
     args = parser.parse_args()
+    if args.sawtooth:
+        amplitude, period = map(float, args.sawtooth.split(","))
+        sawtooth(args.whiskers.split(","), [float(a) for a in args.inclines.split(",")],
+                 [float(m) for m in args.mu.split(",")], args.engine.split(","),
+                 {"tip_segment": {}} if args.tip_segment else {}, amplitude, period)
+        return
+    if args.faces:
+        faces(args.whiskers.split(","), [float(a) for a in args.inclines.split(",")],
+              [float(m) for m in args.mu.split(",")], args.engine.split(","),
+              {"tip_segment": {}} if args.tip_segment else {})
+        return
     extensions = {"base_segment": {}} if args.base_segment else None
     print(f"{'whisker':>7} {'s/S':>5} {'mu':>4} {'dt':>7} | {'peak|Mz| N·m':>12} {'peak|Fy| N':>10} "
           f"{'Fx/|F|':>7} {'θ@peak':>6} | {'ft/fn med':>9} {'max':>5} | contact ms  CPU s")

@@ -136,7 +136,10 @@ def quasi_static_path(rod: Rod, peg: Peg, angles_rad, friction: float = 0.0) -> 
     radius = peg.radius_m / scaled.length_m
     psi0, s0 = first_touch(rod, peg)
     current = rest_guess(scaled, psi0, s0 / scaled.length_m)
-    contact = current.y[:2, -1]
+    # the touch point from the solved rest shape: a sticking tip's anchor (the guess's coarse
+    # quadrature put it ~10⁻⁴ S off, more than a tip moves over the first 0.01°)
+    shape = rotate(rest_shape(rod), psi0) / scaled.length_m
+    contact = np.array([np.interp(s0, rod.arc_m, shape[:, i]) for i in range(2)])
     n0 = (contact - centre) / np.linalg.norm(contact - centre)
     previous = (s0 / scaled.length_m, float(np.arctan2(n0[1], n0[0])))
     tip = False

@@ -176,13 +176,14 @@ def peg_obstacle(peg: Peg, facets: int = 0, wall: bool = False):
 
 
 def run_engine(config: ModelConfig, geometry: WhiskerGeometry, peg: Peg, speed_deg_s: float = SPEED_DEG_S,
-               sweep_deg: float = SWEEP_DEG, facets: int = 0, wall: bool = False):
+               sweep_deg: float = SWEEP_DEG, facets: int = 0, wall: bool = False, obstacle=None):
     """(protraction angle per sample in degrees, TrialOutput) of one slow turn into the peg
-    (``facets``, ``wall``: :func:`peg_obstacle`)."""
+    (``facets``, ``wall``: :func:`peg_obstacle`), or into ``obstacle`` if given."""
     end_deg = TOUCH_ANGLE_DEG + sweep_deg
     duration = end_deg / speed_deg_s
     drive = ProtractionDrive(np.array([0.0, duration]), np.radians([0.0, end_deg]), interpolation="linear")
-    scene = Scene(f"contact-statics-{facets}-{wall}", (peg_obstacle(peg, facets, wall),))
+    obstacle = obstacle if obstacle is not None else peg_obstacle(peg, facets, wall)
+    scene = Scene(f"contact-statics-{facets}-{wall}", (obstacle,))
     material, extensions = model_parts(config)
     with create_engine(config, single_whisker(geometry, material, extensions=extensions)) as engine:
         output = engine.run(scene, Pose(), drive, duration)
