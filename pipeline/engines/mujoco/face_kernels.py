@@ -25,7 +25,8 @@ def scan_candidates(searched: np.ndarray, link_bodies: np.ndarray, link_lengths:
     bodies' frames) against the grid's triangles: (candidates [K, 3], their links [K], whether
     each is a node [K], slots [L]). Per triangle a link's capsule touches (its axis within the
     radius), the axis point nearest the triangle, a slot of the link; then the proximal and the
-    distal node of each link with a slot."""
+    distal node of each link with a slot. A link's triangles are taken in the order of their
+    indices, whatever the grid's cells (a world's grid spans the faces of all its whiskers)."""
     size = 64
     axis, link_of, node = np.empty((size, 3)), np.empty(size, np.int64), np.empty(size, np.bool_)
     slots = np.zeros(len(searched), np.int64)
@@ -41,8 +42,8 @@ def scan_candidates(searched: np.ndarray, link_bodies: np.ndarray, link_lengths:
             b[j] = a[j] + xmat[body, 3 * j] * link_lengths[link]
             lo[j], hi[j] = min(a[j], b[j]) - radius, max(a[j], b[j]) + radius
         found = near_box(lo, hi, low, cell, shape, starts, items, stamp, tags, scratch)
-        for n in range(found):
-            f = scratch[n]
+        near = np.sort(scratch[:found])                        # by face: the same order in any grid
+        for f in near:
             squared, s = segment_triangle(a[0], a[1], a[2], b[0], b[1], b[2], corners[f], normals[f])
             if squared > radius * radius:
                 continue

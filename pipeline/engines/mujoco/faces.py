@@ -140,9 +140,8 @@ def _template(model: mujoco.MjModel, anchor: int) -> mujoco.MjContact:
     (the same on both geoms: MuJoCo's mix of two equal geoms is either's own)."""
     contact = mujoco.MjContact()
     contact.dim = int(model.geom_condim[anchor])
-    friction = model.geom_friction[anchor]
-    contact.friction = [friction[0], friction[0], max(friction[1], mujoco.mjMINMU),
-                        max(friction[2], mujoco.mjMINMU), max(friction[2], mujoco.mjMINMU)]
+    friction = np.maximum(model.geom_friction[anchor][[0, 0, 1, 2, 2]], mujoco.mjMINMU)    # as MuJoCo mixes
+    contact.friction = friction
     contact.mu = friction[0]
     contact.solref = model.geom_solref[anchor]
     contact.solimp = model.geom_solimp[anchor]
