@@ -20,7 +20,8 @@ MAX_CELLS = 1 << 21      # a grid coarsens its cells until it has at most this m
 class TriangleGrid:
     """The triangles ``corners`` [F, 3, 3] (unit ``normals`` [F, 3] by their winding) in a
     uniform grid of cubic cells of side ``cell`` (at least; coarser when the box would need more
-    than :data:`MAX_CELLS`)."""
+    than :data:`MAX_CELLS`), with each triangle's bounding sphere (``centres`` [F, 3],
+    ``radii`` [F])."""
 
     def __init__(self, corners: np.ndarray, normals: np.ndarray, cell: float):
         self.corners = np.ascontiguousarray(corners, float)
@@ -34,6 +35,8 @@ class TriangleGrid:
             cell *= 1.25
             shape = np.maximum(np.ceil(span / cell).astype(np.int64), 1)
         self.low, self.cell, self.shape = low, cell, shape
+        self.centres = self.corners.mean(axis=1)                                   # [F, 3]
+        self.radii = np.sqrt(((self.corners - self.centres[:, None]) ** 2).sum(axis=2)).max(axis=1)   # [F]
         self.starts, self.items = _bin(self.corners, low, cell, shape)
         self.stamp = np.zeros(len(corners), np.int64)      # per triangle: the last query that met it
         self.tags = np.zeros(1, np.int64)                   # the last query's number
@@ -122,6 +125,17 @@ def nearest_face(px: float, py: float, pz: float, within: float, corners: np.nda
         if squared < best or (squared == best and face >= 0 and f < face):
             best, face = squared, f
     return face
+
+
+@numba.njit(cache=True)
+def segment_point(ax: float, ay: float, az: float, bx: float, by: float, bz: float, point: np.ndarray) -> float:
+    """The squared distance from ``point`` [3] to the segment a–b."""
+    ux, uy, uz = bx - ax, by - ay, bz - az
+    wx, wy, wz = point[0] - ax, point[1] - ay, point[2] - az
+    length = ux * ux + uy * uy + uz * uz
+    s = min(max((wx * ux + wy * uy + wz * uz) / length, 0.0), 1.0) if length > 0.0 else 0.0
+    dx, dy, dz = wx - s * ux, wy - s * uy, wz - s * uz
+    return dx * dx + dy * dy + dz * dz
 
 
 @numba.njit(cache=True)

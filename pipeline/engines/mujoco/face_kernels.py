@@ -12,17 +12,19 @@ import numba
 import numpy as np
 
 from pipeline.engines.one_sided_kernels import closest_on_triangle, distinct_points, one_sided_contact
-from pipeline.engines.triangle_grid import near_box, nearest_face, segment_triangle
+from pipeline.engines.triangle_grid import near_box, nearest_face, segment_point, segment_triangle
 
 
 @numba.njit(cache=True)
 def scan_candidates(searched: np.ndarray, link_bodies: np.ndarray, link_lengths: np.ndarray, link_radii: np.ndarray,
-                    xpos: np.ndarray, xmat: np.ndarray, corners: np.ndarray, normals: np.ndarray, low: np.ndarray,
+                    xpos: np.ndarray, xmat: np.ndarray, centres: np.ndarray, radii: np.ndarray,
+                    corners: np.ndarray, normals: np.ndarray, low: np.ndarray,
                     cell: float, shape: np.ndarray, starts: np.ndarray, items: np.ndarray, stamp: np.ndarray,
                     tags: np.ndarray, scratch: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The candidate axis points of the ``searched`` links [L] (flat; ``link_bodies``,
     ``link_lengths``, ``link_radii`` per link; ``xpos`` [nbody, 3], ``xmat`` [nbody, 9] the
-    bodies' frames) against the grid's triangles: (candidates [K, 3], their links [K], whether
+    bodies' frames) against the grid's triangles (bounding spheres ``centres`` [F, 3], ``radii``
+    [F]): (candidates [K, 3], their links [K], whether
     each is a node [K], slots [L]). Per triangle a link's capsule touches (its axis within the
     radius), the axis point nearest the triangle, a slot of the link; then the proximal and the
     distal node of each link with a slot. A link's triangles are taken in the order of their
@@ -44,6 +46,9 @@ def scan_candidates(searched: np.ndarray, link_bodies: np.ndarray, link_lengths:
         found = near_box(lo, hi, low, cell, shape, starts, items, stamp, tags, scratch)
         near = np.sort(scratch[:found])                        # by face: the same order in any grid
         for f in near:
+            reach = radius + radii[f]
+            if segment_point(a[0], a[1], a[2], b[0], b[1], b[2], centres[f]) > reach * reach * (1.0 + 1e-9):
+                continue                                       # its bounding sphere is out of reach
             squared, s = segment_triangle(a[0], a[1], a[2], b[0], b[1], b[2], corners[f], normals[f])
             if squared > radius * radius:
                 continue

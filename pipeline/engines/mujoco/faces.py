@@ -94,8 +94,8 @@ class ScanContacts:
             return None
         grid = self.grid.arrays()
         axis, link_of, node, slots = self.kernels.scan_candidates(
-            searched, self.link_bodies, self.link_lengths_mm, self.link_radii_mm, d.xpos, d.xmat, *grid,
-            self.scratch)
+            searched, self.link_bodies, self.link_lengths_mm, self.link_radii_mm, d.xpos, d.xmat, self.grid.centres,
+            self.grid.radii, *grid, self.scratch)
         if not len(axis):
             return None
         found = self.kernels.scan_contacts(axis, link_of, node, slots, self.link_radii_mm, DUPLICATE_MM,
