@@ -90,8 +90,9 @@ def near_box(lo: np.ndarray, hi: np.ndarray, low: np.ndarray, cell: float, shape
     (sized for all triangles); returns how many."""
     tags[0] += 1
     tag = tags[0]
-    if hi[0] < low[0] or hi[1] < low[1] or hi[2] < low[2]:
-        return 0
+    for j in range(3):                                     # the box misses the grid
+        if hi[j] < low[j] or lo[j] > low[j] + shape[j] * cell:
+            return 0
     i0, i1 = _range(lo[0], hi[0], low[0], cell, shape[0])
     j0, j1 = _range(lo[1], hi[1], low[1], cell, shape[1])
     k0, k1 = _range(lo[2], hi[2], low[2], cell, shape[2])
