@@ -40,7 +40,7 @@ _EFFECTIVE_METRIC.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ct
 _EFFECTIVE_METRIC.restype = None
 
 DUPLICATE_MM = 1e-3         # a link's contacts this close are one (two faces read at their shared edge)
-GRID_CELL_MM = 2.0          # the scan grid's cell (about two faces of a dataset scan across)
+GRID_CELL_MM = 1.0          # the scan grid's cell (about a face of a dataset scan across)
 
 
 class ScanContacts:
