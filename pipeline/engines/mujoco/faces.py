@@ -32,9 +32,9 @@ from pipeline.engines import units as U
 from pipeline.engines.one_sided import ONE_SIDED_DEPTH_MM
 from pipeline.scenes.obstacles import TriangleMesh
 
-# MuJoCo's effective metric M + h·D + h²·K of the discrete integrator (contacts included), built
-# at the end of its position stage on the arena that the contacts added here reset; not in the
-# Python bindings.
+# MuJoCo's effective metric M + h·D + h²·K of the discrete integrator, built at the end of its
+# position stage on the arena after the contacts and constraints (so built again once contacts are
+# added); not in the Python bindings (MuJoCo 4.0: ``mj_effBuild(m, d, active, flg_factor)``).
 _EFFECTIVE_METRIC = ctypes.CDLL(next(Path(mujoco.__file__).parent.glob("libmujoco.so*"))).mj_effBuild
 _EFFECTIVE_METRIC.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_int]
 _EFFECTIVE_METRIC.restype = None
