@@ -6,10 +6,10 @@ Run: .venv/bin/python benchmarks/profile_mujoco_stepping.py [--trials 8]
 The trials are those of benchmarks/profile_dataset_trial.py (configs/simulate.yaml, trial 0
 builds the engine and is left out). Per trial (mean): CPU of the trial, of the cheap path
 (pipeline/engines/free_path.py), of building the full worlds' models (the spec, MuJoCo's
-compile), of cropping the scan (pipeline/engines/swept_crop.py), of the full worlds' stepping
-split into the step's MuJoCo calls (position stage: kinematics, collision, constraints; the
-rewrite of prism contacts as triangle contacts and the constraints made again,
-pipeline/engines/mujoco/faces.py, and of it Open3D's nearest-face query; velocity to the constraint solve and no-slip; the update) and
+compile), of finding the scan's faces within reach (pipeline/engines/mujoco/reach.py), of the full
+worlds' stepping split into the step's MuJoCo calls (position stage: kinematics, collision,
+constraints; the scan's contacts, pipeline/engines/mujoco/faces.py: the search, MuJoCo's collision
+again, appending them and the constraints made again; velocity to the constraint solve and no-slip; the update) and
 the Python of the loop (recording, contact flags); per full world run its whiskers, those that
 touched and their whisker-steps. Within the full worlds' steps, MuJoCo's stage timers
 (``MjData.timer``, wall-clock: shares only) and per step with contacts the contacts, constraint
@@ -29,7 +29,7 @@ import numpy as np
 
 from pipeline.config.loader import load_config
 from pipeline.config.simulate import SimulateConfig
-from pipeline.engines import free_path, one_sided, swept_crop
+from pipeline.engines import free_path
 from pipeline.engines.mujoco import faces, world as engine
 from pipeline.runner.scenes import scene_catalogue
 from pipeline.runner.simulate import _layout
@@ -38,8 +38,10 @@ from pipeline.runner.trial import RunSpec, Simulator
 REPO = Path(__file__).resolve().parents[1]
 STAGES = ("COL_BROAD", "COL_NARROW", "POS_COLLISION", "CONSTRAINT", "POS_INERTIA", "POS_KINEMATICS", "POS_MAKE",
           "POS_PROJECT", "VELOCITY")
-STEP_CALLS = {"mj_fwdPosition": "position stage", "mj_makeConstraint": "rewrite: constraints again",
-              "mj_island": "rewrite: constraints again", "mj_projectConstraint": "rewrite: constraints again",
+STEP_CALLS = {"mj_fwdPosition": "position stage", "mj_collision": "scan: collision again",
+              "mj_addContact": "scan: append", "mj_makeConstraint": "scan: constraints again",
+              "mj_island": "scan: constraints again", "mj_projectConstraint": "scan: constraints again",
+              "mj_transmission": "scan: constraints again",
               "mj_forwardSkip": "velocity, solve, no-slip", "mj_Euler": "update", "mj_sensorPos": "rest",
               "mj_checkPos": "rest", "mj_checkVel": "rest", "mj_checkAcc": "rest"}
 
@@ -72,14 +74,13 @@ def instrument() -> None:
     timed(free_path.FreePath, "clear", "cheap path")
     timed(engine.MujocoWorld, "_build", "model: spec and compile")
     timed(mujoco.MjSpec, "compile", "model: MuJoCo compile")
-    timed(engine.MujocoWorld, "_reach", "crop: faces near the paths")
-    timed(swept_crop.SweptCrop, "escaped", "crop: escape check")
-    step, simulate, face_step = mujoco.mj_step, engine.MujocoWorld._simulate, faces.FaceContacts.step
+    timed(engine.MujocoWorld, "_reach", "reach: faces within reach")
+    timed(faces.ScanContacts, "__init__", "model: scan grid")
+    step, simulate, face_step = mujoco.mj_step, engine.MujocoWorld._simulate, faces.ScanContacts.step
     full = {"on": False}
     for name, label in STEP_CALLS.items():
         timed(mujoco, name, label, seconds=steps_cpu)
-    timed(faces.FaceContacts, "rewrite", "rewrite: triangle contacts", seconds=steps_cpu)
-    timed(one_sided.OneSidedMesh, "nearest_faces", "rewrite: of it, nearest faces (Open3D)", seconds=steps_cpu)
+    timed(faces.ScanContacts, "contacts", "scan: search (grid, one-sided)", seconds=steps_cpu)
 
     def counted(function):
         def counted_step(*args):
@@ -117,7 +118,7 @@ def instrument() -> None:
             full["on"] = False
 
     mujoco.mj_step = counted(step)
-    faces.FaceContacts.step = counted(face_step)
+    faces.ScanContacts.step = counted(face_step)
     engine.MujocoWorld._simulate = full_simulate
 
 

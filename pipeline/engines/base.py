@@ -103,8 +103,8 @@ class TrialSetup:
     trial's end), the number of output samples, per whisker of the world its free-joint angles
     (rad) and rates (rad/s) at t = 0 and its loads (:mod:`pipeline.model.effects.loads`), whether a
     whisker's base holds still from its first contact on, the head's trajectory (None: the head
-    stays at ``pose``) and, where the coarse path ran, each whisker's free node paths (a mesh is
-    cropped to them, :mod:`pipeline.engines.swept_crop`)."""
+    stays at ``pose``) and, where the coarse path ran, each whisker's free node paths (late
+    starts, :mod:`pipeline.engines.late_start`)."""
 
     scene: Scene
     pose: Pose

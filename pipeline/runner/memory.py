@@ -1,6 +1,6 @@
 """Give the heap's free pages back to the operating system between trials.
 
-A MuJoCo trial compiles models of thousands of prisms and frees them again; glibc keeps the
+A MuJoCo trial compiles its models and frees them again; glibc keeps the
 freed pages of its heap, fragmented, so a worker's resident memory grew by ~20 MB per trial
 (≈ 1 GB after a hundred). ``malloc_trim(0)`` after each trial holds it at ≈ 0.3 GB
 (benchmarks/bench_worker_memory.py). A no-op where the C library is not glibc.

@@ -119,10 +119,11 @@ def test_whisker_against_a_mesh_is_independent_of_its_world(tmp_path):
     k = group.index("RC1")
     assert alone.contact.any()
     scale = np.abs(alone.base_wrench).max()
-    # measured 4.7e-7 of the peak (7.8e-5 with MuJoCo's world-wide warm start and no-slip stop,
+    # measured 5.9e-5 of the peak with the engine's own scan contacts (4.7e-7 with MuJoCo's prisms
+    # finding them; 7.8e-5 with MuJoCo's world-wide warm start and no-slip stop,
     # pipeline.engines.mujoco.spec (compile_model); then a step taken in sub-steps on contact loss in one
     # world and not the other made it 0.35, pipeline.engines.mujoco.substeps)
-    np.testing.assert_allclose(group.base_wrench[:, k], alone.base_wrench[:, 0], rtol=0, atol=5e-6 * scale)
+    np.testing.assert_allclose(group.base_wrench[:, k], alone.base_wrench[:, 0], rtol=0, atol=2e-4 * scale)
     np.testing.assert_array_equal(group.contact[:, k], alone.contact[:, 0])
 
 

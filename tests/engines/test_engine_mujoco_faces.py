@@ -1,14 +1,18 @@
-"""MuJoCo's scan contacts read as the triangles' (pipeline.engines.mujoco.faces, issue 24): no
-wedge between the prisms of two faces, the split step is mj_step's when nothing is rewritten, and
-the compiled rewrite is the plain numpy reference's (face_contacts_reference.py)."""
+"""MuJoCo's scan contacts found and read by the engine (pipeline.engines.mujoco.faces, issues 24
+and 26): no wedge at the scan's edges, the split step is mj_step's without a scan contact and
+MuJoCo's position stage when done again, and the grid finds what a search of every triangle
+finds (pipeline.engines.triangle_grid)."""
 
+import copy
+
+import mujoco
 import numpy as np
 
 from pipeline.config.physics import EngineConfig, ModelConfig
 from pipeline.engines.mujoco import world as engine
-import face_contacts_reference as reference
 from pipeline.engines.mujoco.face_kernels import contact_frame
-from pipeline.engines.mujoco.faces import DUPLICATE_MM, FaceContacts
+from pipeline.engines.mujoco.faces import GRID_CELL_MM, ScanContacts, triangles_mm
+from pipeline.engines.triangle_grid import TriangleGrid, near_box, nearest_face, segment_triangle
 from pipeline.engines.one_sided import OneSidedMesh
 from pipeline.engines.one_sided_kernels import closest_on_triangle
 from pipeline.model.kinematics import Pose
@@ -27,25 +31,21 @@ def _whisk(duration_s: float, **engine_options):
 
 
 def test_a_link_pressed_into_an_edge_of_a_folded_sheet_slides_out_at_any_step(monkeypatch):
-    """RD3 and RB3 whisk into the ridges and grooves of a folded sheet (μ = 0.5). On the prisms,
-    links pressed in near an edge were held between two faces' side walls while their base
-    moment climbed: peak |M| 3.8 and 6.5× Bullet's (which reads the triangles), and halving the
-    step changed it by 61–66 %. Read as the triangles, no link is ever pressed by two opposed
-    contacts, and the peaks are within 30 % of Bullet's and of themselves at half the step
-    (measured −18 / +1 % and +14 / +21 %)."""
+    """RD3 and RB3 whisk into the ridges and grooves of a folded sheet (μ = 0.5). On convex
+    prisms per face, links pressed in near an edge were held between two faces' side walls
+    while their base moment climbed: peak |M| 3.8 and 6.5× Bullet's (which reads the
+    triangles), and halving the step changed it by 61–66 %. Read as the triangles, no link is
+    ever pressed by two opposed contacts, and the peaks are within 30 % of Bullet's and of
+    themselves at half the step."""
     opposed = []
-    rewrite = FaceContacts.rewrite
+    append = ScanContacts.append
 
-    def checked(self, d):
-        edited = rewrite(self, d)
-        active = d.contact.exclude == 0
-        links = self.link_of_geom[d.contact.geom[active]]
-        toward = d.contact.frame[active, :3] * np.where(links[:, 0] >= 0, -1.0, 1.0)[:, None]
-        same = links.max(axis=1)[:, None] == links.max(axis=1)[None]
-        opposed.append(bool((same & (toward @ toward.T < 0.0)).any()))
-        return edited
+    def checked(self, m, d, links, middle, toward_link, gaps):
+        same = links[:, None] == links[None]
+        opposed.append(bool((same & (toward_link @ toward_link.T < 0.0)).any()))
+        append(self, m, d, links, middle, toward_link, gaps)
 
-    monkeypatch.setattr(FaceContacts, "rewrite", checked)
+    monkeypatch.setattr(ScanContacts, "append", checked)
     default, half = _whisk(0.06), _whisk(0.06, dt_s=5e-5, f1_tolerance=0.005)
     assert default.contact.any(axis=(0, 2)).all() and half.contact.any(axis=(0, 2)).all()
     assert opposed and not any(opposed)
@@ -57,11 +57,11 @@ def test_a_link_pressed_into_an_edge_of_a_folded_sheet_slides_out_at_any_step(mo
 
 
 def test_without_a_scan_contact_the_step_is_mj_step(monkeypatch):
-    """Whisking toward the sheet, before touching it: the split step (collision, rewrite,
-    constraints, the rest of mj_forward, Euler) gives mj_step's result bit for bit."""
+    """Whisking toward the sheet, before touching it: the split step (position stage, search,
+    the rest of mj_forward, Euler) gives mj_step's result bit for bit."""
     calls = []
-    step = FaceContacts.step
-    monkeypatch.setattr(FaceContacts, "step", lambda self, m, d: (calls.append(1), step(self, m, d)))
+    step = ScanContacts.step
+    monkeypatch.setattr(ScanContacts, "step", lambda self, m, d: (calls.append(1), step(self, m, d)))
     split = _whisk(0.012)
     assert calls and not split.contact.any()
     monkeypatch.setattr(engine.MujocoWorld, "_face_contacts", lambda self, parts: None)
@@ -77,7 +77,6 @@ def test_contact_frames_are_orthonormal_and_right_handed():
     frames = np.zeros((len(normals), 9))
     for normal, frame in zip(normals, frames):
         contact_frame(*normal, frame)
-    assert np.array_equal(frames, reference.contact_frames(normals))
     frames = frames.reshape(-1, 3, 3)
     assert np.allclose(frames @ frames.transpose(0, 2, 1), np.eye(3), atol=1e-12)
     assert np.allclose(np.linalg.det(frames), 1.0) and np.allclose(frames[:, 0], normals)
@@ -98,31 +97,86 @@ def test_the_nearest_point_in_double_precision_is_open3d_s_and_smooth():
 
     (near, normals), (near_single, normals_single) = nearest(points), exact.nearest(points)
     assert np.abs(near - near_single).max() < 1e-4 and np.abs(normals - normals_single).max() < 1e-5
-    faces = exact.nearest_faces(points)
-    assert np.array_equal(near, reference.closest_on_triangles(points, exact.corners_mm[faces], exact.normals[faces]))
     moved, _ = nearest(points + 1e-9)
     assert np.abs(moved - near).max() < 3e-9
 
 
-def test_the_compiled_rewrite_is_the_numpy_reference_s(monkeypatch):
-    """At every step of RD3 and RB3 whisking into the folded sheet, the compiled rewrite writes
-    the contacts the plain numpy reference writes, bit for bit."""
-    fields = ("frame", "pos", "dist", "exclude", "efc_address")
-    compared = []
-    rewrite = FaceContacts.rewrite
+def test_the_position_stage_done_again_after_the_collision_is_mujoco_s(monkeypatch):
+    """RC1 pressed into a peg (MuJoCo's own contacts): every step taken as the scan's step takes
+    it when it appends contacts (the collision again, then the constraints, islands,
+    projections, transmissions and the effective metric) equals mj_step's, bit for bit."""
+    step, compared = mujoco.mj_step, []
 
-    def checked(self, d):
-        before = [getattr(d.contact, field).copy() for field in fields]
-        expected = reference.rewrite(self, d, DUPLICATE_MM)
-        written = [getattr(d.contact, field).copy() for field in fields]
-        for field, value in zip(fields, before):
-            getattr(d.contact, field)[:] = value
-        assert rewrite(self, d) == expected
-        compared.append(d.ncon)
-        for field, value in zip(fields, written):
-            assert np.array_equal(getattr(d.contact, field), value), field
-        return expected
+    class Again(ScanContacts):
+        def __init__(self):
+            pass
 
-    monkeypatch.setattr(FaceContacts, "rewrite", checked)
-    assert _whisk(0.03).contact.any()
-    assert sum(compared) > 100
+        def contacts(self, m, d):
+            return ()
+
+        def append(self, m, d):
+            pass
+
+    def both(m, d):
+        e = copy.copy(d)
+        step(m, d)
+        Again().step(m, e)
+        compared.append(e.ncon)
+        for field in ("qpos", "qvel", "qacc", "sensordata"):
+            assert np.array_equal(getattr(d, field), getattr(e, field)), field
+
+    monkeypatch.setattr(mujoco, "mj_step", both)
+    from test_engine_mujoco_contact import _peg_sweep
+
+    out, _, _ = _peg_sweep(0.5, duration_s=0.08)
+    assert out.contact.any() and sum(compared) > 50
+
+
+def _sheet_grid() -> TriangleGrid:
+    sheet = folded_sheet()
+    return TriangleGrid(*triangles_mm(sheet, np.arange(len(sheet.faces))), GRID_CELL_MM)
+
+
+def test_the_grid_finds_every_triangle_a_capsule_touches_and_the_nearest_face():
+    """Capsule axes (0.5–3 mm, radius 0.01–0.8 mm) and points scattered around a folded sheet
+    (7 200 jittered 1 mm faces): the triangles within a radius of an axis found through the
+    grid are those of a search of every triangle, and so is the nearest face of a point."""
+    grid = _sheet_grid()
+    arrays = grid.arrays()
+    corners, normals = grid.corners, grid.normals
+    rng = np.random.default_rng(4)
+    scratch = np.empty(len(corners), np.int64)
+    met = 0
+    for _ in range(80):
+        a = np.array([rng.uniform(-1.0, 2.5), rng.uniform(-25, 25), rng.uniform(-25, 25)])
+        b = a + rng.normal(size=3) * rng.uniform(0.5, 3.0) / np.sqrt(3)
+        radius = rng.uniform(0.01, 0.8)
+        every = np.array([segment_triangle(*a, *b, corners[f], normals[f])[0] for f in range(len(corners))])
+        count = near_box(np.minimum(a, b) - radius, np.maximum(a, b) + radius, *arrays[2:], scratch)
+        found = [f for f in scratch[:count] if segment_triangle(*a, *b, corners[f], normals[f])[0] <= radius ** 2]
+        assert sorted(found) == list(np.flatnonzero(every <= radius ** 2))
+        met += len(found)
+        distance = np.sqrt([np.sum((a - closest_on_triangle(*a, corners[f], normals[f])) ** 2)
+                            for f in range(len(corners))])
+        face = nearest_face(*a, radius, *arrays, scratch)
+        assert face == (int(np.argmin(distance)) if distance.min() < radius else -1)
+    assert met > 100
+
+
+def test_a_segment_s_distance_to_a_triangle_is_the_least_over_its_points():
+    """Random segments and triangles: segment_triangle's distance is the least distance of
+    2 001 points along the segment to the triangle, to the sampling's resolution."""
+    rng = np.random.default_rng(5)
+    along = np.linspace(0.0, 1.0, 2001)
+    for _ in range(40):
+        corners = rng.normal(size=(3, 3))
+        normal = np.cross(corners[1] - corners[0], corners[2] - corners[0])
+        normal /= np.linalg.norm(normal)
+        a, b = rng.normal(size=3) * 1.5, rng.normal(size=3) * 1.5
+        squared, s = segment_triangle(*a, *b, corners, normal)
+        points = a + along[:, None] * (b - a)
+        sampled = np.array([np.sum((p - closest_on_triangle(*p, corners, normal)) ** 2) for p in points])
+        assert np.sqrt(squared) <= np.sqrt(sampled.min()) + 1e-12
+        assert np.sqrt(sampled.min()) - np.sqrt(squared) < 3e-4 * np.linalg.norm(b - a)
+        point = a + s * (b - a)
+        assert np.isclose(np.sum((point - closest_on_triangle(*point, corners, normal)) ** 2), squared, atol=1e-12)

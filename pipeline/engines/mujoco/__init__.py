@@ -93,22 +93,22 @@ conservative advancement) stop thin, fast links from passing through pegs and ed
 step (at 540 °/s the collision protocol's Mz otherwise rebounds 7× too high); with mesh
 obstacles they made the step ~6× dearer and are off.
 
-Triangle meshes. MuJoCo collides a mesh geom as its convex hull, so a concave scan becomes one
-convex prism per face: the triangle and its copy moved along the inward normal (the winding's
-normal points out, as the pose sampler assumes) by half the distance to the next surface
-behind, clamped to :data:`PRISM_DEPTH_MM`; one contact point per capsule–prism pair (MuJoCo's
-multi-point convex contacts made whiskers jam between prisms). The prisms only find the
-contacts: before the constraints are built, each link–prism contact is rewritten as the link's
-contact with the mesh's triangles, read one-sided as Bullet reads them
-(:mod:`pipeline.engines.mujoco.faces`), so no link is squeezed between two prisms' side walls.
-Only the faces some link can reach at the trial's pose are built, and the model is recompiled when that set changes
-(~0.05 ms per face); a world crops to the reach of the whiskers it simulates in the trial,
-not of all its whiskers (the others take the free path, :mod:`pipeline.engines.free_path`),
-and where the coarse path ran, to the faces near each whisker's coarse node paths, checked
-after the run (:mod:`pipeline.engines.swept_crop`: about half the faces, half the compile
-time). The prisms of the last :data:`PRISM_SCENES` scenes are kept (a dataset cycles through
-its scenes: rebuilding a scan's prisms cost ≈ 0.2 s per trial). Static obstacles' geoms
-belong to the world body: MuJoCo's broadphase pairs it with every body that may collide and
+Triangle meshes. A static scan is not a MuJoCo geom: the engine finds its contacts itself
+(:mod:`pipeline.engines.mujoco.faces`). The faces some link can reach at the trial's pose sit in
+a uniform grid (:mod:`pipeline.engines.triangle_grid`, built with the model); each step, after
+MuJoCo's own collision (pegs, boxes), every capsule of a link that may collide is tested against
+the triangles near it, and its contacts are read one-sided as Bullet reads them
+(:mod:`pipeline.engines.one_sided`: nearest face, edge or vertex; a crossed axis pushed back out
+along the face normal), so no link is squeezed between two faces. They are appended to MuJoCo's
+contact list (``mj_addContact``; geom 1 an anchor geom of the scan on the world body that
+collides with nothing) and the rest of the position stage is done again (constraints, islands,
+projections, the discrete integrator's effective metric: bit for bit what ``mj_step`` does
+without them). A world takes the faces within the reach of the whiskers it simulates in the
+trial (the others take the free path, :mod:`pipeline.engines.free_path`). A moving mesh is still
+one convex prism per face (:mod:`pipeline.engines.mujoco.prisms`: MuJoCo collides a mesh geom as
+its convex hull), one contact point per capsule–prism pair, and the prisms of the last
+:data:`~pipeline.engines.mujoco.engine.PRISM_SCENES` scenes are kept. Static obstacles'
+geoms belong to the world body: MuJoCo's broadphase pairs it with every body that may collide and
 leaves its geoms to the midphase's static bounding-volume tree, where a static body's geoms
 would each enter the broadphase's sums every step (broadphase ≈ 12 % → 3–4 % of a contact
 world's step).

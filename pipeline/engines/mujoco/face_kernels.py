@@ -1,7 +1,7 @@
-"""The arithmetic of the scan contacts' rewrite (:mod:`pipeline.engines.mujoco.faces`), compiled
-(numba): the candidate axis points of MuJoCo's link–prism contacts, then, with each candidate's
-nearest face, its one-sided contact with the triangles, deepest first without duplicates or
-opposed normals, written into the links' contact slots. Internal units mm.
+"""The arithmetic of :mod:`pipeline.engines.mujoco.faces`, compiled (numba): the links' candidate
+axis points against a scan's triangles (:mod:`pipeline.engines.triangle_grid`), their one-sided
+contacts with the nearest faces, the deepest-first merge per link, and the contacts' rows in
+MuJoCo's list. Internal units mm.
 """
 
 from __future__ import annotations
@@ -12,99 +12,114 @@ import numba
 import numpy as np
 
 from pipeline.engines.one_sided_kernels import closest_on_triangle, distinct_points, one_sided_contact
+from pipeline.engines.triangle_grid import near_box, nearest_face, segment_point, segment_triangle
 
 
 @numba.njit(cache=True)
-def prism_candidates(geom: np.ndarray, frame: np.ndarray, pos: np.ndarray, dist: np.ndarray,
-                     mesh_of_geom: np.ndarray, link_of_geom: np.ndarray, link_radii: np.ndarray,
-                     link_bodies: np.ndarray, link_lengths: np.ndarray, xpos: np.ndarray, xmat: np.ndarray):
-    """The link–prism contacts among MuJoCo's contacts (``geom`` [C, 2], ``frame`` [C, 9],
-    ``pos`` [C, 3], ``dist`` [C]) and their candidate axis points: (rows [R] of those
-    contacts, their links [R], whether the link is geom 0 [R], candidates [R + 2T, 3] (each
-    contact's capsule axis point under MuJoCo's witness, then the proximal and the distal node
-    of each of the T links touched, by link), each candidate's link and mesh).
-    ``mesh_of_geom``, ``link_of_geom`` [ngeom + 1]: a geom's static mesh and flat link (−1: none;
-    the last entry is geom −1's); ``link_bodies``, ``link_lengths``, ``link_radii`` per flat link;
-    ``xpos`` [nbody, 3], ``xmat`` [nbody, 9] the bodies' frames."""
-    size = len(geom)
-    rows, links, link_first, meshes = (np.empty(size, np.int64), np.empty(size, np.int64), np.empty(size, np.bool_),
-                                       np.empty(size, np.int64))
+def scan_candidates(searched: np.ndarray, link_bodies: np.ndarray, link_lengths: np.ndarray, link_radii: np.ndarray,
+                    xpos: np.ndarray, xmat: np.ndarray, centres: np.ndarray, radii: np.ndarray,
+                    corners: np.ndarray, normals: np.ndarray, low: np.ndarray,
+                    cell: float, shape: np.ndarray, starts: np.ndarray, items: np.ndarray, stamp: np.ndarray,
+                    tags: np.ndarray, scratch: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The candidate axis points of the ``searched`` links [L] (flat; ``link_bodies``,
+    ``link_lengths``, ``link_radii`` per link; ``xpos`` [nbody, 3], ``xmat`` [nbody, 9] the
+    bodies' frames) against the grid's triangles (bounding spheres ``centres`` [F, 3], ``radii``
+    [F]): (candidates [K, 3], their links [K], whether
+    each is a node [K], slots [L]). Per triangle a link's capsule touches (its axis within the
+    radius), the axis point nearest the triangle, a slot of the link; then the proximal and the
+    distal node of each link with a slot. A link's triangles are taken in the order of their
+    indices, whatever the grid's cells (a world's grid spans the faces of all its whiskers)."""
+    size = 64
+    axis, link_of, node = np.empty((size, 3)), np.empty(size, np.int64), np.empty(size, np.bool_)
+    slots = np.zeros(len(searched), np.int64)
+    lo, hi = np.empty(3), np.empty(3)
     count = 0
-    for i in range(size):
-        g0, g1 = geom[i, 0], geom[i, 1]
-        mesh, link = max(mesh_of_geom[g0], mesh_of_geom[g1]), max(link_of_geom[g0], link_of_geom[g1])
-        if mesh >= 0 and link >= 0:
-            rows[count], links[count], meshes[count] = i, link, mesh
-            link_first[count] = link_of_geom[g0] >= 0          # normals point from geom 0 to geom 1
+    for link in range(len(searched)):
+        if not searched[link]:
+            continue
+        body, radius = link_bodies[link], link_radii[link]
+        a = xpos[body]
+        b = np.empty(3)
+        for j in range(3):
+            b[j] = a[j] + xmat[body, 3 * j] * link_lengths[link]
+            lo[j], hi[j] = min(a[j], b[j]) - radius, max(a[j], b[j]) + radius
+        found = near_box(lo, hi, low, cell, shape, starts, items, stamp, tags, scratch)
+        near = np.sort(scratch[:found])                        # by face: the same order in any grid
+        for f in near:
+            reach = radius + radii[f]
+            if segment_point(a[0], a[1], a[2], b[0], b[1], b[2], centres[f]) > reach * reach * (1.0 + 1e-9):
+                continue                                       # its bounding sphere is out of reach
+            squared, s = segment_triangle(a[0], a[1], a[2], b[0], b[1], b[2], corners[f], normals[f])
+            if squared > radius * radius:
+                continue
+            if count + 2 >= size:
+                axis, link_of, node, size = _grown(axis, link_of, node, count)
+            for j in range(3):
+                axis[count, j] = a[j] + s * (b[j] - a[j])
+            link_of[count], node[count] = link, False
+            slots[link] += 1
             count += 1
-    rows, links, link_first, meshes = rows[:count], links[:count], link_first[:count], meshes[:count]
-    touched = np.unique(links)
-    size = count + 2 * len(touched)
-    axis, link_of, mesh_of = np.empty((size, 3)), np.empty(size, np.int64), np.empty(size, np.int64)
-    for k in range(count):
-        row, sign = rows[k], -1.0 if link_first[k] else 1.0
-        reach = 0.5 * dist[row] + link_radii[links[k]]
-        for j in range(3):
-            axis[k, j] = pos[row, j] + frame[row, j] * sign * reach
-        link_of[k], mesh_of[k] = links[k], meshes[k]
-    for t in range(len(touched)):
-        link = touched[t]
-        body = link_bodies[link]
-        proximal, distal = count + t, count + len(touched) + t
-        for j in range(3):
-            axis[proximal, j] = xpos[body, j]
-            axis[distal, j] = xpos[body, j] + xmat[body, 3 * j] * link_lengths[link]
-        link_of[proximal] = link_of[distal] = link
-        mesh_of[proximal] = mesh_of[distal] = meshes[_first(links, link)]
-    return rows, links, link_first, axis, link_of, mesh_of
+        if slots[link]:
+            for end in (a, b):
+                if count + 2 >= size:
+                    axis, link_of, node, size = _grown(axis, link_of, node, count)
+                axis[count, 0], axis[count, 1], axis[count, 2] = end[0], end[1], end[2]
+                link_of[count], node[count] = link, True
+                count += 1
+    return axis[:count], link_of[:count], node[:count], slots
 
 
 @numba.njit(cache=True)
-def _first(values: np.ndarray, value: int) -> int:
-    """The index of the first entry of ``values`` equal to ``value``."""
-    for i in range(len(values)):
-        if values[i] == value:
-            return i
-    return -1
+def _grown(axis: np.ndarray, link_of: np.ndarray, node: np.ndarray, count: int):
+    """The candidate arrays with twice the room, the first ``count`` entries kept."""
+    size = 2 * len(link_of)
+    more_axis, more_link, more_node = np.empty((size, 3)), np.empty(size, np.int64), np.empty(size, np.bool_)
+    more_axis[:count], more_link[:count], more_node[:count] = axis[:count], link_of[:count], node[:count]
+    return more_axis, more_link, more_node, size
 
 
 @numba.njit(cache=True)
-def rewrite_contacts(axis: np.ndarray, faces: np.ndarray, mesh_of: np.ndarray, link_of: np.ndarray,
-                     rows: np.ndarray, links: np.ndarray, link_first: np.ndarray, corners: np.ndarray,
-                     normals: np.ndarray, origins: np.ndarray, link_radii: np.ndarray, duplicate: float,
-                     depth: float, frame: np.ndarray, pos: np.ndarray, dist: np.ndarray, exclude: np.ndarray,
-                     efc_address: np.ndarray) -> None:
-    """Rewrite MuJoCo's link–prism contacts ``rows`` (:func:`prism_candidates`) in place as the
-    candidates' one-sided contacts with their nearest faces ``faces`` [P] (of all meshes'
-    ``corners`` [F, 3, 3] and unit ``normals`` [F, 3], each mesh at its origin ``origins`` [M, 3]):
-    a node candidate is kept where its axis has crossed the surface, deepest first per link a
-    candidate within ``duplicate`` of a kept one or with a normal opposing its is dropped, and
-    the kept ones fill their link's contact slots in order (``frame``, ``pos`` midway between the
-    surfaces, ``dist``); slots left over are excluded (``exclude`` 1, ``efc_address`` −1)."""
+def scan_contacts(axis: np.ndarray, link_of: np.ndarray, node: np.ndarray, slots: np.ndarray,
+                  link_radii: np.ndarray, duplicate: float, depth: float, corners: np.ndarray, normals: np.ndarray,
+                  low: np.ndarray, cell: float, shape: np.ndarray, starts: np.ndarray, items: np.ndarray,
+                  stamp: np.ndarray, tags: np.ndarray,
+                  scratch: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The contacts of the candidates (:func:`scan_candidates`): each reads its one-sided
+    contact with its nearest face (within the larger of its radius and ``depth``), kept where it
+    penetrates (a node: where its axis crossed the surface); deepest first per link, a candidate
+    within ``duplicate`` of a kept one or with a normal opposing its is dropped, and a link keeps
+    at most its ``slots``. Returns (the kept candidates' links [C], points midway between the
+    surfaces [C, 3], unit normals toward the link [C, 3], gaps [C]), by link, deepest first."""
     count = len(axis)
     kept, points, found, gaps = np.empty(count, np.bool_), np.empty((count, 3)), np.empty((count, 3)), np.empty(count)
     for i in range(count):
-        face, origin, radius = faces[i], origins[mesh_of[i]], link_radii[link_of[i]]
-        px, py, pz = axis[i, 0] - origin[0], axis[i, 1] - origin[1], axis[i, 2] - origin[2]
+        radius = link_radii[link_of[i]]
+        px, py, pz = axis[i, 0], axis[i, 1], axis[i, 2]
+        face = nearest_face(px, py, pz, max(radius, depth), corners, normals, low, cell, shape, starts, items,
+                            stamp, tags, scratch)
+        if face < 0:
+            kept[i], gaps[i] = False, np.inf
+            continue
         qx, qy, qz = closest_on_triangle(px, py, pz, corners[face], normals[face])
         kept[i], nx, ny, nz, gaps[i] = one_sided_contact(px, py, pz, qx, qy, qz, normals[face], radius, 0.0, depth)
-        if i >= len(rows):                                     # a node: only where its axis crossed
+        if node[i]:                                            # a node: only where its axis crossed
             kept[i] = kept[i] and gaps[i] < -radius
         found[i, 0], found[i, 1], found[i, 2] = nx, ny, nz
-        points[i, 0], points[i, 1], points[i, 2] = axis[i, 0] - radius * nx, axis[i, 1] - radius * ny, \
-            axis[i, 2] - radius * nz
+        points[i, 0], points[i, 1], points[i, 2] = px - radius * nx, py - radius * ny, pz - radius * nz
     chosen = _distinct(np.flatnonzero(kept), link_of, points, found, gaps, duplicate)
-    for k in range(len(rows)):
-        at = _slot(k, links, chosen, link_of)
-        row = rows[k]
-        if at < 0:
-            exclude[row], efc_address[row] = 1, -1             # read as no force after the solve
-            continue
-        sign = -1.0 if link_first[k] else 1.0
-        contact_frame(sign * found[at, 0], sign * found[at, 1], sign * found[at, 2], frame[row])
+    taken = np.zeros(len(slots), np.int64)
+    keep = np.zeros(len(chosen), np.bool_)
+    for c in range(len(chosen)):
+        link = link_of[chosen[c]]
+        keep[c] = taken[link] < slots[link]
+        taken[link] += 1
+    chosen = chosen[keep]
+    middle = np.empty((len(chosen), 3))
+    for c in range(len(chosen)):
+        i = chosen[c]
         for j in range(3):
-            pos[row, j] = points[at, j] - 0.5 * gaps[at] * found[at, j]
-        dist[row] = gaps[at]
+            middle[c, j] = points[i, j] - 0.5 * gaps[i] * found[i, j]
+    return link_of[chosen], middle, found[chosen], gaps[chosen]
 
 
 @numba.njit(cache=True)
@@ -124,18 +139,18 @@ def _distinct(kept: np.ndarray, link_of: np.ndarray, points: np.ndarray, normals
 
 
 @numba.njit(cache=True)
-def _slot(k: int, links: np.ndarray, chosen: np.ndarray, link_of: np.ndarray) -> int:
-    """The chosen candidate for contact slot ``k``: if it is the n-th slot of its link, that
-    link's n-th chosen candidate (−1: none)."""
-    rank = 0
-    for j in range(k):
-        rank += links[j] == links[k]
-    for c in chosen:
-        if link_of[c] == links[k]:
-            if rank == 0:
-                return c
-            rank -= 1
-    return -1
+def fill_contacts(first: int, links: np.ndarray, middle: np.ndarray, toward_link: np.ndarray, gaps: np.ndarray,
+                  link_geoms: np.ndarray, anchor: int, geom: np.ndarray, frame: np.ndarray, pos: np.ndarray,
+                  dist: np.ndarray) -> None:
+    """Write the contacts (:func:`scan_contacts`) into MuJoCo's rows ``first`` on: geom 0 the
+    link's capsule (``link_geoms`` [L]), geom 1 the scan's ``anchor``, the frame's normal from
+    the link to the scan (MuJoCo's: from geom 0 to geom 1), position and distance."""
+    for c in range(len(links)):
+        row = first + c
+        geom[row, 0], geom[row, 1] = link_geoms[links[c]], anchor
+        contact_frame(-toward_link[c, 0], -toward_link[c, 1], -toward_link[c, 2], frame[row])
+        pos[row, 0], pos[row, 1], pos[row, 2] = middle[c, 0], middle[c, 1], middle[c, 2]
+        dist[row] = gaps[c]
 
 
 @numba.njit(cache=True)

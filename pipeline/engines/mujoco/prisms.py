@@ -1,37 +1,34 @@
-"""A static triangle mesh as convex prisms, one per face: MuJoCo collides a mesh geom as its
-convex hull, so a concave scan becomes one prism per face (the scheme: :mod:`pipeline.engines.mujoco`).
-Internal units mm."""
+"""A moving triangle mesh as convex prisms, one per face: MuJoCo collides a mesh geom as its
+convex hull, so a concave mesh becomes one prism per face (a static scan's contacts are the
+engine's own, :mod:`pipeline.engines.mujoco.faces`). Internal units mm."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from pipeline.engines import units as U
-from pipeline.engines.swept_crop import PrismSpheres
 from pipeline.scenes.obstacles import Scene, TriangleMesh
 
 PRISM_DEPTH_MM = (0.05, 1.0)   # a face's prism reaches this far into the object (min, max)
 
 
 class MeshPrisms:
-    """A static triangle mesh as convex prisms, one per face (mm, world frame).
+    """A triangle mesh as convex prisms, one per face (mm, world frame).
 
     ``corners`` [F, 6, 3]: the face, then the face moved along its inward normal by half the
     distance to the next surface behind it (clamped to :data:`PRISM_DEPTH_MM`) and widened
-    (:func:`_taper`); ``valid`` [F] excludes degenerate faces. ``index`` finds the faces near
-    points (m), ``spheres`` bound the prisms.
+    (:func:`_taper`); ``valid`` [F] excludes degenerate faces.
     """
 
     def __init__(self, mesh: TriangleMesh):
         vertices = np.asarray(mesh.vertices_m, float)
         faces = np.asarray(mesh.faces, np.int64)
-        self.index = mesh.face_index
         corners = vertices[faces]
         normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
         area2 = np.linalg.norm(normal, axis=1)
         self.valid = area2 > 1e-12 * max(float(np.max(area2, initial=0.0)), 1e-30)
         normal = normal / np.where(self.valid, area2, 1.0)[:, None]
-        depth = 0.5 * _depth_behind_m(vertices, faces, self.index.centroids, -normal) * U.LENGTH
+        depth = 0.5 * _depth_behind_m(vertices, faces, corners.mean(axis=1), -normal) * U.LENGTH
         depth = np.clip(depth, *PRISM_DEPTH_MM)
         front = corners * U.LENGTH
         centre = front.mean(axis=1, keepdims=True)
@@ -39,7 +36,6 @@ class MeshPrisms:
         widen = (_taper(vertices, faces) * depth)[:, None, None] * outward
         back = front - (depth[:, None] * normal)[:, None] + widen
         self.corners = np.concatenate([front, back], axis=1)
-        self.spheres = PrismSpheres(self.corners)
 
 
 def _taper(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:

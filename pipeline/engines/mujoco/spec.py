@@ -30,8 +30,9 @@ _Z, _Y, _X = (0.0, 0.0, 1.0), (0.0, 1.0, 0.0), (1.0, 0.0, 0.0)
 
 @dataclass(frozen=True)
 class Part:
-    """An obstacle as built: its scene index, the obstacle, and for a mesh the faces built
-    (None: all) and their prisms [F, 6, 3] (mm)."""
+    """An obstacle as built: its scene index, the obstacle, and for a mesh the faces within reach
+    (None: all); a moving mesh's prisms [F, 6, 3] (mm; a static mesh is one anchor geom, its
+    contacts are the engine's own: :mod:`pipeline.engines.mujoco.faces`)."""
 
     index: int
     obstacle: object
@@ -196,6 +197,9 @@ def _add_obstacle(spec, part: Part, config: EngineConfig) -> None:
 
 
 def _add_mesh(spec, body, part: Part) -> None:
+    if part.prisms is None:                            # a static scan: the geom its contacts name
+        body.add_geom(name="anchor", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[1e-3, 0, 0], conaffinity=0)
+        return
     for f, prism in enumerate(part.prisms):
         name = f"f{f}"
         spec.add_mesh(name=name, uservert=prism.ravel())

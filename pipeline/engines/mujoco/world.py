@@ -10,18 +10,16 @@ import numpy as np
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import TrialSetup, World, WorldResult
-from pipeline.engines.common import (CLEARANCE_MARGIN_M, ContactFlags, implausible, jam_message, link_reach_m,
-                                     node_arc_fractions, node_padding_m, start_rate)
-from pipeline.engines.mujoco.faces import FaceContacts
+from pipeline.engines.common import (ContactFlags, implausible, jam_message, link_reach_m, node_arc_fractions,
+                                     start_rate)
+from pipeline.engines.mujoco.faces import ScanContacts, triangles_mm
 from pipeline.engines.mujoco.loads import apply_link_loads
 from pipeline.engines.mujoco.plan import MujocoPlan, head_coordinates
 from pipeline.engines.mujoco.prisms import MeshPrisms, cached_prisms
 from pipeline.engines.mujoco.reach import reachable_parts
 from pipeline.engines.mujoco.spec import WHISKER_CONTYPE, Part, compile_model
 from pipeline.engines.mujoco.substeps import ContactLossSubsteps
-from pipeline.engines.one_sided import OneSidedMesh
 from pipeline.engines.stepping import damping_folds
-from pipeline.engines.swept_crop import SWEPT_RUNS, SweptCrop
 from pipeline.errors import SimulationError
 from pipeline.model.array import WhiskerModel
 from pipeline.model.head_motion import HeadMotion
@@ -50,12 +48,11 @@ class MujocoWorld(World):
 
     def __init__(self, whiskers: list[WhiskerModel], config: EngineConfig, dt_s: float,
                  prisms: dict[tuple, MeshPrisms]):
-        """``prisms``: the engine's cache of static meshes as prisms, by (scene key, index)."""
+        """``prisms``: the engine's cache of moving meshes as prisms, by (scene key, index)."""
         super().__init__(whiskers, config, dt_s)
         self.links = whiskers[0].chain.links
         self.link_reach_m = link_reach_m(whiskers)                 # [w, N]
         self.node_fractions = node_arc_fractions(whiskers)         # [w, N+1]
-        self.padding_m = node_padding_m(whiskers, CLEARANCE_MARGIN_M)   # [w]
         self._prisms = prisms
         self._built_key: object = None
 
@@ -128,38 +125,32 @@ class MujocoWorld(World):
             (stiffness > 0) & (self.spring_rate == 0), self.dof_member,
             np.where(self.link_of_geom >= 0, self.link_of_geom // self.links, -1), len(members), self._touched)
 
-    def _face_contacts(self, parts: list[Part]) -> FaceContacts | None:
-        """The rewrite of the static meshes' prism contacts as triangle contacts
+    def _face_contacts(self, parts: list[Part]) -> ScanContacts | None:
+        """The contacts with the static meshes' faces within reach
         (:mod:`pipeline.engines.mujoco.faces`), or None without a static mesh."""
         m = self.model
-        static = [p for p in parts if isinstance(p.obstacle, TriangleMesh) and not p.velocity_mm_s.any()]
+        static = [p for p in parts if p.prisms is None and isinstance(p.obstacle, TriangleMesh)]
         if not static:
             return None
-        prisms = np.flatnonzero((m.geom_type[:m.ngeom] == mujoco.mjtGeom.mjGEOM_MESH) & (m.geom_bodyid == 0))
-        mesh_of_geom = np.full(m.ngeom + 1, -1, np.int64)        # the world body's prisms, in the parts' order
-        mesh_of_geom[prisms] = np.repeat(np.arange(len(static)), [len(p.prisms) for p in static])
-        meshes = [(OneSidedMesh(p.obstacle, double_precision=True), np.asarray(p.obstacle.position_m, float) * U.LENGTH)
-                  for p in static]
-        return FaceContacts(mesh_of_geom, meshes, self.link_of_geom, self.link_bodies.ravel(),
+        corners, normals = map(np.concatenate, zip(*(triangles_mm(p.obstacle, p.faces) for p in static)))
+        anchor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"obstacle{static[0].index}/anchor")
+        return ScanContacts(m, corners, normals, anchor, self.whisker_geoms, self.link_bodies.ravel(),
                             self.link_lengths_mm.ravel(), m.geom_size[self.whisker_geoms, 0].copy())
 
     # -- scene ---------------------------------------------------------------------------
     def _reachable(self, scene: Scene, pose: Pose, duration_s: float, members: np.ndarray,
-                   guides: dict | None = None,
-                   travel_m: np.ndarray | float = 0.0) -> tuple[list[Part], np.ndarray, list[SweptCrop]]:
+                   travel_m: np.ndarray | float = 0.0) -> tuple[list[Part], np.ndarray]:
         """:func:`~pipeline.engines.mujoco.reach.reachable_parts` for this world's whiskers
-        ``members`` at ``pose`` (a whisker with node paths in ``guides``: faces near those), with
-        the gaps [w] of every whisker of the world (inf for the others); a moving head takes each
-        base point up to ``travel_m`` [w] (m) from where it starts."""
+        ``members`` at ``pose``, with the gaps [w] of every whisker of the world (inf for the
+        others); a moving head takes each base point up to ``travel_m`` [w] (m) from where it
+        starts."""
         bases = pose.apply(np.array([self.whiskers[k].base_point_m for k in members]))
         travel_m = np.broadcast_to(np.asarray(travel_m, float), (len(self.whiskers),))[members]
-        parts, gaps, crops = reachable_parts(scene, bases, self.link_reach_m[members, -1] + travel_m,
-                                             self.padding_m[members], duration_s,
-                                             lambda index: cached_prisms(self._prisms, scene, index),
-                                             None if guides is None else [guides.get(k) for k in members])
+        parts, gaps = reachable_parts(scene, bases, self.link_reach_m[members, -1] + travel_m, duration_s,
+                                      lambda index: cached_prisms(self._prisms, scene, index))
         all_gaps = np.full(len(self.whiskers), np.inf)
         all_gaps[members] = np.maximum(gaps - travel_m, 0.0)
-        return parts, all_gaps, crops
+        return parts, all_gaps
 
     def _prepare(self, scene: Scene, parts: list[Part], gaps: np.ndarray, members: np.ndarray,
                  jointed_head: bool) -> None:
@@ -210,14 +201,11 @@ class MujocoWorld(World):
 
     def run(self, setup: TrialSetup, active: np.ndarray) -> WorldResult:
         """Simulate the ``active`` whiskers; one whose contact jams is taken out (``jammed``) and
-        the others are simulated again without it; one that left the faces cropped to its free
-        path is simulated again with the faces near that run's path too, up to
-        :data:`SWEPT_RUNS` times, then with its whole reach (:mod:`pipeline.engines.swept_crop`)."""
+        the others are simulated again without it."""
         result = WorldResult.zeros(setup.samples, len(self.whiskers), self.links)
         members = np.flatnonzero(active)
-        guides = None if setup.free_paths is None else {k: [setup.free_paths[k]] for k in members}
         while members.size:
-            parts, gaps, crops = self._reach(setup, members, guides=guides)
+            parts, gaps = self._reach(setup, members)
             self._prepare(setup.scene, parts, gaps, members, setup.head is not None and setup.head.moves)
             try:
                 simulated = self._simulate(setup.only(members))
@@ -225,25 +213,19 @@ class MujocoWorld(World):
                 result.jammed.update(jam.messages)
                 members = np.setdiff1d(members, list(jam.messages))
                 continue
-            escaped = np.zeros(len(members), bool)
-            for crop in crops:
-                escaped |= crop.escaped(simulated.nodes)
-            result.put(members[~escaped], simulated, ~escaped)
-            for k, nodes in zip(members[escaped], simulated.nodes[:, escaped].swapaxes(0, 1)):
-                guides[k] = guides[k] + [nodes] if len(guides[k]) < SWEPT_RUNS else None
-            members = members[escaped]
+            result.put(members, simulated)
+            break
         return result
 
-    def _reach(self, setup: TrialSetup, members: np.ndarray, travel_m: float | None = None,
-               guides: dict | None = None) -> tuple[list[Part], np.ndarray, list[SweptCrop]]:
-        """:meth:`_reachable` for the trial's whiskers ``members`` (faces near their ``guides``),
-        its head's path taking each base point up to ``travel_m`` (m; None: as far as the
+    def _reach(self, setup: TrialSetup, members: np.ndarray,
+               travel_m: float | None = None) -> tuple[list[Part], np.ndarray]:
+        """:meth:`_reachable` for the trial's whiskers ``members``, its head's path taking each base point up to ``travel_m`` (m; None: as far as the
         setup's head trajectory takes it)."""
         duration = setup.samples / self.config.output_rate_hz
         if travel_m is None:
             travel_m = 0.0 if setup.head is None else setup.head.base_travel_m(
                 np.array([w.base_point_m for w in self.whiskers]), np.arange(0.0, duration + self.dt_s, self.dt_s))
-        return self._reachable(setup.scene, setup.pose, duration, members, guides, travel_m)
+        return self._reachable(setup.scene, setup.pose, duration, members, travel_m)
 
     def stepping(self, setup: TrialSetup, active: np.ndarray, result: WorldResult, travel_m: float | None = None):
         """:meth:`_stepping` for the ``active`` whiskers (all of them: ``result`` is in their
@@ -251,7 +233,7 @@ class MujocoWorld(World):
         whose contact jams is parked (:meth:`_park`; no step refinement) and listed in
         ``result.jammed``."""
         members = np.flatnonzero(active)
-        parts, gaps, _ = self._reach(setup, members, travel_m)
+        parts, gaps = self._reach(setup, members, travel_m)
         self._prepare(setup.scene, parts, gaps, members, True)
         return self._stepping(setup.only(members), result, park=True)
 
