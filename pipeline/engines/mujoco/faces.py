@@ -23,7 +23,6 @@ Internal units mm.
 from __future__ import annotations
 
 import ctypes
-from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -34,8 +33,10 @@ from pipeline.scenes.obstacles import TriangleMesh
 
 # MuJoCo's effective metric M + h·D + h²·K of the discrete integrator, built at the end of its
 # position stage on the arena after the contacts and constraints (so built again once contacts are
-# added); not in the Python bindings (MuJoCo 4.0: ``mj_effBuild(m, d, active, flg_factor)``).
-_EFFECTIVE_METRIC = ctypes.CDLL(next(Path(mujoco.__file__).parent.glob("libmujoco.so*"))).mj_effBuild
+# added); not in the Python bindings (MuJoCo 4.0: ``mj_effBuild(m, d, active, flg_factor)``), so
+# looked up through the bindings' own extension module, which links MuJoCo's library (whatever its
+# file is called on the platform).
+_EFFECTIVE_METRIC = ctypes.CDLL(mujoco._functions.__file__).mj_effBuild
 _EFFECTIVE_METRIC.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_int]
 _EFFECTIVE_METRIC.restype = None
 
