@@ -13,8 +13,9 @@ held-out error e_c, ΔBIC and n·ln(RSS_c/RSS₀) on its training trials, and it
   the candidate's own floor, else 0); its paired z beyond its own floor, z·(g − f_c²)/g, f_c =
   min(f, ``ABSORB_MARGIN``·κ_c·A), κ_c the most of the model error that candidate took for an
   effect on effect-free calibration draws (``Candidate.absorbs``).
-- Training test (:func:`trained`): ΔBIC < −``BIC_MIN`` for an effect; a training fit no
-  worse than the baseline's for a damping law.
+- Training test (:func:`trained`): ΔBIC < −``BIC_MIN`` for an effect in the first round; a
+  training fit no worse than the baseline's for a damping law, and for every candidate of a
+  later round (on top of a named cause, :mod:`.later_causes`).
 - Decision (:func:`decide`): the baseline is inadequate when X is significant or when a
   candidate that passes the training test has z beyond its floor > ``Z_MIN``; otherwise
   "none". Then the candidate with the lowest held-out error among those that pass the
@@ -38,14 +39,18 @@ FLOOR_FRACTION = 0.03       # model-error floor / RMS deflection (docs/measureme
 ABSORB_MARGIN = 2.0         # a candidate's floor / the most it absorbed on calibration draws (§9)
 
 
-def trained(name: str, bic_delta: float, fit_delta: float) -> bool:
+def trained(name: str, bic_delta: float, fit_delta: float, later: bool = False) -> bool:
     """The training half's test of a candidate: an effect needs ΔBIC < −``BIC_MIN``; a damping
     law (:data:`~.candidates.DAMPING_LAWS`: an alternative to the baseline's law, not an
     effect added to it) needs only a training fit no worse than the baseline's
     (n·ln(RSS_c/RSS₀) < 0), its held-out z beyond its own floor being the test: a law's
     signature is the higher modes' decay, which some drives excite and others hardly, so one
-    half of the trials can hold it and the other not."""
-    if name in DAMPING_LAWS:
+    half of the trials can hold it and the other not. In a ``later`` round every candidate is
+    tested as a law is: the named cause's parameters were fitted on the same training trials and
+    took what they could of a second effect there (a stiffness gradient's γ absorbs a compliant
+    follicle), so the two fits can end equally good on those trials and only the held-out
+    trials, at the round's family threshold, tell them apart."""
+    if name in DAMPING_LAWS or later:
         return fit_delta < 0
     return bic_delta < -BIC_MIN
 
@@ -79,9 +84,10 @@ def family_z(tried: int, first_round: int) -> float:
 
 
 def decide(evidence: dict, floor_fraction: float = None, explained_min: float = None,
-           notes: list[str] | None = None, z_min: float = Z_MIN) -> tuple[str, dict[str, float]]:
+           notes: list[str] | None = None, z_min: float = Z_MIN, later: bool = False) -> tuple[str, dict[str, float]]:
     """(cause, each candidate's share φ of the excess) from the held-out evidence
-    (``Diagnosis.evidence``) and the rule's thresholds (default: this module's)."""
+    (``Diagnosis.evidence``) and the rule's thresholds (default: this module's); ``later``: a
+    round on top of a named cause (its training test, :func:`trained`)."""
     floor_fraction = FLOOR_FRACTION if floor_fraction is None else floor_fraction
     explained_min = EXPLAINED_MIN if explained_min is None else explained_min
     e0, noise, n = evidence["baseline_m"], evidence["noise_m"], evidence["values"]
@@ -91,7 +97,7 @@ def decide(evidence: dict, floor_fraction: float = None, explained_min: float = 
     shares = {c["name"]: (e0 ** 2 - c["heldout_m"] ** 2) / excess if excess > 0 else float(z_beyond[c["name"]] > 0)
               for c in evidence["candidates"]}
     beats = [c for c in evidence["candidates"]
-             if trained(c["name"], c["bic_delta"], c.get("fit_delta", float("nan"))) and z_beyond[c["name"]] > z_min]
+             if trained(c["name"], c["bic_delta"], c.get("fit_delta", float("nan")), later) and z_beyond[c["name"]] > z_min]
     if significance(e0, noise, floor, n) <= SIGNIFICANT and not beats:
         return "none", shares
     supported = [c for c in beats if shares[c["name"]] >= explained_min

@@ -16,10 +16,10 @@ round on one (:mod:`.decision`):
   the RMS deflection of all trials); its z is Stouffer's (z₁ + z₂)/√2 of the folds' paired z
   beyond their own floors (each fold's floor from its own held-out half: the floors
   are not a fixed share of the pooled gain, so pooling the gains first would let the half with
-  the larger deflections set the floor of both). The training test asks ΔBIC < −``BIC_MIN`` (a
-  law: a training fit no worse) on at least one of the two halves: after the first cause the
-  rest of the misfit can sit in the trials of one half only (a follicle behind a fitted
-  stiffness gradient: held out z 23 with no training gain). ``first_fold`` and
+  the larger deflections set the floor of both). The training test asks a training fit no
+  worse than the named model's (:func:`~.decision.trained`, ``later``) on at least one of the
+  two halves: after the first cause the rest of the misfit can sit in the trials of one half
+  only (a follicle behind a fitted stiffness gradient: held out z 23 with no training gain). ``first_fold`` and
   ``second_fold`` in the evidence are each fold alone, fold 1 as the first round scores it.
 
 Many candidates tried: the z threshold of a later round is :func:`~.decision.family_z` over
@@ -86,7 +86,7 @@ def next_cause(session: Session, named: CandidateScore, rest: list[Candidate], n
     evidence.update(evidence_of(session.test.error(r0), noise, amplitude(session.measurement), r0, pooled))
     if "second_fold" in evidence:
         _combine(evidence)
-    cause, _ = decide(evidence, z_min=z_min)
+    cause, _ = decide(evidence, z_min=z_min, later=True)
     evidence.update(z_min=z_min, on_top_of=named.fit.names, cause=cause)
     return next((s for s in first if s.name == cause), None), evidence
 

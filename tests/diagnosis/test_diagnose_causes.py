@@ -102,3 +102,19 @@ def test_a_damping_law_is_decided_on_the_held_out_trials():
     assert decide(evidence("rayleigh", 4.6, -4.7))[0] == "rayleigh"
     assert decide(evidence("stiffness_gradient", 4.6, -4.7))[0] == "none"
     assert decide(evidence("eq3", 1.0, 1.0))[0] == "none"
+
+
+def test_a_later_round_is_decided_on_the_held_out_trials():
+    """Round 2 of truth2 7034 (a compliant follicle and a stiffness gradient, the gradient named
+    first): the follicle on top of the fitted gradient wins on the held-out trials (z 9.7 beyond
+    its floor, family threshold 3.19) while its training fit only equals the named model's
+    (ΔBIC +18.5, the gradient's γ having taken the follicle's share of those trials). A later
+    round names it; a first round with the same numbers does not."""
+    evidence = {"baseline_m": 51.70e-6, "noise_m": 49.92e-6, "amplitude_m": 5.792e-4, "values": 22884,
+                "candidates": [{"name": "follicle", "heldout_m": 50.85e-6, "bic_delta": 18.5, "fit_delta": -0.2,
+                                "z": 9.7, "absorbs": 0.0}]}
+    z_min = family_z(15, 8)
+    assert decide(evidence, z_min=z_min, later=True)[0] == "follicle"
+    assert decide(evidence, z_min=z_min)[0] == "none"
+    evidence["candidates"][0]["fit_delta"] = 0.3
+    assert decide(evidence, z_min=z_min, later=True)[0] == "none"
