@@ -141,12 +141,16 @@ class BulletWhisker:
         self._link_inertia = chain.link_inertia_kg_m2 * U.INERTIA
         self._step = None
         self._last_contacts = None      # (links [P], points [P, 3], forces [P, 3]) of the step before
-        # travel_mm: since reset, Σ over steps of reach_mm·Σ_j |Δq_j|, a bound on how far any point
-        # of the whisker has moved relative to its base (a joint turned by Δq moves a point at
-        # distance r from its axis by ≤ r·|Δq|, r ≤ the arc length plus the radius: every joint
-        # sits at or beyond the base); next_query_mm: per obstacle body, the travel at which its
-        # gap may have closed to the reach (:func:`~pipeline.engines.bullet.contact.find_contacts`)
+        # travel_mm: since reset, Σ over steps of Σ_j reach_j·|Δq_j|, a bound on how far any point
+        # of the whisker has moved (a joint turned by Δq moves a point at distance r from its axis
+        # by ≤ r·|Δq|; the points it moves lie beyond its node, so r ≤ the arc length from that
+        # node to the tip plus the largest radius: the whole whisker's for the driven and follicle
+        # joints at the base); next_query_mm: per obstacle body, the travel at which its gap may
+        # have closed to the reach (:func:`~pipeline.engines.bullet.contact.find_contacts`)
         self.reach_mm = float(chain.link_lengths_m.sum() * U.LENGTH + self.capsule_radii.max())
+        beyond_node_mm = np.cumsum(chain.link_lengths_m[::-1])[::-1] * U.LENGTH + self.capsule_radii.max()
+        free_nodes = [joint.node for node in range(chain.links) for joint in layout.at_node(node)]
+        self.joint_reach_mm = np.concatenate([np.full(3, self.reach_mm), beyond_node_mm[free_nodes]])
         self.travel_mm, self.next_query_mm = 0.0, {}
         if built:
             self.build()
@@ -234,7 +238,7 @@ class BulletWhisker:
         if record:
             self._record_wrench(q_list, v, accel, external)
         v_after = v + h * accel
-        self.travel_mm += self.reach_mm * h * float(np.abs(v_after).sum())
+        self.travel_mm += h * float(self.joint_reach_mm @ np.abs(v_after))
         self._set_state(q + h * v_after, v_after)
         return normal_forces
 
