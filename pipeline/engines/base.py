@@ -102,9 +102,8 @@ class TrialSetup:
     """What a world needs to run one trial: the scene, head pose and drive (continued past the
     trial's end), the number of output samples, per whisker of the world its free-joint angles
     (rad) and rates (rad/s) at t = 0 and its loads (:mod:`pipeline.model.effects.loads`), whether a
-    whisker's base holds still from its first contact on, the head's trajectory (None: the head
-    stays at ``pose``) and, where the coarse path ran, each whisker's free node paths (late
-    starts, :mod:`pipeline.engines.late_start`)."""
+    whisker's base holds still from its first contact on and the head's trajectory (None: the head
+    stays at ``pose``)."""
 
     scene: Scene
     pose: Pose
@@ -115,14 +114,12 @@ class TrialSetup:
     loads: tuple
     hold_on_contact: bool = False
     head: HeadMotion | None = None
-    free_paths: tuple | None = None     # per whisker its coarse free node paths [T, N+1, 3] (m, world)
 
     def only(self, whiskers) -> "TrialSetup":
         """The same trial for the world's whiskers ``whiskers`` (indices)."""
         return replace(self, initial=tuple(self.initial[k] for k in whiskers),
                        initial_rates=tuple(self.initial_rates[k] for k in whiskers),
-                       loads=tuple(self.loads[k] for k in whiskers),
-                       free_paths=None if self.free_paths is None else tuple(self.free_paths[k] for k in whiskers))
+                       loads=tuple(self.loads[k] for k in whiskers))
 
 
 class World(ABC):
@@ -221,13 +218,11 @@ class Engine(ABC):
         self.free.select(drive, samples, depends_on_pose=depends_on_pose)
         reused = started_by_drive & self.free.reusable(pose, scene, times)
         coarse = np.zeros_like(reused)
+        starts = np.zeros(len(self.array.whiskers), int)
         if self.free_path is not None and driven and not depends_on_pose and head_motion is None:
             coarse = ~reused & self.free_path.clear(scene, pose, drive, duration_s, times)
-            setup = replace(setup, free_paths=tuple(self.free_path.recall(k, pose)[1]
-                                                    for k in range(len(self.array.whiskers))))
-        starts = np.zeros(len(self.array.whiskers), int)
-        if self.config.late_start and setup.free_paths is not None:
-            starts = late_starts(self.free_path, scene, pose, times)
+            if self.config.late_start:
+                starts = late_starts(self.free_path, scene, pose, times)
         result = WorldResult.zeros(samples, len(self.array.whiskers), self.array.links)
         steps, refined = 0, {}
         started_late = np.zeros(len(self.array.whiskers), int)

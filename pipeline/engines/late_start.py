@@ -60,5 +60,4 @@ def started_at(free_path, setup, start: int, output_rate_hz: float):
     initial = tuple(a if j is None else j[0][start - 1] for a, j in zip(setup.initial, state))
     rates = tuple(r if j is None else j[1][start - 1] for r, j in zip(setup.initial_rates, state))
     return replace(setup, samples=setup.samples - start, drive=setup.drive.shifted(start / output_rate_hz),
-                   initial=initial, initial_rates=rates,
-                   free_paths=None if setup.free_paths is None else tuple(p[start:] for p in setup.free_paths))
+                   initial=initial, initial_rates=rates)

@@ -219,8 +219,8 @@ class MujocoWorld(World):
 
     def _reach(self, setup: TrialSetup, members: np.ndarray,
                travel_m: float | None = None) -> tuple[list[Part], np.ndarray]:
-        """:meth:`_reachable` for the trial's whiskers ``members``, its head's path taking each base point up to ``travel_m`` (m; None: as far as the
-        setup's head trajectory takes it)."""
+        """:meth:`_reachable` for the trial's whiskers ``members``, its head's path taking each
+        base point up to ``travel_m`` (m; None: as far as the setup's head trajectory takes it)."""
         duration = setup.samples / self.config.output_rate_hz
         if travel_m is None:
             travel_m = 0.0 if setup.head is None else setup.head.base_travel_m(
