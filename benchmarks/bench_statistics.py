@@ -2,10 +2,10 @@
 and on the other engine, compared the way a neuroscientist would plot them.
 
 Run: .venv/bin/python benchmarks/bench_statistics.py [--trials 0-11] [--variants half,bullet]
-     [--base default] [--cache DIR] [--json out.json]
+     [--base default] [--cache DIR] [--meshes DIR] [--json out.json]
 
 The trials are those of configs/simulate.yaml (as `pipeline simulate` draws them: scene, head
-pose, whisk; run `pipeline build-meshes` first). Variants: ``default`` (the config), ``half``
+pose, whisk; run `pipeline build-meshes` first; ``--meshes`` another folder of built meshes). Variants: ``default`` (the config), ``half``
 (``engine.dt_s`` and ``engine.f1_tolerance`` halved: every whisker's step halved), ``bullet``
 (the same trials on the other engine), ``full-free`` (``free_whiskers: engine``: whiskers that
 cannot touch on the full step instead of the cheap path, pipeline/engines/free_path.py),
@@ -83,13 +83,13 @@ def trial_table(arrays: dict[str, np.ndarray], samples: int) -> dict[str, np.nda
             "poc_at_peak": np.where(touched, poc[peak, columns], np.nan)}
 
 
-def run_variant(name: str, trials: list[int], cache: Path | None) -> dict[str, np.ndarray]:
+def run_variant(name: str, trials: list[int], cache: Path | None, meshes: Path) -> dict[str, np.ndarray]:
     """[trials, W] of every FIELD for variant ``name`` (and ``cpu_s`` per trial)."""
     path = cache / f"{name}_{trials[0]}-{trials[-1]}.npz" if cache else None
     if path is not None and path.is_file():
         return dict(np.load(path))
     config, _ = load_config(SimulateConfig, REPO / "configs" / "simulate.yaml", env_prefix="PIPELINE_SIMULATE_",
-                            overrides=VARIANTS[name] | {"scenes": {"folder": str(REPO / "outputs" / "meshes")}})
+                            overrides=VARIANTS[name] | {"scenes": {"folder": str(meshes)}})
     simulator = Simulator(RunSpec(config, scene_catalogue(config.scenes), _layout(config)))
     rows, cpu = [], []
     for index in trials:
@@ -182,14 +182,15 @@ def main() -> None:
     parser.add_argument("--variants", default="half,bullet", help=f"compared with default: {', '.join(VARIANTS)}")
     parser.add_argument("--base", default="default", choices=list(VARIANTS), help="the variant compared against")
     parser.add_argument("--cache", type=Path, default=None, help="folder for each variant's per-pair table")
+    parser.add_argument("--meshes", type=Path, default=REPO / "outputs" / "meshes", help="folder of built meshes")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
     first, last = map(int, args.trials.split("-"))
     trials = list(range(first, last + 1))
-    base = run_variant(args.base, trials, args.cache)
+    base = run_variant(args.base, trials, args.cache, args.meshes)
     results = {}
     for name in args.variants.split(","):
-        results[name] = compare(base, run_variant(name, trials, args.cache))
+        results[name] = compare(base, run_variant(name, trials, args.cache, args.meshes))
         print(report(args.base, name, results[name]), flush=True)
     if args.json:
         args.json.write_text(json.dumps({"trials": args.trials, "base": args.base, "comparisons": results}, indent=1))

@@ -162,6 +162,10 @@ class MeshConfig(StrictModel):
     simplify: SimplifyConfig = SimplifyConfig()
     max_edge_mm: float = Field(3.0, gt=0.05, le=100,
                                description="guaranteed longest edge of the output mesh, mm")
+    shell_thickness_mm: float = Field(
+        0.0, ge=0, le=100,
+        description="pieces with an open boundary closed into shells this thick, mm "
+                    "(a back behind the scanned surface; 0 = leave them open; docs/meshes.md)")
     metric_samples: int = Field(100_000, ge=1_000, le=10_000_000,
                                 description="surface samples for the surface-to-data distance")
     seed: int = Field(0, ge=0, description="seed of every random choice (metric sampling)")

@@ -4,7 +4,10 @@ Per scan (all internal lengths in mm): read in chunks with voxel down-sampling a
 handling → statistical and radius outlier removal → oriented normals → Poisson (or ball
 pivoting) → removal of unsupported surface (distance to the data, crop to its bounds) →
 cleaning → quadric simplification → splitting of edges longer than ``max_edge_mm`` →
-a last drop of any face still too far from the data → plain OBJ in metres.
+a last drop of any face still too far from the data → pieces with an open boundary closed into
+shells ``shell_thickness_mm`` thick (:mod:`pipeline.meshes.shell`; the shell's back lies behind
+the scanned surface, so the distance guarantee and the surface-to-data metrics are those of the
+scanned faces) → plain OBJ in metres.
 
 Scans whose input bytes and parameters are unchanged (and whose OBJ is intact) are
 skipped. Several scans run in parallel processes, one thread each; a scan's failure is
@@ -40,9 +43,10 @@ from pipeline.meshes.io import SUPPORTED_SUFFIXES, write_obj
 from pipeline.meshes.load import read_scan
 from pipeline.meshes.manifest import (is_current, load_manifest, parameters_key, scan_parameters, versions,
                                       write_manifest)
-from pipeline.meshes.metrics import mesh_metrics
+from pipeline.meshes.metrics import mesh_metrics, shape_metrics
 from pipeline.meshes.reconstruct import drop_far_faces, reconstruct, trim_unsupported
 from pipeline.meshes.refine import clean_mesh, limit_edges, simplify
+from pipeline.meshes.shell import close_open_sheets
 from pipeline.provenance import file_sha256
 
 CONFIG_ENV_PREFIX = "PIPELINE_MESHES_"
@@ -145,6 +149,11 @@ def build_scan(path: Path, name: str, out_dir: Path, config: MeshConfig) -> dict
                         f"{config.reconstruct.max_distance_mm:g})")
 
     metrics = mesh_metrics(vertices, faces, tree, config.metric_samples, config.seed)
+    scanned_triangles = len(faces)
+    vertices, faces, shell = close_open_sheets(vertices, faces, config.shell_thickness_mm)
+    if shell:
+        vertices, faces = limit_edges(vertices, faces, config.max_edge_mm)
+        metrics |= shape_metrics(vertices, faces)
     if metrics["max_edge_mm"] > config.max_edge_mm + 1e-9:
         raise RuntimeError(f"max edge {metrics['max_edge_mm']} mm exceeds {config.max_edge_mm}")
     lap("metrics")
@@ -166,6 +175,7 @@ def build_scan(path: Path, name: str, out_dir: Path, config: MeshConfig) -> dict
         **metrics,
         "unsupported_area_removed_mm2": round(float(removed_area), 3),
         "far_faces_dropped": dropped,
+        "shell_triangles": int(metrics["triangles"] - scanned_triangles),
     }
     return {
         "units": {"input": scan.units, "source": scan.units_source, "output": "m"},

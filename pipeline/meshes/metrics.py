@@ -34,17 +34,11 @@ def surface_area(vertices: np.ndarray, faces: np.ndarray) -> float:
                                       axis=1).sum())
 
 
-def mesh_metrics(vertices_mm: np.ndarray, faces: np.ndarray, tree, samples: int,
-                 seed: int) -> dict:
-    """Size, edge lengths, manifold flags and surface-to-data distances of a mesh.
-
-    ``tree`` is a ``cKDTree`` of the cleaned input points (mm). ``watertight``: every edge
-    is shared by exactly two triangles; ``edge_manifold``: by at most two.
-    """
+def shape_metrics(vertices_mm: np.ndarray, faces: np.ndarray) -> dict:
+    """Size, edge lengths and manifold flags of a mesh. ``watertight``: every edge is shared by
+    exactly two triangles; ``edge_manifold``: by at most two."""
     edges, uses = unique_edges(faces)
     lengths = np.linalg.norm(vertices_mm[edges[:, 0]] - vertices_mm[edges[:, 1]], axis=1)
-    points = sample_surface(vertices_mm, faces, samples, seed)
-    distance, _ = tree.query(np.vstack([points, vertices_mm]))
     return {
         "triangles": int(len(faces)),
         "vertices": int(len(vertices_mm)),
@@ -54,6 +48,16 @@ def mesh_metrics(vertices_mm: np.ndarray, faces: np.ndarray, tree, samples: int,
         "watertight": bool(np.all(uses == 2)),
         "edge_manifold": bool(np.all(uses <= 2)),
         "boundary_edges": int(np.sum(uses == 1)),
+    }
+
+
+def mesh_metrics(vertices_mm: np.ndarray, faces: np.ndarray, tree, samples: int,
+                 seed: int) -> dict:
+    """Size, edge lengths, manifold flags (:func:`shape_metrics`) and surface-to-data distances
+    of a mesh. ``tree`` is a ``cKDTree`` of the cleaned input points (mm)."""
+    points = sample_surface(vertices_mm, faces, samples, seed)
+    distance, _ = tree.query(np.vstack([points, vertices_mm]))
+    return shape_metrics(vertices_mm, faces) | {
         "surface_to_data_median_mm": round(float(np.median(distance)), 4),
         "surface_to_data_p95_mm": round(float(np.percentile(distance, 95)), 4),
         "surface_to_data_max_mm": round(float(distance.max()), 4),
