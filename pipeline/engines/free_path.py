@@ -4,7 +4,9 @@ A whisker that touches nothing moves relative to the head as it would in an empt
 without a load that depends on the head's pose (gravity, a world-frame tip force) that motion
 does not depend on the pose (:class:`~pipeline.engines.common.FreeMotion`). Before a trial the
 engine therefore runs the array in an empty scene on a second engine of its own kind at a
-coarse step (:data:`FREE_DT_S`, f1 tolerance :data:`FREE_F1_TOLERANCE`), about 2.7× cheaper
+coarse step (:data:`FREE_DT_S`, f1 tolerance :data:`FREE_F1_TOLERANCE`), every whisker at that
+step (:func:`coarse_engine`; one whose damping does not fold there takes the linearly implicit
+step, :mod:`pipeline.engines.mujoco`), about 2.7× cheaper
 than the full step (MuJoCo; Bullet has no coarse path, see Accuracy), one whisker of each
 mirror pair (the other's outputs are its reflection, :mod:`pipeline.engines.mirror`), and
 keeps the outputs of every whisker whose free node paths stay clear of
@@ -73,12 +75,19 @@ def coarse_config(config: EngineConfig, longest_s: float | None = None) -> Engin
                                      "free_whiskers": "engine"})
 
 
+def coarse_engine(make_engine, array: ArrayModel, config: EngineConfig):
+    """The coarse path's engine (``make_engine(array, config, levels)``) with every whisker at
+    ``config.dt_s``: a shorter whisker's free response to the whisk is quasi-static, and a
+    world of its own at a finer step cost more than all the rest (module docstring, Accuracy)."""
+    return make_engine(array, config, np.zeros(len(array.whiskers), np.int64))
+
+
 class FreePath:
     """The coarse path of an engine (built on first use): which whiskers it covers in a trial,
     and their outputs."""
 
     def __init__(self, make_engine, array: ArrayModel, config: EngineConfig):
-        """``make_engine(array, config)`` builds an engine of the caller's kind."""
+        """``make_engine(array, config, levels)`` builds an engine of the caller's kind."""
         self.make_engine, self.array, self.config = make_engine, array, config
         self.engine = None
         self.motion = FreeMotion(array.whiskers, margin_m=CLEARANCE_MARGIN_M + FREE_PATH_MARGIN_M)
@@ -102,8 +111,8 @@ class FreePath:
         (then :meth:`recall` gives its outputs); runs the coarse engine in an empty scene."""
         sources = np.flatnonzero(self.source == np.arange(len(self.source)))      # the coarse engine's whiskers
         if self.engine is None:
-            self.engine = self.make_engine(replace(self.array, whiskers=tuple(self.array.whiskers[k] for k in sources)),
-                                           self.config)
+            self.engine = coarse_engine(self.make_engine, replace(self.array, whiskers=tuple(
+                self.array.whiskers[k] for k in sources)), self.config)
         for _, world in self.engine.worlds:                # the joint states only a late start needs
             world.joint_log = {} if self.config.late_start else None
         output = self.engine.run(empty(), pose, drive, duration_s)
