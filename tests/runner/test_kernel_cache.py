@@ -1,0 +1,47 @@
+"""A long run compiles numba's kernels in a child process when their disk cache is cold
+(pipeline/runner/kernel_cache.py): the check must tell a cold cache from a warm one."""
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+from pipeline.runner.kernel_cache import KERNEL_MODULES, WARM_FROM_TRIALS, warm_kernels
+
+REPO = Path(__file__).resolve().parents[2]
+KERNEL = textwrap.dedent("""
+    import numba
+
+    @numba.njit(cache=True)
+    def twice(x):
+        return 2.0 * x
+""")
+
+
+def _uncached(folder: Path, call_first: bool) -> str:
+    """What uncached_kernels says of the module ``kernel_probe`` in a fresh process whose numba cache is ``folder``."""
+    script = ("import kernel_probe\n" + ("kernel_probe.twice(1.0)\n" if call_first else "")
+              + "from pipeline.runner.kernel_cache import uncached_kernels\n"
+              + "print(uncached_kernels(('kernel_probe',)))\n")
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(folder / "cache"),
+           "PYTHONPATH": os.pathsep.join([str(folder), str(REPO), os.environ.get("PYTHONPATH", "")])}
+    done = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
+    return done.stdout.strip()
+
+
+def test_a_kernel_is_uncached_until_compiled_once(tmp_path):
+    (tmp_path / "kernel_probe.py").write_text(KERNEL)
+    assert _uncached(tmp_path, call_first=False) == "['kernel_probe.twice']"
+    assert _uncached(tmp_path, call_first=True) == "[]"         # compiled and written to the cache
+    assert _uncached(tmp_path, call_first=False) == "[]"        # a new process finds it there
+    (tmp_path / "kernel_probe.py").write_text(KERNEL + "\n# changed\n")
+    os.utime(tmp_path / "kernel_probe.py", (1e9, 1e9))                          # a new source stamp: stale
+    assert _uncached(tmp_path, call_first=False) == "['kernel_probe.twice']"
+
+
+def test_every_engine_names_existing_kernel_modules_and_short_runs_never_warm():
+    for modules in KERNEL_MODULES.values():
+        for name in modules:
+            assert (REPO / (name.replace(".", "/") + ".py")).is_file(), name
+    assert warm_kernels(None, 0, WARM_FROM_TRIALS - 1) is False
