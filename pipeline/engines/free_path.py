@@ -11,9 +11,7 @@ than the full step (MuJoCo; Bullet has no coarse path, see Accuracy), one whiske
 mirror pair (the other's outputs are its reflection, :mod:`pipeline.engines.mirror`), and
 keeps the outputs of every whisker whose free node paths stay clear of
 the trial's obstacles by FreeMotion's padding (base radius, half the longest link, half the
-farthest a node moves between samples) plus :data:`FREE_PATH_MARGIN_M` (FreeMotion's lower
-bound of the distance first; in a scene of static meshes, a whisker it does not clear is
-checked again with the exact distance, less :data:`EXACT_DISTANCE_TOLERANCE_M`); only the others are
+farthest a node moves between samples) plus :data:`FREE_PATH_MARGIN_M`; only the others are
 simulated at the full step, with the scene. A kept whisker gets the coarse run's base wrench
 and node positions, no contact and no point of contact, as a whisker that touches nothing
 gets from the full engine. The coarse run sees the trial's pose and drive only: a trial whose
@@ -48,7 +46,7 @@ from pipeline.engines.mirror import joint_signs, mirrored, twins
 from pipeline.model.array import ArrayModel
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.scenes.library import empty
-from pipeline.scenes.obstacles import Scene, TriangleMesh
+from pipeline.scenes.obstacles import Scene
 
 # the coarse path's longest step (s) per engine; shorter whiskers refine from it. Bullet has none:
 # its coarse runs missed 1 % (RA0's Mz: 1.40 % at 9 Hz with 2.5e-4 s, 1.60 % at 12 Hz with 2e-4 s)
@@ -56,7 +54,6 @@ from pipeline.scenes.obstacles import Scene, TriangleMesh
 FREE_DT_S = {"mujoco": 2.5e-4}
 FREE_F1_TOLERANCE = 0.05     # its f1 tolerance (the full engine's default: 0.01): 0.02 cost 0.15 s more, same accuracy
 FREE_PATH_MARGIN_M = 1e-3    # clearance kept beyond FreeMotion's padding (module docstring, Safety)
-EXACT_DISTANCE_TOLERANCE_M = 1e-6   # the exact distance's error (Open3D computes in float32: ~10⁻⁷ m at 0.3 m)
 # ``free_whiskers: auto``: per engine the cheapest path within 1 % of its full step on every whisker
 # it takes (benchmarks/bench_free_whiskers.py; docs/scaling.md): a MuJoCo dataset trial costs 1.92 CPU-s
 # with the coarse run, 2.06 with the linear chain; Bullet's full step ≈ 4× a dataset trial's linear path
@@ -137,22 +134,7 @@ class FreePath:
             if source in joints:
                 signs = 1.0 if k == source else joint_signs(self.array.whiskers[k].physics.layout)
                 self.joints[k] = tuple(signs * part for part in joints[source])
-        clear = self.motion.reusable(pose, scene, times_s)
-        return clear | self._clear_exactly(~clear, scene, pose)
-
-    def _clear_exactly(self, candidates: np.ndarray, scene: Scene, pose: Pose) -> np.ndarray:
-        """[W] which of the ``candidates`` [W] keep clear of ``scene``'s meshes by their padding,
-        measured with the exact distance of every node at every sample; none unless every
-        obstacle is a static mesh."""
-        clear = np.zeros_like(candidates)
-        if not all(isinstance(o, TriangleMesh) and not np.any(o.velocity_m_s) for o in scene.obstacles):
-            return clear
-        for k in np.flatnonzero(candidates):
-            _, head_nodes, pad = self.motion.motions[k]
-            nodes = pose.apply(head_nodes).reshape(-1, 3)
-            distance = min((o.surface.distance(nodes).min() for o in scene.obstacles), default=np.inf)
-            clear[k] = distance - EXACT_DISTANCE_TOLERANCE_M > pad
-        return clear
+        return self.motion.reusable(pose, scene, times_s)
 
     def recall(self, k: int, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
         """Whisker k's coarse wrench [T, 6] (N, N·m) and node positions [T, N+1, 3] (m, world)."""

@@ -12,7 +12,7 @@ from pipeline.model.array import build_array
 from pipeline.model.kinematics import Pose, sinusoidal_whisk
 from pipeline.model.morphology import model_rat
 from pipeline.scenes import Scene, empty
-from pipeline.scenes.obstacles import Cylinder, TriangleMesh
+from pipeline.scenes.obstacles import Cylinder
 
 DURATION_S = 0.04
 POSE = Pose((0.001, -0.002, 0.0005), (0.3, 0.1, -0.05))
@@ -97,43 +97,6 @@ def test_a_whisker_within_the_margin_never_takes_the_cheap_path(path):
         else:
             np.testing.assert_array_equal(took.base_wrench, reference.base_wrench)   # the full engine's
     assert reference.contact.any()                            # the peg across the path is touched
-
-
-def _plane_at_clearance(nodes_m: np.ndarray, clearance: float) -> Scene:
-    """A square of two large triangles (0.2 m) whose plane keeps exactly ``clearance`` (m) from the
-    nearest node of ``nodes_m`` [T, N+1, 3]: its faces' bounding spheres are far larger than the
-    clearance, so only the exact distance can clear a whisker beside it."""
-    tip = nodes_m[:, -1]
-    middle = len(tip) // 2
-    normal = np.cross(tip[middle + 1] - tip[middle - 1], tip[middle] - nodes_m[middle, 0])
-    normal /= np.linalg.norm(normal)
-    u = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
-    u /= np.linalg.norm(u)
-    v = np.cross(normal, u)
-    centre = tip[middle] + ((nodes_m.reshape(-1, 3) @ normal).max() - tip[middle] @ normal + clearance) * normal
-    corners = np.array([centre + 0.1 * (a * u + b * v) for a, b in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
-    return Scene("plane", (TriangleMesh(corners, np.array([[0, 1, 2], [0, 2, 3]])),))
-
-
-def test_a_scan_beside_the_margin_is_judged_by_its_exact_distance():
-    """A plane just outside RC1's clearance: FreeMotion's lower bound (face bounding spheres) cannot
-    clear it, the exact distance does, and the full engine confirms RC1 touches nothing; just
-    inside, RC1 runs on the full engine."""
-    drive = sinusoidal_whisk(12.0, 45.0, 20.0, DURATION_S)
-    with _engine("RC1", "coarse") as cheap:
-        free = cheap.run(empty(), POSE, drive, DURATION_S)
-        padding = cheap.free_path.motion.padding_m[0]
-    nodes = free.node_positions_m.astype(float)[:, 0]
-    needed = padding + 0.5 * np.linalg.norm(np.diff(nodes, axis=0), axis=-1).max()
-    for clearance, coarse_expected in ((needed - 5e-5, False), (needed + 5e-5, True)):
-        scene = _plane_at_clearance(nodes, clearance)
-        assert clearance_m(nodes.reshape(-1, 3), np.zeros(nodes.size // 3), scene).min() < 0.0   # the lower bound
-        with _engine("RC1", "coarse") as cheap, _engine("RC1", "engine") as full:
-            took, reference = (e.run(scene, POSE, drive, DURATION_S) for e in (cheap, full))
-        assert (took.metadata["coarse_free_whiskers"] == ["RC1"]) is coarse_expected, clearance
-        assert not reference.contact.any()
-        if not coarse_expected:
-            np.testing.assert_array_equal(took.base_wrench, reference.base_wrench)   # the full engine's
 
 
 @pytest.mark.parametrize("choice", ["coarse", "engine", "linear"])
