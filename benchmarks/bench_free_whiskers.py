@@ -86,7 +86,7 @@ def main() -> None:
             parser.error(f"{cheap_engine.name} has no coarse path at its step {cheap_engine.dt_s:g} s: give --dt")
     coarse = full_config.model_copy(update={"engine": coarse_engine})
     print(f"{args.engine}: {len(array.whiskers)} whiskers, full step {full_config.engine.dt_s:g} s, "
-          f"coarse path {coarse.engine.name} at {coarse.engine.dt_s:g} s (f1 tolerance {coarse.engine.f1_tolerance:g})")
+          f"coarse path {coarse.engine.name} at {coarse.engine.dt_s:g} s")
     cheap = (create_engine(coarse, array) if args.versus or args.cheap == "linear"
              else coarse_path_engine(engine_class(coarse.engine.name), array, coarse.engine))
     engines = {"full": create_engine(full_config, array), "coarse": cheap}
