@@ -7,7 +7,8 @@ high-water mark was 527 MB with an empty cache against 400 MB with a warm one
 (benchmarks/bench_worker_memory.py, ``NUMBA_CACHE_DIR`` empty), the first trial 18 CPU-s. A
 run of at least :data:`WARM_FROM_TRIALS` trials whose engine's kernels are not all cached
 therefore runs its first trial once in a child process that compiles them and exits; the
-workers then load them from the cache (≈ 0.3 CPU-s).
+workers then load them from the cache (≈ 0.3 CPU-s), if they share it (this machine, or a
+cluster's workers importing the package from the same folder).
 """
 
 from __future__ import annotations
