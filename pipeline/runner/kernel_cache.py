@@ -16,6 +16,7 @@ from __future__ import annotations
 import importlib
 import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 
 from pipeline.runner.trial import RunSpec, Simulator
 
@@ -52,9 +53,13 @@ def _run_once(spec: RunSpec, index: int) -> None:
 def warm_kernels(spec: RunSpec, index: int, trials: int) -> bool:
     """Before a run of ``trials`` trials: if it is long enough and a kernel of its engine is not
     cached, run trial ``index`` of ``spec`` in a child process, which compiles and caches the
-    kernels; True if it did."""
+    kernels; True if it did. A child that dies (the trial crashes the process) leaves the
+    compiling to the workers, where the run's fault handling meets the crash."""
     if trials < WARM_FROM_TRIALS or not uncached_kernels(KERNEL_MODULES.get(spec.config.model.engine.name, ())):
         return False
-    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as child:
-        child.submit(_run_once, spec, index).result()
+    try:
+        with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as child:
+            child.submit(_run_once, spec, index).result()
+    except BrokenProcessPool:
+        return False
     return True
