@@ -17,8 +17,10 @@ import importlib
 import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
+from typing import TYPE_CHECKING
 
-from pipeline.runner.trial import RunSpec, Simulator
+if TYPE_CHECKING:
+    from pipeline.runner.trial import RunSpec
 
 KERNEL_MODULES = {"mujoco": ("pipeline.engines.mujoco.face_kernels",),   # per engine, the modules of the
                   "bullet": ("pipeline.engines.bullet.mass_matrix",        # kernels its trials call (they
@@ -43,6 +45,9 @@ def uncached_kernels(modules: tuple[str, ...]) -> list[str]:
 
 
 def _run_once(spec: RunSpec, index: int) -> None:
+    # imported here, not at the top: the simulator ≈0.54 CPU-s, which the cache check does not need
+    from pipeline.runner.trial import Simulator
+
     simulator = Simulator(spec)
     try:
         simulator.run(index)

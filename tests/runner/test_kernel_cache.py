@@ -44,3 +44,22 @@ def test_every_engine_names_existing_kernel_modules_and_short_runs_never_warm():
         for name in modules:
             assert (REPO / (name.replace(".", "/") + ".py")).is_file(), name
     assert warm_kernels(None, 0, WARM_FROM_TRIALS - 1) is False
+
+
+def test_a_long_run_with_an_uncached_kernel_runs_its_first_trial_in_a_child(tmp_path, monkeypatch):
+    """The spec travels to a spawned child, which runs the trial and exits."""
+    from pipeline.config.simulate import SimulateConfig
+    from pipeline.runner import kernel_cache
+    from pipeline.runner.scenes import scene_catalogue
+    from pipeline.runner.simulate import _layout
+    from pipeline.runner.trial import RunSpec
+
+    (tmp_path / "kernel_probe.py").write_text(KERNEL)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setitem(kernel_cache.KERNEL_MODULES, "mujoco", ("kernel_probe",))
+    config = SimulateConfig(model={"whiskers": "RC1"}, scenes={"include": ["peg-passive"]},
+                            whisk={"duration_s": 0.005})
+    spec = RunSpec(config, scene_catalogue(config.scenes), _layout(config))
+    assert kernel_cache.uncached_kernels(("kernel_probe",)) == ["kernel_probe.twice"]
+    assert warm_kernels(spec, 0, WARM_FROM_TRIALS) is True
