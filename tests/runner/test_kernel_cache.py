@@ -58,8 +58,8 @@ def test_a_long_run_with_an_uncached_kernel_runs_its_first_trial_in_a_child(tmp_
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.setitem(kernel_cache.KERNEL_MODULES, "mujoco", ("kernel_probe",))
-    config = SimulateConfig(model={"whiskers": "RC1"}, scenes={"include": ["peg-passive"]},
-                            whisk={"duration_s": 0.005})
+    config = SimulateConfig(model={"whiskers": "RC1", "engine": {"name": "mujoco"}},      # the patched engine
+                            scenes={"include": ["peg-passive"]}, whisk={"duration_s": 0.005})
     spec = RunSpec(config, scene_catalogue(config.scenes), _layout(config))
     assert kernel_cache.uncached_kernels(("kernel_probe",)) == ["kernel_probe.twice"]
     assert warm_kernels(spec, 0, WARM_FROM_TRIALS) is True
