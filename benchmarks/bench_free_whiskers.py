@@ -26,8 +26,8 @@ import numpy as np
 
 from pipeline.config.loader import load_config
 from pipeline.config.simulate import SimulateConfig
-from pipeline.engines import create_engine
-from pipeline.engines.free_path import FREE_DT_S, coarse_config
+from pipeline.engines import create_engine, engine_class
+from pipeline.engines.free_path import FREE_DT_S, coarse_config, coarse_engine as coarse_path_engine
 from pipeline.engines.linear.chain import linearise
 from pipeline.engines.linear.free import MAX_BEND
 from pipeline.engines.linear.modal import modal
@@ -86,8 +86,10 @@ def main() -> None:
             parser.error(f"{cheap_engine.name} has no coarse path at its step {cheap_engine.dt_s:g} s: give --dt")
     coarse = full_config.model_copy(update={"engine": coarse_engine})
     print(f"{args.engine}: {len(array.whiskers)} whiskers, full step {full_config.engine.dt_s:g} s, "
-          f"coarse path {coarse.engine.name} at {coarse.engine.dt_s:g} s (f1 tolerance {coarse.engine.f1_tolerance:g})")
-    engines = {"full": create_engine(full_config, array), "coarse": create_engine(coarse, array)}
+          f"coarse path {coarse.engine.name} at {coarse.engine.dt_s:g} s")
+    cheap = (create_engine(coarse, array) if args.versus or args.cheap == "linear"
+             else coarse_path_engine(engine_class(coarse.engine.name), array, coarse.engine))
+    engines = {"full": create_engine(full_config, array), "coarse": cheap}
     for frequency in args.frequencies:
         drive = sinusoidal_whisk(frequency, 45.0, 20.0, args.duration)
         outputs, cpu = {}, {}

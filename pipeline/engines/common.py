@@ -99,15 +99,22 @@ def blocked_at_start(array, scene, pose: Pose, theta0_rad: float, angles=None) -
     """[O, W] whether whisker w passes through obstacle o at the start of the trial (head ``pose``,
     protraction ``theta0_rad``) in its rest shape, or bent by its free-joint ``angles`` (per
     whisker, rad, the layout's order)."""
-    if not scene.obstacles:
-        return np.zeros((0, len(array.whiskers)), bool)
+    blocked = np.zeros((len(scene.obstacles), len(array.whiskers)), bool)
+    bases = pose.apply(np.array([w.base_point_m for w in array.whiskers]))
+    reach = np.array([w.chain.geometry.arc_length_m for w in array.whiskers])    # a chain lies that close to its base
+    near = [np.flatnonzero(o.lower_distance_m(bases) <= reach) for o in scene.obstacles]
+    candidates = np.unique(np.concatenate(near)) if near else np.zeros(0, np.int64)
+    if not candidates.size:
+        return blocked
     if angles is None:
-        nodes = [w.rest_nodes_head(theta0_rad) for w in array.whiskers]
+        nodes = [array.whiskers[k].rest_nodes_head(theta0_rad) for k in candidates]
     else:
-        nodes = [w.base_point_m + bent_chain(w.physics, q)[1][0] @ w.frame(theta0_rad).T
-                 for w, q in zip(array.whiskers, angles)]
+        nodes = [array.whiskers[k].base_point_m + bent_chain(array.whiskers[k].physics, angles[k])[1][0]
+                 @ array.whiskers[k].frame(theta0_rad).T for k in candidates]
     nodes = np.array([pose.apply(n) for n in nodes])
-    return np.array([obstacle.chains_through(nodes) for obstacle in scene.obstacles])
+    for o, obstacle in enumerate(scene.obstacles):
+        blocked[o, candidates] = obstacle.chains_through(nodes)
+    return blocked
 
 
 def output_samples(duration_s: float, output_rate_hz: float) -> int:

@@ -4,7 +4,9 @@ A whisker that touches nothing moves relative to the head as it would in an empt
 without a load that depends on the head's pose (gravity, a world-frame tip force) that motion
 does not depend on the pose (:class:`~pipeline.engines.common.FreeMotion`). Before a trial the
 engine therefore runs the array in an empty scene on a second engine of its own kind at a
-coarse step (:data:`FREE_DT_S`, f1 tolerance :data:`FREE_F1_TOLERANCE`), about 2.7× cheaper
+coarse step (:data:`FREE_DT_S`), every whisker at that step (:func:`coarse_engine`; one whose
+damping does not fold there takes the linearly implicit step, :mod:`pipeline.engines.mujoco`),
+about 2.7× cheaper
 than the full step (MuJoCo; Bullet has no coarse path, see Accuracy), one whisker of each
 mirror pair (the other's outputs are its reflection, :mod:`pipeline.engines.mirror`), and
 keeps the outputs of every whisker whose free node paths stay clear of
@@ -23,8 +25,9 @@ the largest whisk of configs/simulate.yaml, 45°/20°; benchmarks/bench_free_whi
 
 Accuracy (benchmarks/bench_free_whiskers.py): per whisker and component, the RMS difference
 from the full engine over the RMS magnitude of the whisker's force (for force components) or
-moment. MuJoCo at 2.5·10⁻⁴ s: ≤ 0.23, 0.34, 0.67 % at 6, 9, 12 Hz (every whisker; median
-≤ 0.11 %; over the component's own RMS ≤ 1.33 %), 2.0–2.7× less CPU than the full step. Bullet
+moment. MuJoCo at 2.5·10⁻⁴ s: ≤ 0.23, 0.34, 0.67 % at 6, 9, 12 Hz (every whisker, the shortest
+included; median ≤ 0.12 %; over the component's own RMS ≤ 1.33 %), 3.4–3.7× less CPU than the
+full step at 9 and 12 Hz (at 5·10⁻⁴ s: 1.77 % at 12 Hz, RA0's Mz; at 1/3 000 s: 1.04 %). Bullet
 missed 1 % on its longest whisker (RA0's Mz) at 2.5·10⁻⁴ s (0.83 % at 6 Hz, 1.40 % at 9 Hz)
 and at 2·10⁻⁴ s (1.60 % at 12 Hz) for 1.6× less CPU: Bullet has no coarse path (with
 ``free_whiskers: coarse`` its free whiskers take the full step; a whisker a trial does not
@@ -50,7 +53,6 @@ from pipeline.scenes.obstacles import Scene
 # its coarse runs missed 1 % (RA0's Mz: 1.40 % at 9 Hz with 2.5e-4 s, 1.60 % at 12 Hz with 2e-4 s)
 # for 1.6× less CPU (module docstring, Accuracy)
 FREE_DT_S = {"mujoco": 2.5e-4}
-FREE_F1_TOLERANCE = 0.05     # its f1 tolerance (the full engine's default: 0.01): 0.02 cost 0.15 s more, same accuracy
 FREE_PATH_MARGIN_M = 1e-3    # clearance kept beyond FreeMotion's padding (module docstring, Safety)
 # ``free_whiskers: auto``: per engine the cheapest path within 1 % of its full step on every whisker
 # it takes (benchmarks/bench_free_whiskers.py; docs/scaling.md): a MuJoCo dataset trial costs 1.92 CPU-s
@@ -69,8 +71,14 @@ def coarse_config(config: EngineConfig, longest_s: float | None = None) -> Engin
     dt_s = period / np.ceil(period / longest_s - 1e-9)
     if dt_s <= config.dt_s * (1 + 1e-9):
         return None
-    return config.model_copy(update={"dt_s": float(dt_s), "f1_tolerance": max(config.f1_tolerance, FREE_F1_TOLERANCE),
-                                     "free_whiskers": "engine"})
+    return config.model_copy(update={"dt_s": float(dt_s), "free_whiskers": "engine"})
+
+
+def coarse_engine(make_engine, array: ArrayModel, config: EngineConfig):
+    """The coarse path's engine (``make_engine(array, config, levels)``) with every whisker at
+    ``config.dt_s``, in one world: the short whiskers' free response to the whisk is quasi-static
+    (module docstring, Accuracy), and a finer step would give them a world of their own."""
+    return make_engine(array, config, np.zeros(len(array.whiskers), np.int64))
 
 
 class FreePath:
@@ -78,7 +86,7 @@ class FreePath:
     and their outputs."""
 
     def __init__(self, make_engine, array: ArrayModel, config: EngineConfig):
-        """``make_engine(array, config)`` builds an engine of the caller's kind."""
+        """``make_engine(array, config, levels)`` builds an engine of the caller's kind."""
         self.make_engine, self.array, self.config = make_engine, array, config
         self.engine = None
         self.motion = FreeMotion(array.whiskers, margin_m=CLEARANCE_MARGIN_M + FREE_PATH_MARGIN_M)
@@ -102,8 +110,8 @@ class FreePath:
         (then :meth:`recall` gives its outputs); runs the coarse engine in an empty scene."""
         sources = np.flatnonzero(self.source == np.arange(len(self.source)))      # the coarse engine's whiskers
         if self.engine is None:
-            self.engine = self.make_engine(replace(self.array, whiskers=tuple(self.array.whiskers[k] for k in sources)),
-                                           self.config)
+            self.engine = coarse_engine(self.make_engine, replace(self.array, whiskers=tuple(
+                self.array.whiskers[k] for k in sources)), self.config)
         for _, world in self.engine.worlds:                # the joint states only a late start needs
             world.joint_log = {} if self.config.late_start else None
         output = self.engine.run(empty(), pose, drive, duration_s)

@@ -44,13 +44,16 @@ class WhiskerModel:
         """The whisker's spring joints (follicle, bending, twist), in the engines' order."""
         return self.physics.layout
 
-    def frame(self, theta: float = 0.0) -> np.ndarray:
-        """Whisker frame axes (columns) in the head frame at protraction θ (rad)."""
-        return rotation_zyx(*(self.rest_joint_angles + self.joint_rates * theta)) @ self.frame_offset
+    def frame(self, theta=0.0) -> np.ndarray:
+        """[..., 3, 3] whisker frame axes (columns) in the head frame at protraction θ (rad, any shape)."""
+        theta = np.asarray(theta, float)
+        column = (3,) + (1,) * theta.ndim
+        angles = self.rest_joint_angles.reshape(column) + self.joint_rates.reshape(column) * theta
+        return rotation_zyx(*angles) @ self.frame_offset
 
-    def rest_nodes_head(self, theta: float = 0.0) -> np.ndarray:
-        """[N+1, 3] node positions at rest shape in the head frame (m)."""
-        return self.base_point_m + self.chain.nodes_m @ self.frame(theta).T
+    def rest_nodes_head(self, theta=0.0) -> np.ndarray:
+        """[..., N+1, 3] node positions at rest shape in the head frame (m) at protraction θ (rad, any shape)."""
+        return self.base_point_m + self.chain.nodes_m @ np.swapaxes(self.frame(theta), -1, -2)
 
 
 @dataclass(frozen=True)

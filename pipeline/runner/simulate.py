@@ -37,6 +37,7 @@ from pipeline.model.array import build_array
 from pipeline.model.effects.registry import model_parts
 from pipeline.model.morphology import load_morphology
 from pipeline.runner.cluster import dask_client
+from pipeline.runner.kernel_cache import warm_kernels
 from pipeline.runner.plugin import SimulatorPlugin, run_trial
 from pipeline.runner.progress import progress as run_progress, trials_per_hour
 from pipeline.runner.recording import TrialRecorder
@@ -164,6 +165,7 @@ def _run_trials(spec: RunSpec, todo: list[int], writer: DatasetWriter, tally: _T
     for logger in ("asyncio", "tornado.application"):
         logging.getLogger(logger).setLevel(logging.CRITICAL)
     recorder = TrialRecorder(spec)
+    warm_kernels(spec, todo[0], len(todo))         # workers that compile numba's kernels keep LLVM's memory
     with dask_client(config.cluster) as client:
         name = f"whisker-simulator-{uuid.uuid4().hex[:8]}"
         client.register_plugin(SimulatorPlugin(spec, name), name=name)

@@ -80,7 +80,8 @@ class PoseSampler:
 
     def shapes(self, thetas_rad) -> np.ndarray:
         """[K, W, N+1, 3] rest-shape node positions (head frame, m) at protraction angles θ_k."""
-        return np.array([[w.rest_nodes_head(t) for w in self.array.whiskers] for t in thetas_rad])
+        thetas_rad = np.asarray(thetas_rad, float)
+        return np.stack([w.rest_nodes_head(thetas_rad) for w in self.array.whiskers], axis=1)
 
     def draw_candidate(self, rng: np.random.Generator) -> tuple[Pose, int, float, np.ndarray]:
         """An unchecked pose: (pose, side, distance m, aim direction in the world)."""

@@ -1,0 +1,70 @@
+"""numba's compiled kernels on disk before a long run's workers start.
+
+A worker that compiles the engines' numba kernels itself (the first run after an install or
+after a kernel module changed: their disk cache, ``cache=True``, is missing or stale) keeps
+LLVM's memory for the rest of the run: over 20 MuJoCo dataset trials in one process the
+high-water mark was 527 MB with an empty cache against 400 MB with a warm one
+(benchmarks/bench_worker_memory.py, ``NUMBA_CACHE_DIR`` empty), the first trial 18 CPU-s. A
+run of at least :data:`WARM_FROM_TRIALS` trials whose engine's kernels are not all cached
+therefore runs its first trial once in a child process that compiles them and exits; the
+workers then load them from the cache (≈ 0.3 CPU-s), if they share it (this machine, or a
+cluster's workers importing the package from the same folder).
+"""
+
+from __future__ import annotations
+
+import importlib
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from pipeline.runner.trial import RunSpec
+
+KERNEL_MODULES = {"mujoco": ("pipeline.engines.mujoco.face_kernels",),   # per engine, the modules of the
+                  "bullet": ("pipeline.engines.bullet.mass_matrix",        # kernels its trials call (they
+                             "pipeline.engines.bullet.gauss_seidel")}      # compile the ones they call)
+WARM_FROM_TRIALS = 50    # shorter runs: an extra trial in a child costs more than the memory is worth
+
+
+def uncached_kernels(modules: tuple[str, ...]) -> list[str]:
+    """The cached numba kernels defined in ``modules`` whose disk cache holds no code for their
+    current source."""
+    # imported here, not at the top: numba ≈0.17 CPU-s, only a long run's check needs it
+    from numba.core.dispatcher import Dispatcher
+
+    missing = []
+    for name in modules:
+        for label, kernel in vars(importlib.import_module(name)).items():
+            cache_file = getattr(getattr(kernel, "_cache", None), "_cache_file", None)
+            if isinstance(kernel, Dispatcher) and kernel.__module__ == name and cache_file is not None \
+                    and not cache_file._load_index():
+                missing.append(f"{name}.{label}")
+    return missing
+
+
+def _run_once(spec: RunSpec, index: int) -> None:
+    # imported here, not at the top: the simulator ≈0.54 CPU-s, which the cache check does not need
+    from pipeline.runner.trial import Simulator
+
+    simulator = Simulator(spec)
+    try:
+        simulator.run(index)
+    finally:
+        simulator.close()
+
+
+def warm_kernels(spec: RunSpec, index: int, trials: int) -> bool:
+    """Before a run of ``trials`` trials: if it is long enough and a kernel of its engine is not
+    cached, run trial ``index`` of ``spec`` in a child process, which compiles and caches the
+    kernels; True if it did. A child that dies (the trial crashes the process) leaves the
+    compiling to the workers, where the run's fault handling meets the crash."""
+    if trials < WARM_FROM_TRIALS or not uncached_kernels(KERNEL_MODULES.get(spec.config.model.engine.name, ())):
+        return False
+    try:
+        with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as child:
+            child.submit(_run_once, spec, index).result()
+    except BrokenProcessPool:
+        return False
+    return True
