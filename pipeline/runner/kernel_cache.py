@@ -15,8 +15,7 @@ from __future__ import annotations
 
 import importlib
 import multiprocessing
-from concurrent.futures import ProcessPoolExecutor
-from concurrent.futures.process import BrokenProcessPool
+import sys
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -26,6 +25,7 @@ KERNEL_MODULES = {"mujoco": ("pipeline.engines.mujoco.face_kernels",),   # per e
                   "bullet": ("pipeline.engines.bullet.mass_matrix",        # kernels its trials call (they
                              "pipeline.engines.bullet.gauss_seidel")}      # compile the ones they call)
 WARM_FROM_TRIALS = 50    # shorter runs: an extra trial in a child costs more than the memory is worth
+WARM_TIMEOUT_S = 300.0   # a warm-up child still running then is stopped (a first trial compiles in ≈ 20 CPU-s)
 
 
 def uncached_kernels(modules: tuple[str, ...]) -> list[str]:
@@ -59,12 +59,17 @@ def warm_kernels(spec: RunSpec, index: int, trials: int) -> bool:
     """Before a run of ``trials`` trials: if it is long enough and a kernel of its engine is not
     cached, run trial ``index`` of ``spec`` in a child process, which compiles and caches the
     kernels; True if it did. A child that dies (the trial crashes the process) leaves the
-    compiling to the workers, where the run's fault handling meets the crash."""
+    compiling to the workers, where the run's fault handling meets the crash; one still running
+    after :data:`WARM_TIMEOUT_S` is stopped, with a message, and leaves it to them too."""
     if trials < WARM_FROM_TRIALS or not uncached_kernels(KERNEL_MODULES.get(spec.config.model.engine.name, ())):
         return False
-    try:
-        with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as child:
-            child.submit(_run_once, spec, index).result()
-    except BrokenProcessPool:
+    child = multiprocessing.get_context("spawn").Process(target=_run_once, args=(spec, index), daemon=True)
+    child.start()
+    child.join(WARM_TIMEOUT_S)
+    if child.is_alive():
+        child.kill()
+        child.join()
+        print(f"warning: compiling the engine's kernels took over {WARM_TIMEOUT_S:.0f} s in a child process; "
+              "the workers compile them", file=sys.stderr)
         return False
-    return True
+    return child.exitcode == 0
