@@ -2,7 +2,8 @@
 (pipeline.engines.bullet.contact.solve_forces, numba) against the same projected Gauss–Seidel in
 plain Python on contact problems recorded from peg sweeps and a dataset trial
 (bullet_contact_problems.npz: G, u₀, gaps, (h, μ, sweeps), warm start per problem); the spring
-joints' mass matrix (pipeline.engines.bullet.mass_matrix) against Bullet's calculateMassMatrix."""
+joints' mass matrix (pipeline.engines.bullet.mass_matrix) against Bullet's calculateMassMatrix; the
+base wrench (pipeline.engines.bullet.wrench) against the same Newton–Euler in numpy."""
 
 import math
 from pathlib import Path
@@ -11,12 +12,14 @@ import numpy as np
 import pytest
 
 from pipeline.config.physics import MaterialConfig
+from pipeline.engines import units as U
 from pipeline.engines.bullet.client import BulletClient
 from pipeline.engines.bullet.contact import PENETRATION_ERP, TOLERANCE, solve_forces
 from pipeline.engines.bullet.mass_matrix import chain_mass_matrix, implicit_operator_inverse
 from pipeline.engines.bullet.whisker import BulletWhisker
 from pipeline.model.array import build_array
 from pipeline.model.morphology import model_rat
+from pipeline.model.rotations import axis_rotation, matrix_from_xyzw, rot_z
 
 PROBLEMS = Path(__file__).with_name("bullet_contact_problems.npz")
 
@@ -112,3 +115,70 @@ def test_the_implicit_operator_inverse_inverts_it(whiskers):
     operator = chain_mass_matrix(angles, *whisker._mass_chain) + np.diag(diagonal)
     inverse = implicit_operator_inverse(angles, diagonal, *whisker._mass_chain)
     np.testing.assert_allclose(inverse @ operator, np.eye(len(angles)), rtol=0, atol=1e-9)
+
+
+def _parent(x):
+    return np.vstack([np.zeros((1, 3)), x[:-1]])
+
+
+def numpy_chain_wrench(origins, rotations, local_axes, rates, accelerations, bodies, com, mass, inertia, base,
+                       points, forces, torques):
+    """pipeline.engines.bullet.wrench.chain_wrench in numpy (the engine's before it was compiled)."""
+    n, b = len(origins), len(bodies)
+    axes = np.einsum("lij,lj->li", rotations, local_axes)
+    spin = axes * rates[:, None]
+    omega = np.cumsum(spin, axis=0)
+    parent_omega = _parent(omega)
+    alpha = np.cumsum(axes * accelerations[:, None] + np.cross(parent_omega, spin), axis=0)
+    step = origins - _parent(origins)
+    step[0] = 0.0
+    turned = np.cross(np.vstack([_parent(alpha), parent_omega]), np.vstack([step, step]))
+    origin_acceleration = np.cumsum(turned[:n] + np.cross(parent_omega, turned[n:]), axis=0)
+    w, a = omega[bodies], alpha[bodies]
+    arm = com - origins[bodies]
+    frames = rotations[bodies]
+    world_inertia = np.einsum("bij,bj,bkj->bik", frames, inertia, frames)
+    spin_momentum = np.einsum("bij,bj->bi", world_inertia, w)
+    turned = np.cross(np.vstack([a, w, w]), np.vstack([arm, arm, spin_momentum]))
+    momentum_rate = mass[:, None] * (origin_acceleration[bodies] + turned[:b] + np.cross(w, turned[b:2 * b]))
+    point = origins[base]
+    arms = np.cross(np.vstack([com - point, points - point]), np.vstack([momentum_rate, forces]))
+    moment = (arms[:b].sum(axis=0) - arms[b:].sum(axis=0) + np.einsum("bij,bj->i", world_inertia, a)
+              + turned[2 * b:].sum(axis=0) - torques.sum(axis=0))
+    return np.concatenate([momentum_rate.sum(axis=0) - forces.sum(axis=0), moment])
+
+
+def numpy_base_wrench(whisker, q, v, accel, quaternions, points, forces, torques):
+    """BulletWhisker.base_wrench in numpy (internal units): frames, origins, centres of mass, whisker frame."""
+    rotations = matrix_from_xyzw(quaternions)
+    origins = np.vstack([np.zeros(3), np.cumsum(np.einsum("lij,lj->li", rotations[:-1], whisker._link_offsets[1:]),
+                                                axis=0)])
+    bodies = np.asarray(whisker.whisker_links)
+    com = origins[bodies] + rotations[bodies, :, 0] * whisker.link_com[:, None]
+    rates, accelerations = np.zeros(len(rotations)), np.zeros(len(rotations))
+    rates[whisker.dofs], accelerations[whisker.dofs] = v, accel
+    world = numpy_chain_wrench(origins, rotations, whisker._local_axes, rates, accelerations, bodies, com,
+                               whisker._link_mass, whisker._link_inertia, whisker.sensor_joint, points, forces, torques)
+    rotation = rot_z(whisker.link1_angle) @ rotations[whisker.sensor_joint].T
+    for axis, angle in zip(reversed(whisker.follicle_axes), reversed(q[3:3 + len(whisker.follicle_axes)])):
+        rotation = axis_rotation(axis, angle) @ rotation
+    return np.concatenate([rotation @ world[:3], rotation @ world[3:]])
+
+
+def test_the_compiled_base_wrench_is_the_numpy_one(whiskers):
+    """Random joint states, rates, accelerations and contact forces, whiskers from the array's
+    shortest to its longest (compliant follicles: two joints each)."""
+    rng = np.random.default_rng(5)
+    for whisker in whiskers:
+        assert whisker.follicle_axes
+        for scale in (0.0, 0.1, 0.5):
+            q = np.concatenate([rng.normal(size=3), scale * rng.normal(size=whisker.n_dof - 3)])
+            v, accel = 30 * rng.normal(size=whisker.n_dof), 3e4 * rng.normal(size=whisker.n_dof)
+            points, forces = 20 * rng.normal(size=(3, 3)), rng.normal(size=(3, 3))
+            external = [(points, forces, 0.1 * rng.normal(size=(3, 3)))]
+            whisker._set_state(q, v)
+            whisker._record_wrench(q.tolist(), v, accel, external)
+            quaternions, base = whisker._step[3:5]
+            expected = numpy_base_wrench(whisker, q, v, accel, quaternions, points - base, forces, external[0][2])
+            mine = whisker.base_wrench() * np.repeat([U.FORCE, U.TORQUE], 3)
+            np.testing.assert_allclose(mine, expected, rtol=0, atol=1e-12 * np.abs(expected).max())

@@ -25,12 +25,12 @@ from pipeline.engines.bullet.client import BulletClient
 from pipeline.engines.bullet.contact import CONTACT_REACH_MM, contact_frames, solve_forces
 from pipeline.engines.bullet.mass_matrix import implicit_operator_inverse
 from pipeline.engines.bullet.multibody import CAPSULE_ALONG_X, IDENTITY_QUAT, LinkList
-from pipeline.engines.bullet.wrench import chain_wrench
+from pipeline.engines.bullet.wrench import follicle_wrench
 from pipeline.engines.common import start_rate
 from pipeline.model.array import WhiskerModel
 from pipeline.model.kinematics import ProtractionDrive
 from pipeline.model.effects.loads import LinkState, total_link_forces
-from pipeline.model.rotations import axis_rotation, matrix_from_xyzw, rot_z
+from pipeline.model.rotations import matrix_from_xyzw, rot_z
 
 # Largest change of a free joint angle (rad) before M_FF of the implicit step is recomputed:
 # M_FF then changes by ≲ 0.5 × this, relative (measured on RC1); in a full-array free whisk it
@@ -139,6 +139,8 @@ class BulletWhisker:
         self._link_offsets = np.array(links.columns["linkPositions"], float)   # in the parent link frame
         self._link_mass = chain.link_mass_kg * U.MASS
         self._link_inertia = chain.link_inertia_kg_m2 * U.INERTIA
+        self._dof_links, self._body_links = np.array(self.dofs), np.array(self.whisker_links)
+        self._follicle_axes = np.array(self.follicle_axes, dtype=np.int64)
         self._step = None
         self._last_contacts = None      # (links [P], points [P, 3], forces [P, 3]) of the step before
         # travel_mm: since reset, Σ over steps of Σ_j reach_j·|Δq_j|, a bound on how far any point
@@ -354,30 +356,20 @@ class BulletWhisker:
         forces, torques) on the links (internal units, world frame)."""
         self.sync()
         states = self.client.getLinkStates(self.body, self._chain_links, computeForwardKinematics=True)
-        rotations = matrix_from_xyzw([s[5] for s in states])
         points, forces, torques = ([np.concatenate(part) for part in zip(*external)] if external
                                    else [np.zeros((0, 3))] * 3)
-        self._step = (q, v, accel, rotations, np.asarray(states[0][4]), points, forces, torques)
+        self._step = (q, v, accel, np.array([s[5] for s in states]), np.asarray(states[0][4]), points, forces, torques)
 
     def base_wrench(self) -> np.ndarray:
         """Follicle → whisker force (N) and moment about the base point (N·m), whisker frame, in
         the step recorded by :meth:`step` and just taken, by Newton–Euler
         (:mod:`pipeline.engines.bullet.wrench`) with the step's joint accelerations."""
-        q, v, accel, rotations, base, points, forces, torques = self._step
-        # origins from the base by the links' offsets (pybullet's link frame positions are off by
-        # up to 10⁻⁵ relative), so that the wrench does not depend on where the base is
-        origins = np.vstack([np.zeros(3), np.cumsum(np.einsum("lij,lj->li", rotations[:-1], self._link_offsets[1:]),
-                                                    axis=0)])
-        bodies = np.asarray(self.whisker_links)
-        com = origins[bodies] + rotations[bodies, :, 0] * self.link_com[:, None]
-        rates, accelerations = np.zeros(len(rotations)), np.zeros(len(rotations))
-        rates[self.dofs], accelerations[self.dofs] = v, accel
-        world = chain_wrench(origins, rotations, self._local_axes, rates, accelerations, bodies, com,
-                             self._link_mass, self._link_inertia, self.sensor_joint, points - base, forces, torques)
-        rotation = rot_z(self.link1_angle) @ rotations[self.sensor_joint].T     # world → link 1 → whisker
-        for axis, angle in zip(reversed(self.follicle_axes), reversed(q[3:3 + len(self.follicle_axes)])):
-            rotation = axis_rotation(axis, angle) @ rotation
-        return np.concatenate([rotation @ world[:3] / U.FORCE, rotation @ world[3:] / U.TORQUE])
+        q, v, accel, quaternions, base, points, forces, torques = self._step
+        wrench = follicle_wrench(quaternions, self._link_offsets, self._local_axes, self._dof_links, v, accel,
+                                 self._body_links, self.link_com, self._link_mass, self._link_inertia, self.sensor_joint,
+                                 points - base, forces, torques, self.link1_angle, self._follicle_axes,
+                                 np.asarray(q[3:3 + len(self.follicle_axes)], float))
+        return np.concatenate([wrench[:3] / U.FORCE, wrench[3:] / U.TORQUE])
 
     def link_nodes(self, links: list[int]) -> np.ndarray:
         """[L, 2, 3] proximal and distal node of each whisker link in ``links`` (0-based), world
