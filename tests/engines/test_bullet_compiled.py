@@ -3,7 +3,9 @@
 plain Python on contact problems recorded from peg sweeps and a dataset trial
 (bullet_contact_problems.npz: G, u₀, gaps, (h, μ, sweeps), warm start per problem); the spring
 joints' mass matrix (pipeline.engines.bullet.mass_matrix) against Bullet's calculateMassMatrix; the
-base wrench (pipeline.engines.bullet.wrench) against the same Newton–Euler in numpy."""
+base wrench (pipeline.engines.bullet.wrench) against the same Newton–Euler in numpy; the contact
+step's per-point bookkeeping (pipeline.engines.bullet.contact_kernels) against the numpy it
+replaced, to the bit."""
 
 import math
 from pathlib import Path
@@ -14,7 +16,8 @@ import pytest
 from pipeline.config.physics import MaterialConfig
 from pipeline.engines import units as U
 from pipeline.engines.bullet.client import BulletClient
-from pipeline.engines.bullet.contact import PENETRATION_ERP, TOLERANCE, solve_forces
+from pipeline.engines.bullet.contact import CONTACT_REACH_MM, PENETRATION_ERP, TOLERANCE, solve_forces
+from pipeline.engines.bullet.contact_kernels import contact_rows, warm_start, world_forces
 from pipeline.engines.bullet.mass_matrix import chain_mass_matrix, implicit_operator_inverse
 from pipeline.engines.bullet.whisker import BulletWhisker
 from pipeline.model.array import build_array
@@ -182,3 +185,53 @@ def test_the_compiled_base_wrench_is_the_numpy_one(whiskers):
             expected = numpy_base_wrench(whisker, q, v, accel, quaternions, points - base, forces, external[0][2])
             mine = whisker.base_wrench() * np.repeat([U.FORCE, U.TORQUE], 3)
             np.testing.assert_allclose(mine, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+
+
+def numpy_contact_frames(normals, with_tangents):
+    """Per point its normal and two unit tangents (the engine's numpy before it was compiled)."""
+    if not with_tangents:
+        return normals
+    nx, ny, nz = normals.T
+    zeros = np.zeros_like(nx)
+    t1 = np.where((np.abs(nx) <= np.abs(ny))[:, None], np.stack([zeros, -nz, ny], axis=1),
+                  np.stack([nz, zeros, -nx], axis=1))
+    t1 /= np.sqrt(np.matmul(t1[:, None, :], t1[:, :, None]))[:, 0]
+    t2 = np.stack([ny * t1[:, 2] - nz * t1[:, 1], nz * t1[:, 0] - nx * t1[:, 2], nx * t1[:, 1] - ny * t1[:, 0]], axis=1)
+    return np.stack([normals, t1, t2], axis=1).reshape(-1, 3)
+
+
+def numpy_warm_start(links, points, frames, last_links, last_points, last_forces):
+    per_point = len(frames) // len(points)
+    distances = ((points[:, None, :] - last_points[None, :, :]) ** 2).sum(axis=2)
+    distances[links[:, None] != last_links[None, :]] = np.inf
+    nearest = distances.argmin(axis=1)
+    near = np.flatnonzero(distances[np.arange(len(points)), nearest] <= CONTACT_REACH_MM ** 2)
+    chosen = near[np.unique(nearest[near], return_index=True)[1]]
+    start = np.zeros((len(points), per_point))
+    start[chosen] = np.matmul(frames.reshape(len(points), per_point, 3)[chosen],
+                              last_forces[nearest[chosen]][:, :, None])[..., 0]
+    return start.reshape(-1)
+
+
+def test_the_compiled_contact_bookkeeping_is_numpys_to_the_bit():
+    """Random points and normals (axis-aligned ones too), with and without tangents, the step
+    before's points near them on the same and other links."""
+    rng = np.random.default_rng(7)
+    for case in range(400):
+        count, tangents = int(rng.integers(1, 12)), bool(case % 2)
+        normals = rng.normal(size=(count, 3)) if case % 5 else np.eye(3)[rng.integers(0, 3, count)] * rng.choice([-1, 1])
+        normals /= np.linalg.norm(normals, axis=1)[:, None]
+        points, origin = 10 * rng.normal(size=(count, 3)), 10 * rng.normal(size=3)
+        frames, arms = contact_rows(normals, points, origin, tangents)
+        expected = numpy_contact_frames(normals, tangents)
+        per_point = len(expected) // count
+        np.testing.assert_array_equal(frames, expected)
+        np.testing.assert_array_equal(arms, np.cross(np.repeat(points, per_point, axis=0) - origin, expected))
+        links, last = rng.integers(0, 3, count), int(rng.integers(1, 12))
+        last_links, last_forces = rng.integers(0, 3, last), rng.normal(size=(last, 3))
+        last_points = points[rng.integers(0, count, last)] + 0.15 * rng.normal(size=(last, 3))
+        np.testing.assert_array_equal(warm_start(links, points, frames, last_links, last_points, last_forces, CONTACT_REACH_MM),
+                                      numpy_warm_start(links, points, expected, last_links, last_points, last_forces))
+        forces = rng.normal(size=len(frames))
+        np.testing.assert_array_equal(world_forces(frames, forces, count),
+                                      np.einsum("ij,i->ij", expected, forces).reshape(count, per_point, 3).sum(axis=1))

@@ -22,7 +22,8 @@ import pybullet as p
 
 from pipeline.engines import units as U
 from pipeline.engines.bullet.client import BulletClient
-from pipeline.engines.bullet.contact import CONTACT_REACH_MM, contact_frames, solve_forces
+from pipeline.engines.bullet.contact import CONTACT_REACH_MM, solve_forces
+from pipeline.engines.bullet.contact_kernels import contact_rows, warm_start, world_forces
 from pipeline.engines.bullet.mass_matrix import implicit_operator_inverse
 from pipeline.engines.bullet.multibody import CAPSULE_ALONG_X, IDENTITY_QUAT, LinkList
 from pipeline.engines.bullet.wrench import follicle_wrench
@@ -129,6 +130,7 @@ class BulletWhisker:
         self.capsule_radii = 0.5 * (chain.node_radii_m[:-1] + chain.node_radii_m[1:]) * U.LENGTH
         # dofs moving whisker link i: those of its joint and before (a serial chain)
         self.ancestor_dofs = np.searchsorted(self.dofs, self.whisker_links, side="right")
+        self._beyond_link = np.arange(self.n_dof) >= self.ancestor_dofs[:, None]   # [links, n_dof]: dofs not moving it
         self._lhs_inverse, self._factorised_at = None, None
         self._base_orientation, self._base_rotation = None, None    # (x, y, z, w) and its matrix
         self._mass_chain = _chain(links, roll + 1)      # the spring joints' (M_FF)
@@ -214,7 +216,7 @@ class BulletWhisker:
         Jᵀ·F. So do the forces at ``contacts`` (:class:`~pipeline.engines.bullet.contact.ContactPoint`),
         solved within the same implicit operator with Coulomb ``friction`` μ
         (:mod:`pipeline.engines.bullet.contact`, ``iterations`` Gauss–Seidel sweeps at most, from
-        the forces of the step before at the same points: :meth:`_warm_start`). The free–free block
+        the forces of the step before at the same points: :func:`~pipeline.engines.bullet.contact_kernels.warm_start`). The free–free block
         M_FF inside the implicit operator depends on the free angles q_F only (the driven joints
         turn the whole chain rigidly), so it is recomputed (Bullet's costliest query) only once
         some free angle has moved :data:`MASS_REFRESH_RAD` from where it was last computed. The
@@ -252,7 +254,8 @@ class BulletWhisker:
 
         One Jacobian per step, at the frame origin o of the farthest touched link: a point p on
         link l has the row d·J_lin + ((p − o) × d)·J_ang along d, with the columns of the joints
-        beyond l (not l's ancestors in the serial chain) zeroed."""
+        beyond l (not l's ancestors in the serial chain) zeroed. The solve starts from the forces of
+        the step before at the same points (:func:`~pipeline.engines.bullet.contact_kernels.warm_start`)."""
         c = self.client
         links = np.array([contact.link for contact in contacts])
         points = np.array([contact.point_mm for contact in contacts])
@@ -260,44 +263,24 @@ class BulletWhisker:
         self.sync()
         origin = np.asarray(c.getLinkState(self.body, farthest, computeForwardKinematics=True)[4])
         linear, angular = self.jacobian(farthest, [0.0, 0.0, 0.0], q)
-        frames = contact_frames(np.array([contact.normal for contact in contacts]), friction > 0)
+        frames, arms = contact_rows(np.array([contact.normal for contact in contacts]), points, origin, friction > 0)
         per_point = len(frames) // len(contacts)                     # rows n (, t1, t2) per point
-        arms = np.repeat(points, per_point, axis=0) - origin
-        jacobian = frames @ linear + np.cross(arms, frames) @ angular          # [P or 3P, n_dof]
-        ancestors = np.repeat(self.ancestor_dofs[links], per_point)
-        jacobian[np.arange(self.n_dof) >= ancestors[:, None]] = 0.0
+        jacobian = frames @ linear + arms @ angular                   # [P or 3P, n_dof]
+        jacobian[self._beyond_link[np.repeat(links, per_point)]] = 0.0
         response = self._lhs_inverse @ jacobian[:, 3:].T             # W·J_Fᵀ
         velocity = jacobian @ (v + h * accel)                         # after the step, without contact
         if friction > 0:                         # friction acts on sliding relative to the surface
             surface = np.repeat([contact.surface_velocity for contact in contacts], 3, axis=0)
             velocity -= np.einsum("ij,ij->i", frames, surface) * (np.arange(len(frames)) % 3 > 0)
+        start = None if self._last_contacts is None else warm_start(links, points, frames, *self._last_contacts,
+                                                                     CONTACT_REACH_MM)
         forces = solve_forces(h * jacobian[:, 3:] @ response, velocity,
-                              np.array([contact.gap_mm for contact in contacts]), h, friction, iterations,
-                              self._warm_start(links, points, frames, per_point))
+                              np.array([contact.gap_mm for contact in contacts]), h, friction, iterations, start)
         accel[3:] += response @ forces
-        world = np.einsum("ij,i->ij", frames, forces).reshape(len(contacts), per_point, 3).sum(axis=1)
+        world = world_forces(frames, forces, len(contacts))
         self._last_contacts = (links, points, world)
         external.append((points, world, np.zeros_like(world)))
         return forces[0::per_point]
-
-    def _warm_start(self, links: np.ndarray, points: np.ndarray, frames: np.ndarray,
-                    per_point: int) -> np.ndarray | None:
-        """Forces to start the contact solve from: per point (whisker ``links`` [P], ``points``
-        [P, 3] mm), the force of the step before at the nearest point of the same link if within
-        :data:`CONTACT_REACH_MM` (each used once, by the first point it is nearest to), in this
-        step's ``frames``; zero where there is none (rows as :func:`solve_forces`)."""
-        if self._last_contacts is None:
-            return None
-        last_links, last_points, last_forces = self._last_contacts
-        distances = ((points[:, None, :] - last_points[None, :, :]) ** 2).sum(axis=2)
-        distances[links[:, None] != last_links[None, :]] = np.inf
-        nearest = distances.argmin(axis=1)
-        near = np.flatnonzero(distances[np.arange(len(points)), nearest] <= CONTACT_REACH_MM ** 2)
-        chosen = near[np.unique(nearest[near], return_index=True)[1]]
-        start = np.zeros((len(points), per_point))
-        start[chosen] = np.matmul(frames.reshape(len(points), per_point, 3)[chosen],
-                                  last_forces[nearest[chosen]][:, :, None])[..., 0]
-        return start.reshape(-1)
 
     def jacobian(self, link: int, point: list[float], q: list[float]) -> tuple[np.ndarray, np.ndarray]:
         """Linear and angular Jacobian [3, n_dof] of ``point`` (link frame, mm) of Bullet ``link``
