@@ -107,3 +107,18 @@ def world_forces(frames: np.ndarray, forces: np.ndarray, points: int) -> np.ndar
                 total += frames[row, k] * forces[row]
             world[i, k] = total
     return world
+
+
+@numba.njit(cache=True)
+def segment_nodes(origins: np.ndarray, quaternions: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """[L, 2, 3] each whisker link's proximal node (its frame's ``origins`` [L, 3]) and distal
+    one, ``lengths`` [L] along its frame's x axis R(q)·(1, 0, 0) (``quaternions`` [L, 4] x, y, z, w
+    as Bullet gives them, unit)."""
+    nodes = np.empty((len(origins), 2, 3))
+    for k in range(len(origins)):
+        x, y, z, w = quaternions[k, 0], quaternions[k, 1], quaternions[k, 2], quaternions[k, 3]
+        along = (1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y))
+        for i in range(3):
+            nodes[k, 0, i] = origins[k, i]
+            nodes[k, 1, i] = origins[k, i] + lengths[k] * along[i]
+    return nodes

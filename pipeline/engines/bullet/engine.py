@@ -136,8 +136,7 @@ class BulletWorld(World):
         """The bases of ``whiskers`` (indices) where a head at ``position_m`` (m), ``rotation`` has them."""
         orientation = quat(rotation)
         for k in whiskers:
-            base = (position_m + rotation @ self.bodies[k].model.base_point_m) * U.LENGTH
-            self.client.resetBasePositionAndOrientation(self.bodies[k].body, base.tolist(), orientation)
+            self.bodies[k].place_base((position_m + rotation @ self.bodies[k].model.base_point_m) * U.LENGTH, orientation)
 
     def _remove(self, k: int) -> None:
         """Take whisker k's multibody out of the world: it no longer touches anything."""

@@ -23,8 +23,8 @@ import pybullet as p
 from pipeline.engines import units as U
 from pipeline.engines.bullet.client import BulletClient
 from pipeline.engines.bullet.contact import CONTACT_REACH_MM, solve_forces
-from pipeline.engines.bullet.contact_kernels import contact_rows, warm_start, world_forces
-from pipeline.engines.bullet.mass_matrix import implicit_operator_inverse
+from pipeline.engines.bullet.contact_kernels import contact_rows, segment_nodes, warm_start, world_forces
+from pipeline.engines.bullet.mass_matrix import chain_kinematics, implicit_operator_inverse
 from pipeline.engines.bullet.multibody import CAPSULE_ALONG_X, IDENTITY_QUAT, LinkList
 from pipeline.engines.bullet.wrench import follicle_wrench
 from pipeline.engines.common import start_rate
@@ -134,6 +134,7 @@ class BulletWhisker:
         self._lhs_inverse, self._factorised_at = None, None
         self._base_orientation, self._base_rotation = None, None    # (x, y, z, w) and its matrix
         self._mass_chain = _chain(links, roll + 1)      # the spring joints' (M_FF)
+        self._whole_chain = _chain(links, 0)[:4]         # every link's kinematics (:meth:`_link_frames`)
         # Newton–Euler base wrench (:mod:`pipeline.engines.bullet.wrench`): the chain's links
         revolute = np.array(links.columns["linkJointTypes"]) == p.JOINT_REVOLUTE
         self._chain_links = list(range(len(links.inertia)))
@@ -144,6 +145,8 @@ class BulletWhisker:
         self._dof_links, self._body_links = np.array(self.dofs), np.array(self.whisker_links)
         self._follicle_axes = np.array(self.follicle_axes, dtype=np.int64)
         self._step = None
+        self._nodes = None              # [links, 2, 3] of the current state (:meth:`link_nodes`)
+        self._base_mm, self._base_frame = np.zeros(3), np.eye(3)        # as built (:meth:`place_base`)
         self._last_contacts = None      # (links [P], points [P, 3], forces [P, 3]) of the step before
         # travel_mm: since reset, Σ over steps of Σ_j reach_j·|Δq_j|, a bound on how far any point
         # of the whisker has moved (a joint turned by Δq moves a point at distance r from its axis
@@ -181,7 +184,7 @@ class BulletWhisker:
         as the drive at t = 0 (rates for steps of size h, s: :func:`~pipeline.engines.common.start_rate`),
         free joints (``dofs[3:]``, in the order of :mod:`pipeline.engines.base`) at ``free_angles``
         [J] (rad; zeros: rest shape) moving at ``free_rates`` [J] (rad/s)."""
-        self.client.resetBasePositionAndOrientation(self.body, base_mm.tolist(), orientation)
+        self.place_base(base_mm, orientation)
         q_driven = self.rest_driven + self.rates * float(drive(0.0))
         v_driven = self.rates * start_rate(drive, h)
         self._lhs_inverse = None                            # the next step computes M afresh
@@ -192,7 +195,22 @@ class BulletWhisker:
     def _set_state(self, q: np.ndarray, v: np.ndarray) -> None:
         """Joint angles q and rates v [n_dof] (rad, rad/s), kept here; written to Bullet's joints
         by :meth:`sync`, before Bullet's link frames or collision queries are asked for."""
-        self.q, self.v, self._synced = q, v, False
+        self.q, self.v, self._synced, self._nodes = q, v, False, None
+
+    def place_base(self, base_mm: np.ndarray, orientation) -> None:
+        """Base at ``base_mm`` (world, mm) with the head ``orientation`` quaternion (x, y, z, w)."""
+        self.client.resetBasePositionAndOrientation(self.body, base_mm.tolist(), orientation)
+        self._nodes = None
+        self._base_mm, self._base_frame = np.asarray(base_mm, float), matrix_from_xyzw(orientation)
+
+    def _link_frames(self, links) -> tuple[np.ndarray, np.ndarray]:
+        """Frames [L, 3, 3] and origins [L, 3] (world, mm) of Bullet ``links`` at :attr:`q`, by the
+        chain's own kinematics, without writing Bullet's joints (its frames, from getLinkStates,
+        are within 3·10⁻⁷ of these, and positions 4·10⁻⁶ mm: its quaternions' norms are off 1 by
+        up to 7·10⁻⁸). The outputs' nodes and the base wrench use these; the contact search and
+        step use Bullet's frames, with its collision."""
+        frames, origins, _ = chain_kinematics(self.q, *self._whole_chain)
+        return self._base_frame @ frames[links], self._base_mm + origins[links] @ self._base_frame.T
 
     def sync(self) -> None:
         """Bullet's joints at :attr:`q`, :attr:`v` (a no-op when they are already)."""
@@ -337,38 +355,33 @@ class BulletWhisker:
         """Keep what :meth:`base_wrench` needs of the step about to be taken from joint angles q,
         rates v and accelerations ``accel``: the chain's frames and the ``external`` (points,
         forces, torques) on the links (internal units, world frame)."""
-        self.sync()
-        states = self.client.getLinkStates(self.body, self._chain_links, computeForwardKinematics=True)
+        rotations, origins = self._link_frames(self._chain_links)
         points, forces, torques = ([np.concatenate(part) for part in zip(*external)] if external
                                    else [np.zeros((0, 3))] * 3)
-        self._step = (q, v, accel, np.array([s[5] for s in states]), np.asarray(states[0][4]), points, forces, torques)
+        self._step = (q, v, accel, rotations, origins[0], points, forces, torques)
 
     def base_wrench(self) -> np.ndarray:
         """Follicle → whisker force (N) and moment about the base point (N·m), whisker frame, in
         the step recorded by :meth:`step` and just taken, by Newton–Euler
         (:mod:`pipeline.engines.bullet.wrench`) with the step's joint accelerations."""
-        q, v, accel, quaternions, base, points, forces, torques = self._step
-        wrench = follicle_wrench(quaternions, self._link_offsets, self._local_axes, self._dof_links, v, accel,
+        q, v, accel, rotations, base, points, forces, torques = self._step
+        wrench = follicle_wrench(rotations, self._link_offsets, self._local_axes, self._dof_links, v, accel,
                                  self._body_links, self.link_com, self._link_mass, self._link_inertia, self.sensor_joint,
                                  points - base, forces, torques, self.link1_angle, self._follicle_axes,
                                  np.asarray(q[3:3 + len(self.follicle_axes)], float))
         return np.concatenate([wrench[:3] / U.FORCE, wrench[3:] / U.TORQUE])
 
-    def link_nodes(self, links: list[int]) -> np.ndarray:
+    def link_nodes(self, links) -> np.ndarray:
         """[L, 2, 3] proximal and distal node of each whisker link in ``links`` (0-based), world
-        frame, mm (internal units): one query of Bullet's frames for them all."""
-        self.sync()
-        states = self.client.getLinkStates(self.body, [self.whisker_links[i] for i in links],
-                                           computeForwardKinematics=True)
-        origins = np.array([state[4] for state in states])
-        x, y, z, w = np.array([state[5] for state in states]).T
-        along = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)], axis=1)  # R(q)·(1, 0, 0)
-        return np.stack([origins, origins + self.link_lengths[links, None] * along], axis=1)
+        frame, mm (internal units): one query of Bullet's frames for all links per state."""
+        if self._nodes is None:
+            self.sync()
+            states = self.client.getLinkStates(self.body, self.whisker_links, computeForwardKinematics=True)
+            self._nodes = segment_nodes(np.array([state[4] for state in states]), np.array([state[5] for state in states]),
+                                        self.link_lengths)
+        return self._nodes[links]
 
     def node_positions(self) -> np.ndarray:
         """[N+1, 3] node positions, world frame, m."""
-        self.sync()
-        states = self.client.getLinkStates(self.body, self.whisker_links, computeForwardKinematics=True)
-        frames = np.array([s[4] for s in states])
-        tip = frames[-1] + matrix_from_xyzw(states[-1][5])[:, 0] * self.tip_offset
-        return np.vstack([frames, tip]) / U.LENGTH
+        frames, origins = self._link_frames(self.whisker_links)
+        return np.vstack([origins, origins[-1] + frames[-1, :, 0] * self.tip_offset]) / U.LENGTH

@@ -33,19 +33,6 @@ def _cross(a, b):
 
 
 @numba.njit(cache=True)
-def frames_from_xyzw(quaternions: np.ndarray) -> np.ndarray:
-    """[L, 3, 3] rotation matrices of quaternions [L, 4] (x, y, z, w), normalised first."""
-    frames = np.empty((len(quaternions), 3, 3))
-    for k in range(len(quaternions)):
-        norm = np.sqrt(quaternions[k, 0] ** 2 + quaternions[k, 1] ** 2 + quaternions[k, 2] ** 2 + quaternions[k, 3] ** 2)
-        x, y, z, w = quaternions[k, 0] / norm, quaternions[k, 1] / norm, quaternions[k, 2] / norm, quaternions[k, 3] / norm
-        frames[k, 0, 0], frames[k, 0, 1], frames[k, 0, 2] = 1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)
-        frames[k, 1, 0], frames[k, 1, 1], frames[k, 1, 2] = 2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)
-        frames[k, 2, 0], frames[k, 2, 1], frames[k, 2, 2] = 2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)
-    return frames
-
-
-@numba.njit(cache=True)
 def chain_origins(rotations: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """[L, 3] frame origins of the chain relative to link 0's: o_k = o_{k−1} + R_{k−1}·d_k
     (``offsets`` [L, 3] d_k in the parent link's frame)."""
@@ -134,14 +121,14 @@ def _turned(axis: int, angle: float, matrix: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def follicle_wrench(quaternions: np.ndarray, offsets: np.ndarray, local_axes: np.ndarray, dofs: np.ndarray,
+def follicle_wrench(rotations: np.ndarray, offsets: np.ndarray, local_axes: np.ndarray, dofs: np.ndarray,
                     rates: np.ndarray, accelerations: np.ndarray, bodies: np.ndarray, com_x: np.ndarray,
                     mass: np.ndarray, inertia: np.ndarray, base: int, points: np.ndarray, forces: np.ndarray,
                     torques: np.ndarray, link1_angle: float, follicle_axes: np.ndarray,
                     follicle_angles: np.ndarray) -> np.ndarray:
-    """:func:`chain_wrench` [6] in the whisker frame, from the chain's link frames as Bullet gives them.
+    """:func:`chain_wrench` [6] in the whisker frame, from the chain's link frames.
 
-    ``quaternions`` [L, 4] (x, y, z, w) the L links' frames, ``offsets`` [L, 3] each link's origin in
+    ``rotations`` [L, 3, 3] the L links' frames, ``offsets`` [L, 3] each link's origin in
     its parent's frame; ``dofs`` [D] the chain indices of the revolute joints, ``rates`` and
     ``accelerations`` [D] theirs; ``com_x`` [B] each whisker link's centre of mass on its frame's x
     axis; ``points`` [E, 3] relative to link 0's origin; the whisker frame is link ``base``'s turned
@@ -150,7 +137,6 @@ def follicle_wrench(quaternions: np.ndarray, offsets: np.ndarray, local_axes: np
     The origins are
     chained from the offsets (Bullet's link positions are off by up to 10⁻⁵ relative), so that the
     wrench does not depend on where the base is."""
-    rotations = frames_from_xyzw(quaternions)
     origins = chain_origins(rotations, offsets)
     com = np.empty((len(bodies), 3))
     for b in range(len(bodies)):
