@@ -216,8 +216,9 @@ class BulletWorld(World):
         is pushed on (a resting contact can sit a hair above zero), at its point on the whisker's
         surface (``segments``: per point its link's nodes at the step's start); ``touched`` [w]
         marks whiskers with any contact point at all (within reach)."""
-        if points:
-            touched[k] = True
+        if not points:
+            return
+        touched[k] = True
         pressed = [i for i, (point, force) in enumerate(zip(points, normal_forces))
                    if point.gap_mm <= 0.0 or force > 0.0]
         if pressed:
