@@ -23,7 +23,7 @@ from profile_mujoco_stepping import timed
 
 from pipeline.config.loader import load_config
 from pipeline.config.simulate import SimulateConfig
-from pipeline.engines.bullet import engine as bullet_engine, whisker as bullet_whisker
+from pipeline.engines.bullet import contact as bullet_contact, engine as bullet_engine, whisker as bullet_whisker
 from pipeline.engines.bullet.client import BulletClient
 from pipeline.runner.scenes import scene_catalogue
 from pipeline.runner.simulate import _layout
@@ -33,9 +33,11 @@ REPO = Path(__file__).resolve().parents[1]
 PYBULLET_CALLS = ("stepSimulation", "resetJointStatesMultiDof", "getJointStates", "calculateInverseDynamics",
                   "calculateMassMatrix", "calculateJacobian", "setJointMotorControlArray", "getLinkStates", "getLinkState",
                   "getClosestPoints", "getOverlappingObjects", "applyExternalForce", "getBasePositionAndOrientation")
-ENGINE_CALLS = ((bullet_whisker, "solve_forces"), (bullet_engine, "find_contacts"),
+ENGINE_CALLS = ((bullet_whisker, "solve_forces"), (bullet_engine, "find_contacts"), (bullet_contact, "one_sided"),
+                (bullet_contact, "_distinct"),
                 *((bullet_whisker.BulletWhisker, name) for name in
-                  ("step", "_contact_forces", "_factorise", "_record_wrench", "base_wrench", "build")),
+                  ("step", "_contact_forces", "_factorise", "_record_wrench", "base_wrench", "build", "link_nodes",
+                   "node_positions")),
                 (bullet_engine.BulletWorld, "_flag_contacts"), (bullet_engine.BulletWorld, "run"))
 
 

@@ -2,7 +2,10 @@
 (pipeline.engines.bullet.contact.solve_forces, numba) against the same projected Gauss–Seidel in
 plain Python on contact problems recorded from peg sweeps and a dataset trial
 (bullet_contact_problems.npz: G, u₀, gaps, (h, μ, sweeps), warm start per problem); the spring
-joints' mass matrix (pipeline.engines.bullet.mass_matrix) against Bullet's calculateMassMatrix."""
+joints' mass matrix (pipeline.engines.bullet.mass_matrix) against Bullet's calculateMassMatrix; the
+base wrench (pipeline.engines.bullet.wrench) against the same Newton–Euler in numpy; the contact
+step's per-point bookkeeping (pipeline.engines.bullet.contact_kernels) against the numpy it
+replaced, to the bit."""
 
 import math
 from pathlib import Path
@@ -11,12 +14,15 @@ import numpy as np
 import pytest
 
 from pipeline.config.physics import MaterialConfig
+from pipeline.engines import units as U
 from pipeline.engines.bullet.client import BulletClient
-from pipeline.engines.bullet.contact import PENETRATION_ERP, TOLERANCE, solve_forces
+from pipeline.engines.bullet.contact import CONTACT_REACH_MM, PENETRATION_ERP, TOLERANCE, solve_forces
+from pipeline.engines.bullet.contact_kernels import contact_rows, segment_nodes, warm_start, world_forces
 from pipeline.engines.bullet.mass_matrix import chain_mass_matrix, implicit_operator_inverse
 from pipeline.engines.bullet.whisker import BulletWhisker
 from pipeline.model.array import build_array
 from pipeline.model.morphology import model_rat
+from pipeline.model.rotations import axis_rotation, matrix_from_xyzw, quat_xyzw, rot_z
 
 PROBLEMS = Path(__file__).with_name("bullet_contact_problems.npz")
 
@@ -112,3 +118,154 @@ def test_the_implicit_operator_inverse_inverts_it(whiskers):
     operator = chain_mass_matrix(angles, *whisker._mass_chain) + np.diag(diagonal)
     inverse = implicit_operator_inverse(angles, diagonal, *whisker._mass_chain)
     np.testing.assert_allclose(inverse @ operator, np.eye(len(angles)), rtol=0, atol=1e-9)
+
+
+def _parent(x):
+    return np.vstack([np.zeros((1, 3)), x[:-1]])
+
+
+def numpy_chain_wrench(origins, rotations, local_axes, rates, accelerations, bodies, com, mass, inertia, base,
+                       points, forces, torques):
+    """pipeline.engines.bullet.wrench.chain_wrench in numpy (the engine's before it was compiled)."""
+    n, b = len(origins), len(bodies)
+    axes = np.einsum("lij,lj->li", rotations, local_axes)
+    spin = axes * rates[:, None]
+    omega = np.cumsum(spin, axis=0)
+    parent_omega = _parent(omega)
+    alpha = np.cumsum(axes * accelerations[:, None] + np.cross(parent_omega, spin), axis=0)
+    step = origins - _parent(origins)
+    step[0] = 0.0
+    turned = np.cross(np.vstack([_parent(alpha), parent_omega]), np.vstack([step, step]))
+    origin_acceleration = np.cumsum(turned[:n] + np.cross(parent_omega, turned[n:]), axis=0)
+    w, a = omega[bodies], alpha[bodies]
+    arm = com - origins[bodies]
+    frames = rotations[bodies]
+    world_inertia = np.einsum("bij,bj,bkj->bik", frames, inertia, frames)
+    spin_momentum = np.einsum("bij,bj->bi", world_inertia, w)
+    turned = np.cross(np.vstack([a, w, w]), np.vstack([arm, arm, spin_momentum]))
+    momentum_rate = mass[:, None] * (origin_acceleration[bodies] + turned[:b] + np.cross(w, turned[b:2 * b]))
+    point = origins[base]
+    arms = np.cross(np.vstack([com - point, points - point]), np.vstack([momentum_rate, forces]))
+    moment = (arms[:b].sum(axis=0) - arms[b:].sum(axis=0) + np.einsum("bij,bj->i", world_inertia, a)
+              + turned[2 * b:].sum(axis=0) - torques.sum(axis=0))
+    return np.concatenate([momentum_rate.sum(axis=0) - forces.sum(axis=0), moment])
+
+
+def numpy_base_wrench(whisker, q, v, accel, rotations, points, forces, torques):
+    """BulletWhisker.base_wrench in numpy (internal units): origins, centres of mass, whisker frame."""
+    origins = np.vstack([np.zeros(3), np.cumsum(np.einsum("lij,lj->li", rotations[:-1], whisker._link_offsets[1:]),
+                                                axis=0)])
+    bodies = np.asarray(whisker.whisker_links)
+    com = origins[bodies] + rotations[bodies, :, 0] * whisker.link_com[:, None]
+    rates, accelerations = np.zeros(len(rotations)), np.zeros(len(rotations))
+    rates[whisker.dofs], accelerations[whisker.dofs] = v, accel
+    world = numpy_chain_wrench(origins, rotations, whisker._local_axes, rates, accelerations, bodies, com,
+                               whisker._link_mass, whisker._link_inertia, whisker.sensor_joint, points, forces, torques)
+    rotation = rot_z(whisker.link1_angle) @ rotations[whisker.sensor_joint].T
+    for axis, angle in zip(reversed(whisker.follicle_axes), reversed(q[3:3 + len(whisker.follicle_axes)])):
+        rotation = axis_rotation(axis, angle) @ rotation
+    return np.concatenate([rotation @ world[:3], rotation @ world[3:]])
+
+
+def test_the_compiled_base_wrench_is_the_numpy_one(whiskers):
+    """Random joint states, rates, accelerations and contact forces, whiskers from the array's
+    shortest to its longest (compliant follicles: two joints each)."""
+    rng = np.random.default_rng(5)
+    for whisker in whiskers:
+        assert whisker.follicle_axes
+        for scale in (0.0, 0.1, 0.5):
+            q = np.concatenate([rng.normal(size=3), scale * rng.normal(size=whisker.n_dof - 3)])
+            v, accel = 30 * rng.normal(size=whisker.n_dof), 3e4 * rng.normal(size=whisker.n_dof)
+            points, forces = 20 * rng.normal(size=(3, 3)), rng.normal(size=(3, 3))
+            external = [(points, forces, 0.1 * rng.normal(size=(3, 3)))]
+            whisker._set_state(q, v)
+            whisker._record_wrench(q.tolist(), v, accel, external)
+            rotations, base = whisker._step[3:5]
+            expected = numpy_base_wrench(whisker, q, v, accel, rotations, points - base, forces, external[0][2])
+            mine = whisker.base_wrench() * np.repeat([U.FORCE, U.TORQUE], 3)
+            np.testing.assert_allclose(mine, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+
+
+def numpy_contact_frames(normals, with_tangents):
+    """Per point its normal and two unit tangents (the engine's numpy before it was compiled)."""
+    if not with_tangents:
+        return normals
+    nx, ny, nz = normals.T
+    zeros = np.zeros_like(nx)
+    t1 = np.where((np.abs(nx) <= np.abs(ny))[:, None], np.stack([zeros, -nz, ny], axis=1),
+                  np.stack([nz, zeros, -nx], axis=1))
+    t1 /= np.sqrt(np.matmul(t1[:, None, :], t1[:, :, None]))[:, 0]
+    t2 = np.stack([ny * t1[:, 2] - nz * t1[:, 1], nz * t1[:, 0] - nx * t1[:, 2], nx * t1[:, 1] - ny * t1[:, 0]], axis=1)
+    return np.stack([normals, t1, t2], axis=1).reshape(-1, 3)
+
+
+def numpy_warm_start(links, points, frames, last_links, last_points, last_forces):
+    per_point = len(frames) // len(points)
+    distances = ((points[:, None, :] - last_points[None, :, :]) ** 2).sum(axis=2)
+    distances[links[:, None] != last_links[None, :]] = np.inf
+    nearest = distances.argmin(axis=1)
+    near = np.flatnonzero(distances[np.arange(len(points)), nearest] <= CONTACT_REACH_MM ** 2)
+    chosen = near[np.unique(nearest[near], return_index=True)[1]]
+    start = np.zeros((len(points), per_point))
+    start[chosen] = np.matmul(frames.reshape(len(points), per_point, 3)[chosen],
+                              last_forces[nearest[chosen]][:, :, None])[..., 0]
+    return start.reshape(-1)
+
+
+def test_the_compiled_contact_bookkeeping_is_numpys_to_the_bit():
+    """Random points and normals (axis-aligned ones too), with and without tangents, the step
+    before's points near them on the same and other links."""
+    rng = np.random.default_rng(7)
+    for case in range(400):
+        count, tangents = int(rng.integers(1, 12)), bool(case % 2)
+        normals = rng.normal(size=(count, 3)) if case % 5 else np.eye(3)[rng.integers(0, 3, count)] * rng.choice([-1, 1])
+        normals /= np.linalg.norm(normals, axis=1)[:, None]
+        points, origin = 10 * rng.normal(size=(count, 3)), 10 * rng.normal(size=3)
+        frames, arms = contact_rows(normals, points, origin, tangents)
+        expected = numpy_contact_frames(normals, tangents)
+        per_point = len(expected) // count
+        np.testing.assert_array_equal(frames, expected)
+        np.testing.assert_array_equal(arms, np.cross(np.repeat(points, per_point, axis=0) - origin, expected))
+        links, last = rng.integers(0, 3, count), int(rng.integers(1, 12))
+        last_links, last_forces = rng.integers(0, 3, last), rng.normal(size=(last, 3))
+        last_points = points[rng.integers(0, count, last)] + 0.15 * rng.normal(size=(last, 3))
+        np.testing.assert_array_equal(warm_start(links, points, frames, last_links, last_points, last_forces, CONTACT_REACH_MM),
+                                      numpy_warm_start(links, points, expected, last_links, last_points, last_forces))
+        forces = rng.normal(size=len(frames))
+        np.testing.assert_array_equal(world_forces(frames, forces, count),
+                                      np.einsum("ij,i->ij", expected, forces).reshape(count, per_point, 3).sum(axis=1))
+
+
+def test_the_compiled_link_nodes_are_numpys_to_the_bit():
+    rng = np.random.default_rng(11)
+    quaternions = rng.normal(size=(200, 4))
+    quaternions /= np.linalg.norm(quaternions, axis=1)[:, None]
+    origins, lengths = 30 * rng.normal(size=(200, 3)), rng.uniform(0.5, 3, 200)
+    x, y, z, w = quaternions.T
+    along = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)], axis=1)
+    np.testing.assert_array_equal(segment_nodes(origins, quaternions, lengths),
+                                  np.stack([origins, origins + lengths[:, None] * along], axis=1))
+
+
+def test_the_chains_own_link_frames_are_bullets(whiskers):
+    """Node positions and link frames (the outputs' and the base wrench's) from the chain's own
+    kinematics against Bullet's getLinkStates, at random joint angles and a turned, moved base
+    (Bullet's are the less exact: its link quaternions' norms are off 1 by up to 7·10⁻⁸, frames by
+    up to 3·10⁻⁷, positions by up to 4·10⁻⁶ mm; the chain's own frames are orthonormal to 10⁻¹⁵)."""
+    rng = np.random.default_rng(13)
+    for whisker in whiskers:
+        rotation = axis_rotation(2, 0.7) @ axis_rotation(0, -0.4)
+        whisker.place_base(np.array([3.0, -20.0, 7.5]), quat_xyzw(rotation).tolist())
+        for scale in (0.0, 0.3):
+            q = np.concatenate([rng.normal(size=3), scale * rng.normal(size=whisker.n_dof - 3)])
+            whisker._set_state(q, np.zeros(whisker.n_dof))
+            whisker.sync()
+            states = whisker.client.getLinkStates(whisker.body, whisker._chain_links, computeForwardKinematics=True)
+            frames, origins = whisker._link_frames(whisker._chain_links)
+            np.testing.assert_allclose(origins, [s[4] for s in states], rtol=0, atol=1e-5)
+            np.testing.assert_allclose(frames, matrix_from_xyzw([s[5] for s in states]), rtol=0, atol=1e-6)
+            nodes = whisker.link_nodes(np.arange(len(whisker.whisker_links)))
+            np.testing.assert_allclose(whisker.node_positions() * U.LENGTH, np.vstack([nodes[:, 0], nodes[-1, 1]]),
+                                       rtol=0, atol=1e-5)
+            np.testing.assert_allclose(np.einsum("lij,lkj->lik", frames, frames), np.broadcast_to(np.eye(3), frames.shape),
+                                       rtol=0, atol=1e-14)

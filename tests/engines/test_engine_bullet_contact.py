@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from pipeline.config.physics import EngineConfig, ModelConfig
-from pipeline.engines.bullet.contact import CONTACT_REACH_MM, _distinct, contact_frames, solve_forces
+from pipeline.engines.bullet.contact import CONTACT_REACH_MM, _distinct, solve_forces
+from pipeline.engines.bullet.contact_kernels import contact_rows
 from pipeline.engines.one_sided import MERGE_MM, ONE_SIDED_DEPTH_MM, OneSidedMesh, one_sided
 from pipeline.model.kinematics import Pose
 from pipeline.protocols.peg_sweep import bend_angles_deg, friction_ratio, penetration_m, run_peg_sweep
@@ -57,12 +58,12 @@ def test_contact_frames_are_orthonormal_and_right_handed():
     rng = np.random.default_rng(1)
     normals = np.concatenate([np.eye(3), -np.eye(3), rng.normal(size=(50, 3))])
     normals /= np.linalg.norm(normals, axis=1)[:, None]
-    frames = contact_frames(normals, True).reshape(-1, 3, 3)
+    frames = contact_rows(normals, np.zeros_like(normals), np.zeros(3), True)[0].reshape(-1, 3, 3)
     np.testing.assert_allclose(frames[:, 0], normals)
     np.testing.assert_allclose(np.einsum("pij,pkj->pik", frames, frames), np.broadcast_to(np.eye(3), frames.shape),
                                atol=1e-15)
     np.testing.assert_allclose(np.linalg.det(frames), 1.0)
-    assert contact_frames(normals, False) is normals
+    np.testing.assert_array_equal(contact_rows(normals, np.zeros_like(normals), np.zeros(3), False)[0], normals)
 
 
 def test_forces_solve_the_complementarity_problem():

@@ -112,25 +112,10 @@ def _distinct(kept: np.ndarray, link_of: np.ndarray, where: np.ndarray, normals:
     return [ContactPoint(int(link_of[i]), where[i], normals[i], float(gaps[i]), velocity) for i in chosen]
 
 
-def contact_frames(normals: np.ndarray, with_tangents: bool) -> np.ndarray:
-    """[P, 3] the unit ``normals`` [P, 3], or [3P, 3] per point its normal and two unit tangents
-    (rows, right-handed; all points at once: per point, numpy's call overhead dominated a step)."""
-    if not with_tangents:
-        return normals
-    nx, ny, nz = normals.T
-    zeros = np.zeros_like(nx)
-    # a tangent ⟂ normal: x × normal, or y × normal when the normal is closer to x than to y
-    t1 = np.where((np.abs(nx) <= np.abs(ny))[:, None], np.stack([zeros, -nz, ny], axis=1),
-                  np.stack([nz, zeros, -nx], axis=1))
-    t1 /= np.sqrt(np.matmul(t1[:, None, :], t1[:, :, None]))[:, 0]      # as t1 @ t1, to the bit
-    t2 = np.stack([ny * t1[:, 2] - nz * t1[:, 1], nz * t1[:, 0] - nx * t1[:, 2], nx * t1[:, 1] - ny * t1[:, 0]], axis=1)
-    return np.stack([normals, t1, t2], axis=1).reshape(-1, 3)
-
-
 def solve_forces(G: np.ndarray, u0: np.ndarray, gaps_mm: np.ndarray, h: float, mu: float,
                  iterations: int, start: np.ndarray | None = None) -> np.ndarray:
     """Contact forces f of the step (module docstring): per point the normal force, and with
-    μ > 0 two tangential ones ([P] or [3P], the rows of :func:`contact_frames`), by projected
+    μ > 0 two tangential ones ([P] or [3P], the rows of :func:`~pipeline.engines.bullet.contact_kernels.contact_rows`), by projected
     Gauss–Seidel (:func:`~pipeline.engines.bullet.gauss_seidel.gauss_seidel`).
 
     ``G``: velocity after the step per unit force; ``u0``: velocity after the step without

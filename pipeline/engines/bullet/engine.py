@@ -136,8 +136,7 @@ class BulletWorld(World):
         """The bases of ``whiskers`` (indices) where a head at ``position_m`` (m), ``rotation`` has them."""
         orientation = quat(rotation)
         for k in whiskers:
-            base = (position_m + rotation @ self.bodies[k].model.base_point_m) * U.LENGTH
-            self.client.resetBasePositionAndOrientation(self.bodies[k].body, base.tolist(), orientation)
+            self.bodies[k].place_base((position_m + rotation @ self.bodies[k].model.base_point_m) * U.LENGTH, orientation)
 
     def _remove(self, k: int) -> None:
         """Take whisker k's multibody out of the world: it no longer touches anything."""
@@ -217,8 +216,9 @@ class BulletWorld(World):
         is pushed on (a resting contact can sit a hair above zero), at its point on the whisker's
         surface (``segments``: per point its link's nodes at the step's start); ``touched`` [w]
         marks whiskers with any contact point at all (within reach)."""
-        if points:
-            touched[k] = True
+        if not points:
+            return
+        touched[k] = True
         pressed = [i for i, (point, force) in enumerate(zip(points, normal_forces))
                    if point.gap_mm <= 0.0 or force > 0.0]
         if pressed:

@@ -3,7 +3,7 @@ compiled (numba): the problem is a few rows solved on every step with contacts, 
 interpreted Python spent ≈ 0.6 ms per solve.
 
 Rows per point: its normal force, and with friction μ > 0 two tangential ones (the rows of
-:func:`~pipeline.engines.bullet.contact.contact_frames`). Per sweep and point: the normal force
+:func:`~pipeline.engines.bullet.contact_kernels.contact_rows`). Per sweep and point: the normal force
 f_n ← max(0, f_n − (u_n + b)/G_nn), then the tangential pair f_t ← f_t − u_t/G_tt projected onto
 the disc |f_t| ≤ μ·f_n; every change of a force updates the velocities u by its column of G.
 """

@@ -60,7 +60,7 @@ def _rotated(frame: np.ndarray, x):
 
 
 @numba.njit(cache=True)
-def _kinematics(angles: np.ndarray, joint_of: np.ndarray, offsets: np.ndarray, rotations: np.ndarray,
+def chain_kinematics(angles: np.ndarray, joint_of: np.ndarray, offsets: np.ndarray, rotations: np.ndarray,
                 axes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per link of the chain (arguments as :func:`chain_mass_matrix`): its frame [K, 3, 3], origin
     [K, 3] and joint axis [K, 3] (zeros for a fixed joint) relative to the chain's base frame."""
@@ -101,7 +101,7 @@ def chain_mass_matrix(angles: np.ndarray, joint_of: np.ndarray, offsets: np.ndar
     ``masses`` [K], ``coms`` [K, 3] its centre of mass and ``inertias`` [K, 3] its principal
     moments, both in its own frame."""
     links, n = len(masses), len(angles)
-    frames, origins, world_axes = _kinematics(angles, joint_of, offsets, rotations, axes)
+    frames, origins, world_axes = chain_kinematics(angles, joint_of, offsets, rotations, axes)
     mass, moment, inertia = 0.0, (0.0, 0.0, 0.0), np.zeros((3, 3))
     joints, arms = np.zeros((n, 3)), np.zeros((n, 3))              # per joint: a and w = o × a
     for k in range(links):

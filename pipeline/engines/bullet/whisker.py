@@ -22,15 +22,16 @@ import pybullet as p
 
 from pipeline.engines import units as U
 from pipeline.engines.bullet.client import BulletClient
-from pipeline.engines.bullet.contact import CONTACT_REACH_MM, contact_frames, solve_forces
-from pipeline.engines.bullet.mass_matrix import implicit_operator_inverse
+from pipeline.engines.bullet.contact import CONTACT_REACH_MM, solve_forces
+from pipeline.engines.bullet.contact_kernels import contact_rows, segment_nodes, warm_start, world_forces
+from pipeline.engines.bullet.mass_matrix import chain_kinematics, implicit_operator_inverse
 from pipeline.engines.bullet.multibody import CAPSULE_ALONG_X, IDENTITY_QUAT, LinkList
-from pipeline.engines.bullet.wrench import chain_wrench
+from pipeline.engines.bullet.wrench import follicle_wrench
 from pipeline.engines.common import start_rate
 from pipeline.model.array import WhiskerModel
 from pipeline.model.kinematics import ProtractionDrive
 from pipeline.model.effects.loads import LinkState, total_link_forces
-from pipeline.model.rotations import axis_rotation, matrix_from_xyzw, rot_z
+from pipeline.model.rotations import matrix_from_xyzw, rot_z
 
 # Largest change of a free joint angle (rad) before M_FF of the implicit step is recomputed:
 # M_FF then changes by ≲ 0.5 × this, relative (measured on RC1); in a full-array free whisk it
@@ -129,9 +130,11 @@ class BulletWhisker:
         self.capsule_radii = 0.5 * (chain.node_radii_m[:-1] + chain.node_radii_m[1:]) * U.LENGTH
         # dofs moving whisker link i: those of its joint and before (a serial chain)
         self.ancestor_dofs = np.searchsorted(self.dofs, self.whisker_links, side="right")
+        self._beyond_link = np.arange(self.n_dof) >= self.ancestor_dofs[:, None]   # [links, n_dof]: dofs not moving it
         self._lhs_inverse, self._factorised_at = None, None
         self._base_orientation, self._base_rotation = None, None    # (x, y, z, w) and its matrix
         self._mass_chain = _chain(links, roll + 1)      # the spring joints' (M_FF)
+        self._whole_chain = _chain(links, 0)[:4]         # every link's kinematics (:meth:`_link_frames`)
         # Newton–Euler base wrench (:mod:`pipeline.engines.bullet.wrench`): the chain's links
         revolute = np.array(links.columns["linkJointTypes"]) == p.JOINT_REVOLUTE
         self._chain_links = list(range(len(links.inertia)))
@@ -139,7 +142,11 @@ class BulletWhisker:
         self._link_offsets = np.array(links.columns["linkPositions"], float)   # in the parent link frame
         self._link_mass = chain.link_mass_kg * U.MASS
         self._link_inertia = chain.link_inertia_kg_m2 * U.INERTIA
+        self._dof_links, self._body_links = np.array(self.dofs), np.array(self.whisker_links)
+        self._follicle_axes = np.array(self.follicle_axes, dtype=np.int64)
         self._step = None
+        self._nodes = None              # [links, 2, 3] of the current state (:meth:`link_nodes`)
+        self._base_mm, self._base_frame = np.zeros(3), np.eye(3)        # as built (:meth:`place_base`)
         self._last_contacts = None      # (links [P], points [P, 3], forces [P, 3]) of the step before
         # travel_mm: since reset, Σ over steps of Σ_j reach_j·|Δq_j|, a bound on how far any point
         # of the whisker has moved (a joint turned by Δq moves a point at distance r from its axis
@@ -177,7 +184,7 @@ class BulletWhisker:
         as the drive at t = 0 (rates for steps of size h, s: :func:`~pipeline.engines.common.start_rate`),
         free joints (``dofs[3:]``, in the order of :mod:`pipeline.engines.base`) at ``free_angles``
         [J] (rad; zeros: rest shape) moving at ``free_rates`` [J] (rad/s)."""
-        self.client.resetBasePositionAndOrientation(self.body, base_mm.tolist(), orientation)
+        self.place_base(base_mm, orientation)
         q_driven = self.rest_driven + self.rates * float(drive(0.0))
         v_driven = self.rates * start_rate(drive, h)
         self._lhs_inverse = None                            # the next step computes M afresh
@@ -188,7 +195,22 @@ class BulletWhisker:
     def _set_state(self, q: np.ndarray, v: np.ndarray) -> None:
         """Joint angles q and rates v [n_dof] (rad, rad/s), kept here; written to Bullet's joints
         by :meth:`sync`, before Bullet's link frames or collision queries are asked for."""
-        self.q, self.v, self._synced = q, v, False
+        self.q, self.v, self._synced, self._nodes = q, v, False, None
+
+    def place_base(self, base_mm: np.ndarray, orientation) -> None:
+        """Base at ``base_mm`` (world, mm) with the head ``orientation`` quaternion (x, y, z, w)."""
+        self.client.resetBasePositionAndOrientation(self.body, base_mm.tolist(), orientation)
+        self._nodes = None
+        self._base_mm, self._base_frame = np.asarray(base_mm, float), matrix_from_xyzw(orientation)
+
+    def _link_frames(self, links) -> tuple[np.ndarray, np.ndarray]:
+        """Frames [L, 3, 3] and origins [L, 3] (world, mm) of Bullet ``links`` at :attr:`q`, by the
+        chain's own kinematics, without writing Bullet's joints (its frames, from getLinkStates,
+        are within 3·10⁻⁷ of these, and positions 4·10⁻⁶ mm: its quaternions' norms are off 1 by
+        up to 7·10⁻⁸). The outputs' nodes and the base wrench use these; the contact search and
+        step use Bullet's frames, with its collision."""
+        frames, origins, _ = chain_kinematics(self.q, *self._whole_chain)
+        return self._base_frame @ frames[links], self._base_mm + origins[links] @ self._base_frame.T
 
     def sync(self) -> None:
         """Bullet's joints at :attr:`q`, :attr:`v` (a no-op when they are already)."""
@@ -212,7 +234,7 @@ class BulletWhisker:
         Jᵀ·F. So do the forces at ``contacts`` (:class:`~pipeline.engines.bullet.contact.ContactPoint`),
         solved within the same implicit operator with Coulomb ``friction`` μ
         (:mod:`pipeline.engines.bullet.contact`, ``iterations`` Gauss–Seidel sweeps at most, from
-        the forces of the step before at the same points: :meth:`_warm_start`). The free–free block
+        the forces of the step before at the same points: :func:`~pipeline.engines.bullet.contact_kernels.warm_start`). The free–free block
         M_FF inside the implicit operator depends on the free angles q_F only (the driven joints
         turn the whole chain rigidly), so it is recomputed (Bullet's costliest query) only once
         some free angle has moved :data:`MASS_REFRESH_RAD` from where it was last computed. The
@@ -250,7 +272,8 @@ class BulletWhisker:
 
         One Jacobian per step, at the frame origin o of the farthest touched link: a point p on
         link l has the row d·J_lin + ((p − o) × d)·J_ang along d, with the columns of the joints
-        beyond l (not l's ancestors in the serial chain) zeroed."""
+        beyond l (not l's ancestors in the serial chain) zeroed. The solve starts from the forces of
+        the step before at the same points (:func:`~pipeline.engines.bullet.contact_kernels.warm_start`)."""
         c = self.client
         links = np.array([contact.link for contact in contacts])
         points = np.array([contact.point_mm for contact in contacts])
@@ -258,44 +281,24 @@ class BulletWhisker:
         self.sync()
         origin = np.asarray(c.getLinkState(self.body, farthest, computeForwardKinematics=True)[4])
         linear, angular = self.jacobian(farthest, [0.0, 0.0, 0.0], q)
-        frames = contact_frames(np.array([contact.normal for contact in contacts]), friction > 0)
+        frames, arms = contact_rows(np.array([contact.normal for contact in contacts]), points, origin, friction > 0)
         per_point = len(frames) // len(contacts)                     # rows n (, t1, t2) per point
-        arms = np.repeat(points, per_point, axis=0) - origin
-        jacobian = frames @ linear + np.cross(arms, frames) @ angular          # [P or 3P, n_dof]
-        ancestors = np.repeat(self.ancestor_dofs[links], per_point)
-        jacobian[np.arange(self.n_dof) >= ancestors[:, None]] = 0.0
+        jacobian = frames @ linear + arms @ angular                   # [P or 3P, n_dof]
+        jacobian[self._beyond_link[np.repeat(links, per_point)]] = 0.0
         response = self._lhs_inverse @ jacobian[:, 3:].T             # W·J_Fᵀ
         velocity = jacobian @ (v + h * accel)                         # after the step, without contact
         if friction > 0:                         # friction acts on sliding relative to the surface
             surface = np.repeat([contact.surface_velocity for contact in contacts], 3, axis=0)
             velocity -= np.einsum("ij,ij->i", frames, surface) * (np.arange(len(frames)) % 3 > 0)
+        start = None if self._last_contacts is None else warm_start(links, points, frames, *self._last_contacts,
+                                                                     CONTACT_REACH_MM)
         forces = solve_forces(h * jacobian[:, 3:] @ response, velocity,
-                              np.array([contact.gap_mm for contact in contacts]), h, friction, iterations,
-                              self._warm_start(links, points, frames, per_point))
+                              np.array([contact.gap_mm for contact in contacts]), h, friction, iterations, start)
         accel[3:] += response @ forces
-        world = np.einsum("ij,i->ij", frames, forces).reshape(len(contacts), per_point, 3).sum(axis=1)
+        world = world_forces(frames, forces, len(contacts))
         self._last_contacts = (links, points, world)
         external.append((points, world, np.zeros_like(world)))
         return forces[0::per_point]
-
-    def _warm_start(self, links: np.ndarray, points: np.ndarray, frames: np.ndarray,
-                    per_point: int) -> np.ndarray | None:
-        """Forces to start the contact solve from: per point (whisker ``links`` [P], ``points``
-        [P, 3] mm), the force of the step before at the nearest point of the same link if within
-        :data:`CONTACT_REACH_MM` (each used once, by the first point it is nearest to), in this
-        step's ``frames``; zero where there is none (rows as :func:`solve_forces`)."""
-        if self._last_contacts is None:
-            return None
-        last_links, last_points, last_forces = self._last_contacts
-        distances = ((points[:, None, :] - last_points[None, :, :]) ** 2).sum(axis=2)
-        distances[links[:, None] != last_links[None, :]] = np.inf
-        nearest = distances.argmin(axis=1)
-        near = np.flatnonzero(distances[np.arange(len(points)), nearest] <= CONTACT_REACH_MM ** 2)
-        chosen = near[np.unique(nearest[near], return_index=True)[1]]
-        start = np.zeros((len(points), per_point))
-        start[chosen] = np.matmul(frames.reshape(len(points), per_point, 3)[chosen],
-                                  last_forces[nearest[chosen]][:, :, None])[..., 0]
-        return start.reshape(-1)
 
     def jacobian(self, link: int, point: list[float], q: list[float]) -> tuple[np.ndarray, np.ndarray]:
         """Linear and angular Jacobian [3, n_dof] of ``point`` (link frame, mm) of Bullet ``link``
@@ -352,48 +355,33 @@ class BulletWhisker:
         """Keep what :meth:`base_wrench` needs of the step about to be taken from joint angles q,
         rates v and accelerations ``accel``: the chain's frames and the ``external`` (points,
         forces, torques) on the links (internal units, world frame)."""
-        self.sync()
-        states = self.client.getLinkStates(self.body, self._chain_links, computeForwardKinematics=True)
-        rotations = matrix_from_xyzw([s[5] for s in states])
+        rotations, origins = self._link_frames(self._chain_links)
         points, forces, torques = ([np.concatenate(part) for part in zip(*external)] if external
                                    else [np.zeros((0, 3))] * 3)
-        self._step = (q, v, accel, rotations, np.asarray(states[0][4]), points, forces, torques)
+        self._step = (q, v, accel, rotations, origins[0], points, forces, torques)
 
     def base_wrench(self) -> np.ndarray:
         """Follicle → whisker force (N) and moment about the base point (N·m), whisker frame, in
         the step recorded by :meth:`step` and just taken, by Newton–Euler
         (:mod:`pipeline.engines.bullet.wrench`) with the step's joint accelerations."""
         q, v, accel, rotations, base, points, forces, torques = self._step
-        # origins from the base by the links' offsets (pybullet's link frame positions are off by
-        # up to 10⁻⁵ relative), so that the wrench does not depend on where the base is
-        origins = np.vstack([np.zeros(3), np.cumsum(np.einsum("lij,lj->li", rotations[:-1], self._link_offsets[1:]),
-                                                    axis=0)])
-        bodies = np.asarray(self.whisker_links)
-        com = origins[bodies] + rotations[bodies, :, 0] * self.link_com[:, None]
-        rates, accelerations = np.zeros(len(rotations)), np.zeros(len(rotations))
-        rates[self.dofs], accelerations[self.dofs] = v, accel
-        world = chain_wrench(origins, rotations, self._local_axes, rates, accelerations, bodies, com,
-                             self._link_mass, self._link_inertia, self.sensor_joint, points - base, forces, torques)
-        rotation = rot_z(self.link1_angle) @ rotations[self.sensor_joint].T     # world → link 1 → whisker
-        for axis, angle in zip(reversed(self.follicle_axes), reversed(q[3:3 + len(self.follicle_axes)])):
-            rotation = axis_rotation(axis, angle) @ rotation
-        return np.concatenate([rotation @ world[:3] / U.FORCE, rotation @ world[3:] / U.TORQUE])
+        wrench = follicle_wrench(rotations, self._link_offsets, self._local_axes, self._dof_links, v, accel,
+                                 self._body_links, self.link_com, self._link_mass, self._link_inertia, self.sensor_joint,
+                                 points - base, forces, torques, self.link1_angle, self._follicle_axes,
+                                 np.asarray(q[3:3 + len(self.follicle_axes)], float))
+        return np.concatenate([wrench[:3] / U.FORCE, wrench[3:] / U.TORQUE])
 
-    def link_nodes(self, links: list[int]) -> np.ndarray:
+    def link_nodes(self, links) -> np.ndarray:
         """[L, 2, 3] proximal and distal node of each whisker link in ``links`` (0-based), world
-        frame, mm (internal units): one query of Bullet's frames for them all."""
-        self.sync()
-        states = self.client.getLinkStates(self.body, [self.whisker_links[i] for i in links],
-                                           computeForwardKinematics=True)
-        origins = np.array([state[4] for state in states])
-        x, y, z, w = np.array([state[5] for state in states]).T
-        along = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)], axis=1)  # R(q)·(1, 0, 0)
-        return np.stack([origins, origins + self.link_lengths[links, None] * along], axis=1)
+        frame, mm (internal units): one query of Bullet's frames for all links per state."""
+        if self._nodes is None:
+            self.sync()
+            states = self.client.getLinkStates(self.body, self.whisker_links, computeForwardKinematics=True)
+            self._nodes = segment_nodes(np.array([state[4] for state in states]), np.array([state[5] for state in states]),
+                                        self.link_lengths)
+        return self._nodes[links]
 
     def node_positions(self) -> np.ndarray:
         """[N+1, 3] node positions, world frame, m."""
-        self.sync()
-        states = self.client.getLinkStates(self.body, self.whisker_links, computeForwardKinematics=True)
-        frames = np.array([s[4] for s in states])
-        tip = frames[-1] + matrix_from_xyzw(states[-1][5])[:, 0] * self.tip_offset
-        return np.vstack([frames, tip]) / U.LENGTH
+        frames, origins = self._link_frames(self.whisker_links)
+        return np.vstack([origins, origins[-1] + frames[-1, :, 0] * self.tip_offset]) / U.LENGTH
