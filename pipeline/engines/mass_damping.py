@@ -1,0 +1,75 @@
+"""Mass-proportional damping (:class:`~pipeline.model.effects.mass_damping.MassDamping`, the α·M
+half of Rayleigh damping) compiled for the engines (numba): every damped link of every whisker in
+one call per step, from the engine's own state arrays, instead of the load's per-whisker Python.
+
+Per link l of a whisker with rate α (1/s), m_l its mass and I_l its principal moments in its
+inertial frame R_l, relative to the whisker's driven base body b (origin x_b, velocity v_b,
+angular velocity ω_b):
+
+    f_l = −α·m_l·(v_l − v_b − ω_b × (c_l − x_b)),   τ_l = −α·R_l·diag(I_l)·R_lᵀ·(ω_l − ω_b),
+
+the equations of the load, in the engine's internal units (mm–mg–s; forces mg·mm/s², torques
+mg·mm²/s²).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from pipeline.engines import units as U
+from pipeline.model.effects.mass_damping import MassDamping
+
+
+def split_mass_damping(loads) -> tuple[float, tuple]:
+    """(α (1/s) summed over the :class:`MassDamping` loads of ``loads``, the other loads)."""
+    alpha = sum((load.alpha for load in loads if isinstance(load, MassDamping)), 0.0)
+    return alpha, tuple(load for load in loads if not isinstance(load, MassDamping))
+
+
+def internal_link_inertia(chains) -> tuple[np.ndarray, np.ndarray]:
+    """[W, N] link masses (mg) and [W, N, 3] principal moments (mg·mm²) of the whiskers ``chains``."""
+    return (np.array([c.link_mass_kg for c in chains]) * U.MASS,
+            np.array([c.link_inertia_kg_m2 for c in chains]) * U.INERTIA)
+
+
+@numba.njit(cache=True)
+def _moving_point(cvel: np.ndarray, body: int, point: np.ndarray, centre: np.ndarray) -> tuple[float, float, float]:
+    """Velocity of ``point`` [3] carried by MuJoCo ``body``: ``cvel`` [ω, v] is the motion at the
+    body tree's subtree centre of mass ``centre`` [3]."""
+    wx, wy, wz = cvel[body, 0], cvel[body, 1], cvel[body, 2]
+    rx, ry, rz = point[0] - centre[0], point[1] - centre[1], point[2] - centre[2]
+    return (cvel[body, 3] + wy * rz - wz * ry, cvel[body, 4] + wz * rx - wx * rz, cvel[body, 5] + wx * ry - wy * rx)
+
+
+@numba.njit(cache=True)
+def mujoco_mass_damping(alpha: np.ndarray, bodies: np.ndarray, bases: np.ndarray, mass: np.ndarray,
+                        inertia: np.ndarray, rootid: np.ndarray, cvel: np.ndarray, xpos: np.ndarray,
+                        xipos: np.ndarray, ximat: np.ndarray, subtree_com: np.ndarray, xfrc: np.ndarray) -> None:
+    """Add the damping wrenches (module docstring) of whiskers w to MuJoCo's ``xfrc`` [bodies, 6]
+    (force, torque about the centre of mass; after ``mj_comVel``): ``alpha`` [W] (1/s),
+    ``bodies`` [W, N] their link bodies, ``bases`` [W] their driven base bodies, ``mass`` [W, N]
+    and ``inertia`` [W, N, 3] of :func:`internal_link_inertia`; ``rootid``, ``cvel``, ``xpos``,
+    ``xipos``, ``ximat`` and ``subtree_com`` MuJoCo's (``body_rootid`` and ``mjData``'s)."""
+    for w in range(bodies.shape[0]):
+        a = alpha[w]
+        if a == 0.0:
+            continue
+        base = bases[w]
+        bx, by, bz = _moving_point(cvel, base, xpos[base], subtree_com[rootid[base]])
+        ox, oy, oz = cvel[base, 0], cvel[base, 1], cvel[base, 2]
+        for i in range(bodies.shape[1]):
+            body = bodies[w, i]
+            vx, vy, vz = _moving_point(cvel, body, xipos[body], subtree_com[rootid[body]])
+            rx, ry, rz = xipos[body, 0] - xpos[base, 0], xipos[body, 1] - xpos[base, 1], xipos[body, 2] - xpos[base, 2]
+            scale = -a * mass[w, i]
+            xfrc[body, 0] += scale * (vx - bx - (oy * rz - oz * ry))
+            xfrc[body, 1] += scale * (vy - by - (oz * rx - ox * rz))
+            xfrc[body, 2] += scale * (vz - bz - (ox * ry - oy * rx))
+            dx, dy, dz = cvel[body, 0] - ox, cvel[body, 1] - oy, cvel[body, 2] - oz
+            frame = ximat[body]                                 # row-major R_l
+            for j in range(3):                                  # R_l·(−α·I_j·(R_lᵀ·Δω)_j)
+                local = -a * inertia[w, i, j] * (frame[j] * dx + frame[3 + j] * dy + frame[6 + j] * dz)
+                xfrc[body, 3] += frame[j] * local
+                xfrc[body, 4] += frame[3 + j] * local
+                xfrc[body, 5] += frame[6 + j] * local
