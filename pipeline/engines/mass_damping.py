@@ -46,15 +46,14 @@ def _moving_point(cvel: np.ndarray, body: int, point: np.ndarray, centre: np.nda
 def mujoco_mass_damping(alpha: np.ndarray, bodies: np.ndarray, bases: np.ndarray, mass: np.ndarray,
                         inertia: np.ndarray, rootid: np.ndarray, cvel: np.ndarray, xpos: np.ndarray,
                         xipos: np.ndarray, ximat: np.ndarray, subtree_com: np.ndarray, xfrc: np.ndarray) -> None:
-    """Add the damping wrenches (module docstring) of whiskers w to MuJoCo's ``xfrc`` [bodies, 6]
-    (force, torque about the centre of mass; after ``mj_comVel``): ``alpha`` [W] (1/s),
+    """Set the rows of MuJoCo's ``xfrc`` [bodies, 6] of whiskers w's links to their damping
+    wrenches (module docstring; force, torque about the centre of mass; zero where α = 0),
+    after ``mj_comVel``: ``alpha`` [W] (1/s),
     ``bodies`` [W, N] their link bodies, ``bases`` [W] their driven base bodies, ``mass`` [W, N]
     and ``inertia`` [W, N, 3] of :func:`internal_link_inertia`; ``rootid``, ``cvel``, ``xpos``,
     ``xipos``, ``ximat`` and ``subtree_com`` MuJoCo's (``body_rootid`` and ``mjData``'s)."""
     for w in range(bodies.shape[0]):
         a = alpha[w]
-        if a == 0.0:
-            continue
         base = bases[w]
         bx, by, bz = _moving_point(cvel, base, xpos[base], subtree_com[rootid[base]])
         ox, oy, oz = cvel[base, 0], cvel[base, 1], cvel[base, 2]
@@ -63,11 +62,12 @@ def mujoco_mass_damping(alpha: np.ndarray, bodies: np.ndarray, bases: np.ndarray
             vx, vy, vz = _moving_point(cvel, body, xipos[body], subtree_com[rootid[body]])
             rx, ry, rz = xipos[body, 0] - xpos[base, 0], xipos[body, 1] - xpos[base, 1], xipos[body, 2] - xpos[base, 2]
             scale = -a * mass[w, i]
-            xfrc[body, 0] += scale * (vx - bx - (oy * rz - oz * ry))
-            xfrc[body, 1] += scale * (vy - by - (oz * rx - ox * rz))
-            xfrc[body, 2] += scale * (vz - bz - (ox * ry - oy * rx))
+            xfrc[body, 0] = scale * (vx - bx - (oy * rz - oz * ry))
+            xfrc[body, 1] = scale * (vy - by - (oz * rx - ox * rz))
+            xfrc[body, 2] = scale * (vz - bz - (ox * ry - oy * rx))
             dx, dy, dz = cvel[body, 0] - ox, cvel[body, 1] - oy, cvel[body, 2] - oz
             frame = ximat[body]                                 # row-major R_l
+            xfrc[body, 3] = xfrc[body, 4] = xfrc[body, 5] = 0.0
             for j in range(3):                                  # R_l·(−α·I_j·(R_lᵀ·Δω)_j)
                 local = -a * inertia[w, i, j] * (frame[j] * dx + frame[3 + j] * dy + frame[6 + j] * dz)
                 xfrc[body, 3] += frame[j] * local

@@ -1,6 +1,10 @@
 """The loads' per-link forces (:mod:`pipeline.model.effects.loads`) on a MuJoCo world's links,
-computed from MuJoCo's state before each step and applied as ``xfrc_applied``, so that the
-implicit step sees them. Internal units mm–mg–s, loads in SI."""
+applied as ``xfrc_applied``, so that the implicit step sees them. They are computed inside each
+step, from the state MuJoCo has just computed for it: in its control callback (``mjcb_control``,
+called by ``mj_step`` after the position and velocity stages, before the forces are summed), so
+that no step recomputes its kinematics for them. The callback is MuJoCo's, one per process: it is
+set only while a step runs (``with`` :class:`LinkLoads`; ``MjSpec.compile`` fails while a Python
+callback is set). Internal units mm–mg–s, loads in SI."""
 
 from __future__ import annotations
 
@@ -15,34 +19,50 @@ from pipeline.model.whisker import WhiskerChain
 
 class LinkLoads:
     """The loads of members ``loaded`` (rows k of ``link_bodies`` [members, N], chains
-    ``chains[k]``, loads ``loads[k]``) for a trial: :meth:`apply` before every step. Mass-proportional
-    damping is applied by the compiled kernel of :mod:`pipeline.engines.mass_damping`, every other
-    load by its :meth:`~pipeline.model.effects.loads.Load.link_forces`."""
+    ``chains[k]``, loads ``loads[k]``) on the world ``m``, ``d`` for a trial: a step of ``d``
+    taken inside ``with`` it applies them (module docstring). Mass-proportional damping is applied by the compiled kernel of
+    :mod:`pipeline.engines.mass_damping`, every other load by its
+    :meth:`~pipeline.model.effects.loads.Load.link_forces` (added to it)."""
 
-    def __init__(self, m: mujoco.MjModel, link_bodies: np.ndarray, chains: list[WhiskerChain], loads: list,
-                 loaded: list[int]) -> None:
+    def __init__(self, m: mujoco.MjModel, d: mujoco.MjData, link_bodies: np.ndarray, chains: list[WhiskerChain],
+                 loads: list, loaded: list[int]) -> None:
         split = [split_mass_damping(loads[k]) for k in loaded]
-        self.chains, self.link_bodies, self.loaded = chains, link_bodies, loaded
+        self.chains, self.link_bodies = chains, link_bodies
         self.others = [(k, rest) for k, (_, rest) in zip(loaded, split) if rest]
-        self.alpha = np.array([alpha for alpha, _ in split])
-        self.bodies = link_bodies[loaded]
-        self.bases = m.body_parentid[self.bodies[:, 0]].copy()
-        self.mass, self.inertia = internal_link_inertia([chains[k] for k in loaded])
-        self.velocities = self.alpha.any() or any(load.needs_velocity for _, rest in self.others for load in rest)
+        alpha = np.array([alpha for alpha, _ in split])
+        self.velocities = any(load.needs_velocity for _, rest in self.others for load in rest)
+        self.zeroed = link_bodies[[k for k, (a, _) in zip(loaded, split) if not a]].ravel()
+        self.kernel = None
+        if alpha.any():
+            damped = np.array(loaded)[alpha > 0]
+            bodies = link_bodies[damped]
+            self.kernel = (alpha[alpha > 0], bodies, m.body_parentid[bodies[:, 0]].copy(),
+                           *internal_link_inertia([chains[k] for k in damped]), m.body_rootid.copy(),
+                           d.cvel, d.xpos, d.xipos, d.ximat, d.subtree_com, d.xfrc_applied)
+        self.data, self.callback = d, (self._control if loaded else None)
+
+    def __enter__(self) -> "LinkLoads":
+        if self.callback is not None:
+            mujoco.set_mjcb_control(self.callback)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.callback is not None:
+            mujoco.set_mjcb_control(None)
+
+    def _control(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        if d is self.data:
+            self.apply(m, d)
 
     def apply(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
-        """The loads' per-link forces at the current state, as wrenches about the links' centres
-        of mass in ``xfrc_applied``."""
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_comPos(m, d)
-        if self.velocities:
-            mujoco.mj_comVel(m, d)
-        d.xfrc_applied[self.bodies] = 0.0
+        """The loads' per-link forces at ``d``'s state as wrenches about the links' centres of mass
+        in ``xfrc_applied`` (after MuJoCo's velocity stage: positions, ``cvel``)."""
+        if self.kernel is not None:
+            mujoco_mass_damping(*self.kernel)
+        if len(self.zeroed):
+            d.xfrc_applied[self.zeroed] = 0.0
         for k, loads in self.others:
             self._apply_python(m, d, k, loads)
-        if self.alpha.any():
-            mujoco_mass_damping(self.alpha, self.bodies, self.bases, self.mass, self.inertia, m.body_rootid, d.cvel,
-                                d.xpos, d.xipos, d.ximat, d.subtree_com, d.xfrc_applied)
 
     def _apply_python(self, m: mujoco.MjModel, d: mujoco.MjData, k: int, loads) -> None:
         bodies = self.link_bodies[k]
@@ -56,8 +76,8 @@ class LinkLoads:
         base = _base_motion(m, d, bodies[0]) if any(load.needs_base for load in loads) else None
         state = LinkState(com, d.ximat[bodies].reshape(-1, 3, 3), velocity, omega, base)
         force, torque = total_link_forces(loads, self.chains[k], state)
-        d.xfrc_applied[bodies, :3] = force * U.FORCE
-        d.xfrc_applied[bodies, 3:] = torque * U.TORQUE
+        d.xfrc_applied[bodies, :3] += force * U.FORCE
+        d.xfrc_applied[bodies, 3:] += torque * U.TORQUE
 
 
 def _base_motion(m: mujoco.MjModel, d: mujoco.MjData, first_link: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -272,18 +272,18 @@ class MujocoWorld(World):
         kinematic, armature, spring_rate = self.kinematic, self.armature, self.spring_rate
         substeps = self.substeps
         substeps.reset()
-        link_loads = LinkLoads(m, self.link_bodies, [self.whiskers[k].chain for k in self.members], setup.loads, loaded)
+        link_loads = LinkLoads(m, d, self.link_bodies, [self.whiskers[k].chain for k in self.members], setup.loads,
+                               loaded)
         yield plan
         for step in range(n_steps + 1):
             np.multiply(spring_rate, qvel, out=qfrc)
             qfrc[kinematic] = armature * (((targets[step] - qpos[kinematic]) / h - qvel[kinematic]) / h)
-            if loaded:
-                link_loads.apply(m, d)
             sample, due = divmod(step, spp)
             records = due == 0 and sample > 0
             if due < 2:
                 option.disableflags = sensors_on if records else sensors_off
-            substeps.step(d, targets[step])
+            with link_loads:
+                substeps.step(d, targets[step])
             if bad_acceleration.number:
                 self._unless_parked(lambda: self._blown_up(step * h), park, result)
             if records:
