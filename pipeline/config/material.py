@@ -91,10 +91,11 @@ class MaterialConfig(StrictModel):
     # the paper's own chain and fit (E = 7.45 GPa, eq. 3 with θ_ζ = 0.118) the 'paper' preset.
     youngs_modulus_gpa: float = Field(3.59, gt=0.1, le=20.0, description="E, GPa")
     damping_ratio: float = Field(0.138, ge=0.0, le=2.0,
-                                 description="θ_ζ of eq. 3 ('paper') or the first mode's ζ1 ('kelvin_voigt')")
-    damping_model: Literal["paper", "kelvin_voigt"] = Field(
+                                 description="θ_ζ of eq. 3 ('paper') or the first mode's ζ1 ('kelvin_voigt', 'rayleigh')")
+    damping_model: Literal["paper", "kelvin_voigt", "rayleigh"] = Field(
         "kelvin_voigt", description="'paper': eq. 3 per joint (depends on N); "
-                             "'kelvin_voigt': c_n = β·k_n with β set so mode 1 has ζ (converges in N)")
+                             "'kelvin_voigt': c_n = β·k_n with β set so mode 1 has ζ (converges in N); "
+                             "'rayleigh': α·M + β·K with ζ at modes 1 and 3 (pipeline.model.damping)")
     density_base_kg_m3: float = Field(1260.0, gt=100, le=5000)
     density_tip_kg_m3: float = Field(1690.0, gt=100, le=5000)
     # The continuum corrections (docs/model.md §2): the chain converges to the continuous beam at
