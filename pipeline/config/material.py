@@ -51,6 +51,13 @@ MATERIAL_PRESETS = {
     "untrimmed": {"youngs_modulus_gpa": 3.59, "damping_ratio": 0.138, "damping_model": "kelvin_voigt",
                   "link_density": "integrated", "base_segment": True,
                   "follicle": {"stiffness_nm_per_rad": 5e-7, "damping_nms_per_rad": 2.1e-9}},
+    # untrimmed whiskers under Rayleigh damping (pipeline.model.damping.RayleighDamping: ζ1 at modes 1
+    # and 3), the law the measurement library supports (docs/measurements.md §10): the same joint fit
+    # as 'untrimmed' (`pipeline calibrate --library --where trimmed=no --preset untrimmed_rayleigh`),
+    # the same follicle
+    "untrimmed_rayleigh": {"youngs_modulus_gpa": 3.59, "damping_ratio": 0.138, "damping_model": "rayleigh",
+                           "link_density": "integrated", "base_segment": True,
+                           "follicle": {"stiffness_nm_per_rad": 5e-7, "damping_nms_per_rad": 2.1e-9}},
     # the paper's own chain and fit, to reproduce the original and its published numbers: link 1
     # rigid with the follicle, each link's density at its proximal node, E = 7.45 GPa and
     # θ_ζ = 0.118 fitted on α/B1 with that chain (MSA 0.048)
@@ -60,7 +67,7 @@ MATERIAL_PRESETS = {
 }
 
 
-PresetName = Literal["trimmed", "untrimmed", "paper"]     # the keys of MATERIAL_PRESETS
+PresetName = Literal["trimmed", "untrimmed", "untrimmed_rayleigh", "paper"]     # the keys of MATERIAL_PRESETS
 
 
 def _apply_preset(data):

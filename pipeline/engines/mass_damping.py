@@ -43,33 +43,77 @@ def _moving_point(cvel: np.ndarray, body: int, point: np.ndarray, centre: np.nda
 
 
 @numba.njit(cache=True)
-def mujoco_mass_damping(alpha: np.ndarray, bodies: np.ndarray, bases: np.ndarray, mass: np.ndarray,
-                        inertia: np.ndarray, rootid: np.ndarray, cvel: np.ndarray, xpos: np.ndarray,
-                        xipos: np.ndarray, ximat: np.ndarray, subtree_com: np.ndarray, xfrc: np.ndarray) -> None:
+def _link_wrench(a: float, mass: float, inertia: np.ndarray, body: int, base: int, rootid: np.ndarray,
+                 cvel: np.ndarray, xpos: np.ndarray, xipos: np.ndarray, ximat: np.ndarray,
+                 subtree_com: np.ndarray) -> tuple[float, float, float, float, float, float]:
+    """(f, τ) of the module docstring on MuJoCo ``body`` of a whisker on driven ``base``."""
+    bx, by, bz = _moving_point(cvel, base, xpos[base], subtree_com[rootid[base]])
+    ox, oy, oz = cvel[base, 0], cvel[base, 1], cvel[base, 2]
+    vx, vy, vz = _moving_point(cvel, body, xipos[body], subtree_com[rootid[body]])
+    rx, ry, rz = xipos[body, 0] - xpos[base, 0], xipos[body, 1] - xpos[base, 1], xipos[body, 2] - xpos[base, 2]
+    scale = -a * mass
+    dx, dy, dz = cvel[body, 0] - ox, cvel[body, 1] - oy, cvel[body, 2] - oz
+    frame = ximat[body]                                         # row-major R_l
+    tx = ty = tz = 0.0
+    for j in range(3):                                          # R_l·(−α·I_j·(R_lᵀ·Δω)_j)
+        local = -a * inertia[j] * (frame[j] * dx + frame[3 + j] * dy + frame[6 + j] * dz)
+        tx += frame[j] * local
+        ty += frame[3 + j] * local
+        tz += frame[6 + j] * local
+    return (scale * (vx - bx - (oy * rz - oz * ry)), scale * (vy - by - (oz * rx - ox * rz)),
+            scale * (vz - bz - (ox * ry - oy * rx)), tx, ty, tz)
+
+
+@numba.njit(cache=True)
+def mujoco_link_wrenches(alpha: np.ndarray, bodies: np.ndarray, bases: np.ndarray, mass: np.ndarray,
+                         inertia: np.ndarray, rootid: np.ndarray, cvel: np.ndarray, xpos: np.ndarray,
+                         xipos: np.ndarray, ximat: np.ndarray, subtree_com: np.ndarray, xfrc: np.ndarray) -> None:
     """Set the rows of MuJoCo's ``xfrc`` [bodies, 6] of whiskers w's links to their damping
-    wrenches (module docstring; force, torque about the centre of mass; zero where α = 0),
-    after ``mj_comVel``: ``alpha`` [W] (1/s),
-    ``bodies`` [W, N] their link bodies, ``bases`` [W] their driven base bodies, ``mass`` [W, N]
-    and ``inertia`` [W, N, 3] of :func:`internal_link_inertia`; ``rootid``, ``cvel``, ``xpos``,
-    ``xipos``, ``ximat`` and ``subtree_com`` MuJoCo's (``body_rootid`` and ``mjData``'s)."""
+    wrenches (module docstring; force, torque about the centre of mass), after ``mj_comVel``:
+    ``alpha`` [W] (1/s), ``bodies`` [W, N] their link bodies, ``bases`` [W] their driven base
+    bodies, ``mass`` [W, N] and ``inertia`` [W, N, 3] of :func:`internal_link_inertia`;
+    ``rootid``, ``cvel``, ``xpos``, ``xipos``, ``ximat`` and ``subtree_com`` MuJoCo's
+    (``body_rootid`` and ``mjData``'s)."""
     for w in range(bodies.shape[0]):
-        a = alpha[w]
-        base = bases[w]
-        bx, by, bz = _moving_point(cvel, base, xpos[base], subtree_com[rootid[base]])
-        ox, oy, oz = cvel[base, 0], cvel[base, 1], cvel[base, 2]
         for i in range(bodies.shape[1]):
             body = bodies[w, i]
-            vx, vy, vz = _moving_point(cvel, body, xipos[body], subtree_com[rootid[body]])
-            rx, ry, rz = xipos[body, 0] - xpos[base, 0], xipos[body, 1] - xpos[base, 1], xipos[body, 2] - xpos[base, 2]
-            scale = -a * mass[w, i]
-            xfrc[body, 0] = scale * (vx - bx - (oy * rz - oz * ry))
-            xfrc[body, 1] = scale * (vy - by - (oz * rx - ox * rz))
-            xfrc[body, 2] = scale * (vz - bz - (ox * ry - oy * rx))
-            dx, dy, dz = cvel[body, 0] - ox, cvel[body, 1] - oy, cvel[body, 2] - oz
-            frame = ximat[body]                                 # row-major R_l
-            xfrc[body, 3] = xfrc[body, 4] = xfrc[body, 5] = 0.0
-            for j in range(3):                                  # R_l·(−α·I_j·(R_lᵀ·Δω)_j)
-                local = -a * inertia[w, i, j] * (frame[j] * dx + frame[3 + j] * dy + frame[6 + j] * dz)
-                xfrc[body, 3] += frame[j] * local
-                xfrc[body, 4] += frame[3 + j] * local
-                xfrc[body, 5] += frame[6 + j] * local
+            wrench = _link_wrench(alpha[w], mass[w, i], inertia[w, i], body, bases[w], rootid, cvel, xpos, xipos,
+                                  ximat, subtree_com)
+            for c in range(6):
+                xfrc[body, c] = wrench[c]
+
+
+@numba.njit(cache=True)
+def mujoco_joint_forces(alpha: np.ndarray, bodies: np.ndarray, bases: np.ndarray, mass: np.ndarray,
+                        inertia: np.ndarray, rootid: np.ndarray, cvel: np.ndarray, xpos: np.ndarray,
+                        xipos: np.ndarray, ximat: np.ndarray, subtree_com: np.ndarray, parent: np.ndarray,
+                        jntadr: np.ndarray, jntnum: np.ndarray, jnt_type: np.ndarray, dofadr: np.ndarray,
+                        xaxis: np.ndarray, xanchor: np.ndarray, qfrc: np.ndarray) -> None:
+    """Add the generalised force Jᵀ·F of the same wrenches (arguments as
+    :func:`mujoco_link_wrenches`) to ``qfrc`` [nv]: up each whisker's body tree from its tip,
+    the force F and moment M (about the world origin) of the links beyond each body, on its
+    hinges a·(M − p × F) (axis a, anchor p) and slides a·F; ``parent``, ``jntadr``, ``jntnum``
+    (body_…), ``jnt_type`` (2 slide, 3 hinge), ``dofadr`` (jnt_dofadr) MuJoCo's model's,
+    ``xaxis`` and ``xanchor`` its data's. The same motion as the wrenches on the links, without
+    MuJoCo summing them link by link over the whole tree (its cost: a Jacobian per body)."""
+    for w in range(bodies.shape[0]):
+        fx = fy = fz = mx = my = mz = 0.0
+        i = bodies.shape[1] - 1
+        body = bodies[w, i]
+        while body > 0:
+            if i >= 0 and bodies[w, i] == body:
+                cx, cy, cz = xipos[body, 0], xipos[body, 1], xipos[body, 2]
+                f0, f1, f2, t0, t1, t2 = _link_wrench(alpha[w], mass[w, i], inertia[w, i], body, bases[w], rootid,
+                                                      cvel, xpos, xipos, ximat, subtree_com)
+                fx, fy, fz = fx + f0, fy + f1, fz + f2
+                mx, my, mz = mx + t0 + cy * f2 - cz * f1, my + t1 + cz * f0 - cx * f2, mz + t2 + cx * f1 - cy * f0
+                i -= 1
+            for joint in range(jntadr[body], jntadr[body] + jntnum[body]):
+                ax, ay, az = xaxis[joint, 0], xaxis[joint, 1], xaxis[joint, 2]
+                if jnt_type[joint] == 3:
+                    px, py, pz = xanchor[joint, 0], xanchor[joint, 1], xanchor[joint, 2]
+                    qfrc[dofadr[joint]] += (ax * (mx - (py * fz - pz * fy)) + ay * (my - (pz * fx - px * fz))
+                                            + az * (mz - (px * fy - py * fx)))
+                elif jnt_type[joint] == 2:
+                    qfrc[dofadr[joint]] += ax * fx + ay * fy + az * fz
+            body = parent[body]

@@ -12,34 +12,43 @@ import mujoco
 import numpy as np
 
 from pipeline.engines import units as U
-from pipeline.engines.mass_damping import internal_link_inertia, mujoco_mass_damping, split_mass_damping
+from pipeline.engines.mass_damping import (internal_link_inertia, mujoco_joint_forces, mujoco_link_wrenches,
+                                           split_mass_damping)
 from pipeline.model.effects.loads import LinkState, total_link_forces
 from pipeline.model.whisker import WhiskerChain
 
 
+SENSOR_OFF = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+
+
 class LinkLoads:
     """The loads of members ``loaded`` (rows k of ``link_bodies`` [members, N], chains
-    ``chains[k]``, loads ``loads[k]``) on the world ``m``, ``d`` for a trial: a step of ``d``
-    taken inside ``with`` it applies them (module docstring). Mass-proportional damping is applied by the compiled kernel of
-    :mod:`pipeline.engines.mass_damping`, every other load by its
-    :meth:`~pipeline.model.effects.loads.Load.link_forces` (added to it)."""
+    ``chains[k]``, loads ``loads[k]``) on the world ``m`` for a trial: a step of any of its
+    MjData taken inside ``with`` it applies them (module docstring). Mass-proportional damping is
+    applied by the compiled kernels of :mod:`pipeline.engines.mass_damping`: as wrenches on the
+    links when the step reads the sensors (the base wrench sees them as external forces), else as
+    their generalised force on the joints (added to ``qfrc_passive``, which MuJoCo has just
+    computed: the same motion, without its cost of summing link wrenches). Every other load by its
+    :meth:`~pipeline.model.effects.loads.Load.link_forces`, added to the wrenches."""
 
-    def __init__(self, m: mujoco.MjModel, d: mujoco.MjData, link_bodies: np.ndarray, chains: list[WhiskerChain],
-                 loads: list, loaded: list[int]) -> None:
+    def __init__(self, m: mujoco.MjModel, link_bodies: np.ndarray, chains: list[WhiskerChain], loads: list,
+                 loaded: list[int]) -> None:
         split = [split_mass_damping(loads[k]) for k in loaded]
-        self.chains, self.link_bodies = chains, link_bodies
+        self.model, self.chains, self.link_bodies = m, chains, link_bodies
         self.others = [(k, rest) for k, (_, rest) in zip(loaded, split) if rest]
         alpha = np.array([alpha for alpha, _ in split])
         self.velocities = any(load.needs_velocity for _, rest in self.others for load in rest)
         self.zeroed = link_bodies[[k for k, (a, _) in zip(loaded, split) if not a]].ravel()
-        self.kernel = None
+        self.damping = None
         if alpha.any():
             damped = np.array(loaded)[alpha > 0]
             bodies = link_bodies[damped]
-            self.kernel = (alpha[alpha > 0], bodies, m.body_parentid[bodies[:, 0]].copy(),
-                           *internal_link_inertia([chains[k] for k in damped]), m.body_rootid.copy(),
-                           d.cvel, d.xpos, d.xipos, d.ximat, d.subtree_com, d.xfrc_applied)
-        self.data, self.callback = d, (self._control if loaded else None)
+            self.damped_bodies = bodies.ravel()
+            self.damping = (alpha[alpha > 0], bodies, m.body_parentid[bodies[:, 0]].copy(),
+                            *internal_link_inertia([chains[k] for k in damped]), m.body_rootid.copy())
+            self.tree = (m.body_parentid.copy(), m.body_jntadr.copy(), m.body_jntnum.copy(), m.jnt_type.copy(),
+                         m.jnt_dofadr.copy())
+        self.callback = self._control if loaded else None
 
     def __enter__(self) -> "LinkLoads":
         if self.callback is not None:
@@ -51,14 +60,18 @@ class LinkLoads:
             mujoco.set_mjcb_control(None)
 
     def _control(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
-        if d is self.data:
+        if m is self.model:
             self.apply(m, d)
 
     def apply(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
-        """The loads' per-link forces at ``d``'s state as wrenches about the links' centres of mass
-        in ``xfrc_applied`` (after MuJoCo's velocity stage: positions, ``cvel``)."""
-        if self.kernel is not None:
-            mujoco_mass_damping(*self.kernel)
+        """The loads at ``d``'s state (after MuJoCo's velocity stage: positions, ``cvel``)."""
+        if self.damping is not None:
+            state = (d.cvel, d.xpos, d.xipos, d.ximat, d.subtree_com)
+            if m.opt.disableflags & SENSOR_OFF:
+                d.xfrc_applied[self.damped_bodies] = 0.0
+                mujoco_joint_forces(*self.damping, *state, *self.tree, d.xaxis, d.xanchor, d.qfrc_passive)
+            else:
+                mujoco_link_wrenches(*self.damping, *state, d.xfrc_applied)
         if len(self.zeroed):
             d.xfrc_applied[self.zeroed] = 0.0
         for k, loads in self.others:

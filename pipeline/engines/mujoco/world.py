@@ -272,8 +272,7 @@ class MujocoWorld(World):
         kinematic, armature, spring_rate = self.kinematic, self.armature, self.spring_rate
         substeps = self.substeps
         substeps.reset()
-        link_loads = LinkLoads(m, d, self.link_bodies, [self.whiskers[k].chain for k in self.members], setup.loads,
-                               loaded)
+        link_loads = LinkLoads(m, self.link_bodies, [self.whiskers[k].chain for k in self.members], setup.loads, loaded)
         yield plan
         for step in range(n_steps + 1):
             np.multiply(spring_rate, qvel, out=qfrc)
