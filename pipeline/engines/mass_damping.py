@@ -43,12 +43,20 @@ def _moving_point(cvel: np.ndarray, body: int, point: np.ndarray, centre: np.nda
 
 
 @numba.njit(cache=True)
-def _link_wrench(a: float, mass: float, inertia: np.ndarray, body: int, base: int, rootid: np.ndarray,
+def _base_motion(base: int, rootid: np.ndarray, cvel: np.ndarray, xpos: np.ndarray,
+                 subtree_com: np.ndarray) -> tuple[float, float, float, float, float, float]:
+    """(v_b, ω_b) of MuJoCo body ``base`` (its origin's velocity)."""
+    bx, by, bz = _moving_point(cvel, base, xpos[base], subtree_com[rootid[base]])
+    return bx, by, bz, cvel[base, 0], cvel[base, 1], cvel[base, 2]
+
+
+@numba.njit(cache=True)
+def _link_wrench(a: float, mass: float, inertia: np.ndarray, body: int, base: int, motion, rootid: np.ndarray,
                  cvel: np.ndarray, xpos: np.ndarray, xipos: np.ndarray, ximat: np.ndarray,
                  subtree_com: np.ndarray) -> tuple[float, float, float, float, float, float]:
-    """(f, τ) of the module docstring on MuJoCo ``body`` of a whisker on driven ``base``."""
-    bx, by, bz = _moving_point(cvel, base, xpos[base], subtree_com[rootid[base]])
-    ox, oy, oz = cvel[base, 0], cvel[base, 1], cvel[base, 2]
+    """(f, τ) of the module docstring on MuJoCo ``body`` of a whisker on driven ``base`` moving
+    with ``motion`` (:func:`_base_motion`)."""
+    bx, by, bz, ox, oy, oz = motion
     vx, vy, vz = _moving_point(cvel, body, xipos[body], subtree_com[rootid[body]])
     rx, ry, rz = xipos[body, 0] - xpos[base, 0], xipos[body, 1] - xpos[base, 1], xipos[body, 2] - xpos[base, 2]
     scale = -a * mass
@@ -75,10 +83,11 @@ def mujoco_link_wrenches(alpha: np.ndarray, bodies: np.ndarray, bases: np.ndarra
     ``rootid``, ``cvel``, ``xpos``, ``xipos``, ``ximat`` and ``subtree_com`` MuJoCo's
     (``body_rootid`` and ``mjData``'s)."""
     for w in range(bodies.shape[0]):
+        motion = _base_motion(bases[w], rootid, cvel, xpos, subtree_com)
         for i in range(bodies.shape[1]):
             body = bodies[w, i]
-            wrench = _link_wrench(alpha[w], mass[w, i], inertia[w, i], body, bases[w], rootid, cvel, xpos, xipos,
-                                  ximat, subtree_com)
+            wrench = _link_wrench(alpha[w], mass[w, i], inertia[w, i], body, bases[w], motion, rootid, cvel, xpos,
+                                  xipos, ximat, subtree_com)
             for c in range(6):
                 xfrc[body, c] = wrench[c]
 
@@ -88,23 +97,25 @@ def mujoco_joint_forces(alpha: np.ndarray, bodies: np.ndarray, bases: np.ndarray
                         inertia: np.ndarray, rootid: np.ndarray, cvel: np.ndarray, xpos: np.ndarray,
                         xipos: np.ndarray, ximat: np.ndarray, subtree_com: np.ndarray, parent: np.ndarray,
                         jntadr: np.ndarray, jntnum: np.ndarray, jnt_type: np.ndarray, dofadr: np.ndarray,
-                        xaxis: np.ndarray, xanchor: np.ndarray, qfrc: np.ndarray) -> None:
+                        xaxis: np.ndarray, xanchor: np.ndarray, qfrc: np.ndarray, xfrc: np.ndarray) -> None:
     """Add the generalised force Jᵀ·F of the same wrenches (arguments as
-    :func:`mujoco_link_wrenches`) to ``qfrc`` [nv]: up each whisker's body tree from its tip,
+    :func:`mujoco_link_wrenches`) to ``qfrc`` [nv] and zero the links' rows of ``xfrc``: up each whisker's body tree from its tip,
     the force F and moment M (about the world origin) of the links beyond each body, on its
     hinges a·(M − p × F) (axis a, anchor p) and slides a·F; ``parent``, ``jntadr``, ``jntnum``
     (body_…), ``jnt_type`` (2 slide, 3 hinge), ``dofadr`` (jnt_dofadr) MuJoCo's model's,
     ``xaxis`` and ``xanchor`` its data's. The same motion as the wrenches on the links, without
     MuJoCo summing them link by link over the whole tree (its cost: a Jacobian per body)."""
     for w in range(bodies.shape[0]):
+        motion = _base_motion(bases[w], rootid, cvel, xpos, subtree_com)
         fx = fy = fz = mx = my = mz = 0.0
         i = bodies.shape[1] - 1
         body = bodies[w, i]
         while body > 0:
             if i >= 0 and bodies[w, i] == body:
+                xfrc[body, :] = 0.0
                 cx, cy, cz = xipos[body, 0], xipos[body, 1], xipos[body, 2]
-                f0, f1, f2, t0, t1, t2 = _link_wrench(alpha[w], mass[w, i], inertia[w, i], body, bases[w], rootid,
-                                                      cvel, xpos, xipos, ximat, subtree_com)
+                f0, f1, f2, t0, t1, t2 = _link_wrench(alpha[w], mass[w, i], inertia[w, i], body, bases[w], motion,
+                                                      rootid, cvel, xpos, xipos, ximat, subtree_com)
                 fx, fy, fz = fx + f0, fy + f1, fz + f2
                 mx, my, mz = mx + t0 + cy * f2 - cz * f1, my + t1 + cz * f0 - cx * f2, mz + t2 + cx * f1 - cy * f0
                 i -= 1

@@ -43,7 +43,6 @@ class LinkLoads:
         if alpha.any():
             damped = np.array(loaded)[alpha > 0]
             bodies = link_bodies[damped]
-            self.damped_bodies = bodies.ravel()
             self.damping = (alpha[alpha > 0], bodies, m.body_parentid[bodies[:, 0]].copy(),
                             *internal_link_inertia([chains[k] for k in damped]), m.body_rootid.copy())
             self.tree = (m.body_parentid.copy(), m.body_jntadr.copy(), m.body_jntnum.copy(), m.jnt_type.copy(),
@@ -68,8 +67,8 @@ class LinkLoads:
         if self.damping is not None:
             state = (d.cvel, d.xpos, d.xipos, d.ximat, d.subtree_com)
             if m.opt.disableflags & SENSOR_OFF:
-                d.xfrc_applied[self.damped_bodies] = 0.0
-                mujoco_joint_forces(*self.damping, *state, *self.tree, d.xaxis, d.xanchor, d.qfrc_passive)
+                mujoco_joint_forces(*self.damping, *state, *self.tree, d.xaxis, d.xanchor, d.qfrc_passive,
+                                    d.xfrc_applied)
             else:
                 mujoco_link_wrenches(*self.damping, *state, d.xfrc_applied)
         if len(self.zeroed):
