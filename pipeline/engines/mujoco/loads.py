@@ -1,5 +1,6 @@
 """The loads' per-link forces (:mod:`pipeline.model.effects.loads`) on a MuJoCo world's links,
-applied as ``xfrc_applied``, so that the implicit step sees them. They are computed inside each
+applied as ``xfrc_applied`` (mass-proportional damping also as its generalised force:
+:class:`LinkLoads`), so that the implicit step sees them. They are computed inside each
 step, from the state MuJoCo has just computed for it: in its control callback (``mjcb_control``,
 called by ``mj_step`` after the position and velocity stages, before the forces are summed), so
 that no step recomputes its kinematics for them. The callback is MuJoCo's, one per process: it is
