@@ -73,33 +73,17 @@ def _link_wrench(a: float, mass: float, inertia: np.ndarray, body: int, base: in
 
 
 @numba.njit(cache=True)
-def mujoco_link_wrenches(alpha: np.ndarray, bodies: np.ndarray, bases: np.ndarray, mass: np.ndarray,
-                         inertia: np.ndarray, rootid: np.ndarray, cvel: np.ndarray, xpos: np.ndarray,
-                         xipos: np.ndarray, ximat: np.ndarray, subtree_com: np.ndarray, xfrc: np.ndarray) -> None:
-    """Set the rows of MuJoCo's ``xfrc`` [bodies, 6] of whiskers w's links to their damping
-    wrenches (module docstring; force, torque about the centre of mass), after ``mj_comVel``:
-    ``alpha`` [W] (1/s), ``bodies`` [W, N] their link bodies, ``bases`` [W] their driven base
-    bodies, ``mass`` [W, N] and ``inertia`` [W, N, 3] of :func:`internal_link_inertia`;
-    ``rootid``, ``cvel``, ``xpos``, ``xipos``, ``ximat`` and ``subtree_com`` MuJoCo's
-    (``body_rootid`` and ``mjData``'s)."""
-    for w in range(bodies.shape[0]):
-        motion = _base_motion(bases[w], rootid, cvel, xpos, subtree_com)
-        for i in range(bodies.shape[1]):
-            body = bodies[w, i]
-            wrench = _link_wrench(alpha[w], mass[w, i], inertia[w, i], body, bases[w], motion, rootid, cvel, xpos,
-                                  xipos, ximat, subtree_com)
-            for c in range(6):
-                xfrc[body, c] = wrench[c]
-
-
-@numba.njit(cache=True)
 def mujoco_joint_forces(alpha: np.ndarray, bodies: np.ndarray, bases: np.ndarray, mass: np.ndarray,
                         inertia: np.ndarray, rootid: np.ndarray, cvel: np.ndarray, xpos: np.ndarray,
                         xipos: np.ndarray, ximat: np.ndarray, subtree_com: np.ndarray, parent: np.ndarray,
                         jntadr: np.ndarray, jntnum: np.ndarray, jnt_type: np.ndarray, dofadr: np.ndarray,
                         xaxis: np.ndarray, xanchor: np.ndarray, qfrc: np.ndarray, xfrc: np.ndarray) -> None:
-    """Add the generalised force Jᵀ·F of the same wrenches (arguments as
-    :func:`mujoco_link_wrenches`) to ``qfrc`` [nv] and zero the links' rows of ``xfrc``: up each whisker's body tree from its tip,
+    """Add the generalised force Jᵀ·F of whiskers w's link damping wrenches (module docstring) to
+    ``qfrc`` [nv] and zero the links' rows of ``xfrc`` [bodies, 6], after ``mj_comVel``: ``alpha``
+    [W] (1/s), ``bodies`` [W, N] their link bodies, ``bases`` [W] their driven base bodies,
+    ``mass`` [W, N] and ``inertia`` [W, N, 3] of :func:`internal_link_inertia`; ``rootid``,
+    ``cvel``, ``xpos``, ``xipos``, ``ximat`` and ``subtree_com`` MuJoCo's (``body_rootid`` and
+    ``mjData``'s). The sum: up each whisker's body tree from its tip,
     the force F and moment M (about the world origin) of the links beyond each body, on its
     hinges a·(M − p × F) (axis a, anchor p) and slides a·F; ``parent``, ``jntadr``, ``jntnum``
     (body_…), ``jnt_type`` (2 slide, 3 hinge), ``dofadr`` (jnt_dofadr) MuJoCo's model's,
@@ -128,3 +112,34 @@ def mujoco_joint_forces(alpha: np.ndarray, bodies: np.ndarray, bases: np.ndarray
                 elif jnt_type[joint] == 2:
                     qfrc[dofadr[joint]] += ax * fx + ay * fy + az * fz
             body = parent[body]
+
+
+@numba.njit(cache=True)
+def mujoco_sensor_correction(alpha: np.ndarray, bodies: np.ndarray, bases: np.ndarray, mass: np.ndarray,
+                             inertia: np.ndarray, rootid: np.ndarray, cvel: np.ndarray, xpos: np.ndarray,
+                             xipos: np.ndarray, ximat: np.ndarray, subtree_com: np.ndarray, sites: np.ndarray,
+                             addresses: np.ndarray, site_xpos: np.ndarray, site_xmat: np.ndarray,
+                             sensordata: np.ndarray) -> None:
+    """Subtract the links' damping wrenches (arguments as :func:`mujoco_joint_forces`, at the
+    state of the step just taken: MuJoCo keeps it in ``mjData`` after the step) from the base
+    force and torque sensors of site ``sites`` [W] (``sensordata`` at ``addresses`` [W]: force,
+    then torque; site frame, torque about the site) when :func:`mujoco_joint_forces` applied them:
+    a force on the joints is internal to the whisker, where MuJoCo's sensor subtracts an external
+    force on its links."""
+    for w in range(bodies.shape[0]):
+        motion = _base_motion(bases[w], rootid, cvel, xpos, subtree_com)
+        site = sites[w]
+        px, py, pz = site_xpos[site, 0], site_xpos[site, 1], site_xpos[site, 2]
+        fx = fy = fz = mx = my = mz = 0.0
+        for i in range(bodies.shape[1]):
+            body = bodies[w, i]
+            f0, f1, f2, t0, t1, t2 = _link_wrench(alpha[w], mass[w, i], inertia[w, i], body, bases[w], motion,
+                                                  rootid, cvel, xpos, xipos, ximat, subtree_com)
+            rx, ry, rz = xipos[body, 0] - px, xipos[body, 1] - py, xipos[body, 2] - pz
+            fx, fy, fz = fx + f0, fy + f1, fz + f2
+            mx, my, mz = mx + t0 + ry * f2 - rz * f1, my + t1 + rz * f0 - rx * f2, mz + t2 + rx * f1 - ry * f0
+        frame = site_xmat[site]                                 # row-major R: local = Rᵀ·v
+        start = addresses[w]
+        for j in range(3):
+            sensordata[start + j] -= frame[j] * fx + frame[3 + j] * fy + frame[6 + j] * fz
+            sensordata[start + 3 + j] -= frame[j] * mx + frame[3 + j] * my + frame[6 + j] * mz

@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 
 from pipeline.engines import units as U
-from pipeline.engines.mass_damping import (internal_link_inertia, mujoco_joint_forces, mujoco_link_wrenches,
+from pipeline.engines.mass_damping import (internal_link_inertia, mujoco_joint_forces, mujoco_sensor_correction,
                                            split_mass_damping)
 from pipeline.model.effects.loads import LinkState, total_link_forces
 from pipeline.model.whisker import WhiskerChain
@@ -26,11 +26,12 @@ class LinkLoads:
     """The loads of members ``loaded`` (rows k of ``link_bodies`` [members, N], chains
     ``chains[k]``, loads ``loads[k]``) on the world ``m`` for a trial: a step of any of its
     MjData taken inside ``with`` it applies them (module docstring). Mass-proportional damping is
-    applied by the compiled kernels of :mod:`pipeline.engines.mass_damping`: as wrenches on the
-    links when the step reads the sensors (the base wrench sees them as external forces), else as
-    their generalised force on the joints (added to ``qfrc_passive``, which MuJoCo has just
-    computed: the same motion, without its cost of summing link wrenches). Every other load by its
-    :meth:`~pipeline.model.effects.loads.Load.link_forces`, added to the wrenches."""
+    applied by the compiled kernels of :mod:`pipeline.engines.mass_damping` as its generalised
+    force on the joints (added to ``qfrc_passive``, which MuJoCo has just computed: the motion of
+    the wrenches on the links, without MuJoCo's cost of summing link wrenches), and a step that
+    read the base sensors has them corrected for it on leaving ``with`` (the base wrench sees the
+    damping as external forces on the links). Every other load by its
+    :meth:`~pipeline.model.effects.loads.Load.link_forces`, as wrenches."""
 
     def __init__(self, m: mujoco.MjModel, link_bodies: np.ndarray, chains: list[WhiskerChain], loads: list,
                  loaded: list[int]) -> None:
@@ -40,7 +41,7 @@ class LinkLoads:
         alpha = np.array([alpha for alpha, _ in split])
         self.velocities = any(load.needs_velocity for _, rest in self.others for load in rest)
         self.zeroed = link_bodies[[k for k, (a, _) in zip(loaded, split) if not a]].ravel()
-        self.damping = None
+        self.damping, self.data = None, None
         if alpha.any():
             damped = np.array(loaded)[alpha > 0]
             bodies = link_bodies[damped]
@@ -48,6 +49,8 @@ class LinkLoads:
                             *internal_link_inertia([chains[k] for k in damped]), m.body_rootid.copy())
             self.tree = (m.body_parentid.copy(), m.body_jntadr.copy(), m.body_jntnum.copy(), m.jnt_type.copy(),
                          m.jnt_dofadr.copy())
+            forces = 2 * damped                                 # per member: force, torque sensor of its base site
+            self.sensors = (m.sensor_objid[forces].copy(), m.sensor_adr[forces].copy())
         self.callback = self._control if loaded else None
 
     def __enter__(self) -> "LinkLoads":
@@ -58,20 +61,24 @@ class LinkLoads:
     def __exit__(self, *exc) -> None:
         if self.callback is not None:
             mujoco.set_mjcb_control(None)
+        m, d = self.model, self.data
+        if d is not None and not m.opt.disableflags & SENSOR_OFF:
+            mujoco_sensor_correction(*self.damping, d.cvel, d.xpos, d.xipos, d.ximat, d.subtree_com, *self.sensors,
+                                     d.site_xpos, d.site_xmat, d.sensordata)
+        self.data = None
 
     def _control(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
         if m is self.model:
             self.apply(m, d)
 
     def apply(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
-        """The loads at ``d``'s state (after MuJoCo's velocity stage: positions, ``cvel``)."""
+        """The loads at ``d``'s state (after MuJoCo's velocity stage: positions, ``cvel``); the
+        first MjData a step applies them to is the one whose sensors :meth:`__exit__` corrects."""
         if self.damping is not None:
-            state = (d.cvel, d.xpos, d.xipos, d.ximat, d.subtree_com)
-            if m.opt.disableflags & SENSOR_OFF:
-                mujoco_joint_forces(*self.damping, *state, *self.tree, d.xaxis, d.xanchor, d.qfrc_passive,
-                                    d.xfrc_applied)
-            else:
-                mujoco_link_wrenches(*self.damping, *state, d.xfrc_applied)
+            mujoco_joint_forces(*self.damping, d.cvel, d.xpos, d.xipos, d.ximat, d.subtree_com, *self.tree, d.xaxis,
+                                d.xanchor, d.qfrc_passive, d.xfrc_applied)
+            if self.data is None:
+                self.data = d
         if len(self.zeroed):
             d.xfrc_applied[self.zeroed] = 0.0
         for k, loads in self.others:
