@@ -324,7 +324,7 @@ class BulletWhisker:
         self.sync()
         states = self.client.getLinkStates(self.body, self.whisker_links, computeLinkVelocity=int(velocities),
                                  computeForwardKinematics=True)
-        frames = np.array([matrix_from_xyzw(s[1]) for s in states])
+        frames = matrix_from_xyzw(np.array([s[1] for s in states]))
         zeros = np.zeros((len(states), 3))
         motion = None
         if base:
