@@ -1,7 +1,7 @@
 """CPU per dataset trial as `pipeline simulate` runs it, in one process, with a profile.
 
 Run: .venv/bin/python benchmarks/profile_dataset_trial.py [--trials 6] [--engine mujoco] [--profile]
-[--free-whiskers engine|coarse|linear]
+[--free-whiskers engine|coarse|linear] [--extensions '{"mass_damping": {"alpha": 60}}'] [--material '{...}']
 
 The trials are those of configs/simulate.yaml (125 ms, all 60 whiskers, head poses sampled beside
 the built meshes; run `pipeline build-meshes` first): scene i mod 3, the same seeds as a dataset.
@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import cProfile
+import json
 import pstats
 import time
 from pathlib import Path
@@ -34,10 +35,13 @@ def main() -> None:
     parser.add_argument("--engine", default="mujoco")
     parser.add_argument("--profile", action="store_true")
     parser.add_argument("--free-whiskers", default=None, help="engine | coarse | linear (default: configs/simulate.yaml's)")
+    parser.add_argument("--extensions", type=json.loads, default={}, help="model extensions as JSON (SI)")
+    parser.add_argument("--material", type=json.loads, default={}, help="material fields as JSON")
     args = parser.parse_args()
     free = {} if args.free_whiskers is None else {"free_whiskers": args.free_whiskers}
+    model = {"engine": {"name": args.engine}, "extensions": args.extensions, **({"material": args.material} if args.material else {})}
     config, _ = load_config(SimulateConfig, REPO / "configs" / "simulate.yaml", env_prefix="PIPELINE_SIMULATE_", overrides={
-        "model": {"engine": {"name": args.engine}}, "scenes": {"folder": str(REPO / "outputs" / "meshes")}, **free})
+        "model": model, "scenes": {"folder": str(REPO / "outputs" / "meshes")}, **free})
     simulator = Simulator(RunSpec(config, scene_catalogue(config.scenes), _layout(config)))
     start = time.process_time()
     first = simulator.run(0)

@@ -51,6 +51,13 @@ MATERIAL_PRESETS = {
     "untrimmed": {"youngs_modulus_gpa": 3.59, "damping_ratio": 0.138, "damping_model": "kelvin_voigt",
                   "link_density": "integrated", "base_segment": True,
                   "follicle": {"stiffness_nm_per_rad": 5e-7, "damping_nms_per_rad": 2.1e-9}},
+    # untrimmed whiskers under Rayleigh damping (pipeline.model.damping.RayleighDamping: ζ1 at modes 1
+    # and 3), the law the measurement library supports (docs/measurements.md §10): the same joint fit
+    # as 'untrimmed' (`pipeline calibrate --library --where trimmed=no --preset untrimmed_rayleigh`),
+    # the same follicle
+    "untrimmed_rayleigh": {"youngs_modulus_gpa": 3.59, "damping_ratio": 0.138, "damping_model": "rayleigh",
+                           "link_density": "integrated", "base_segment": True,
+                           "follicle": {"stiffness_nm_per_rad": 5e-7, "damping_nms_per_rad": 2.1e-9}},
     # the paper's own chain and fit, to reproduce the original and its published numbers: link 1
     # rigid with the follicle, each link's density at its proximal node, E = 7.45 GPa and
     # θ_ζ = 0.118 fitted on α/B1 with that chain (MSA 0.048)
@@ -60,7 +67,7 @@ MATERIAL_PRESETS = {
 }
 
 
-PresetName = Literal["trimmed", "untrimmed", "paper"]     # the keys of MATERIAL_PRESETS
+PresetName = Literal["trimmed", "untrimmed", "untrimmed_rayleigh", "paper"]     # the keys of MATERIAL_PRESETS
 
 
 def _apply_preset(data):
@@ -91,10 +98,11 @@ class MaterialConfig(StrictModel):
     # the paper's own chain and fit (E = 7.45 GPa, eq. 3 with θ_ζ = 0.118) the 'paper' preset.
     youngs_modulus_gpa: float = Field(3.59, gt=0.1, le=20.0, description="E, GPa")
     damping_ratio: float = Field(0.138, ge=0.0, le=2.0,
-                                 description="θ_ζ of eq. 3 ('paper') or the first mode's ζ1 ('kelvin_voigt')")
-    damping_model: Literal["paper", "kelvin_voigt"] = Field(
+                                 description="θ_ζ of eq. 3 ('paper') or the first mode's ζ1 ('kelvin_voigt', 'rayleigh')")
+    damping_model: Literal["paper", "kelvin_voigt", "rayleigh"] = Field(
         "kelvin_voigt", description="'paper': eq. 3 per joint (depends on N); "
-                             "'kelvin_voigt': c_n = β·k_n with β set so mode 1 has ζ (converges in N)")
+                             "'kelvin_voigt': c_n = β·k_n with β set so mode 1 has ζ (converges in N); "
+                             "'rayleigh': α·M + β·K with ζ at modes 1 and 3 (pipeline.model.damping)")
     density_base_kg_m3: float = Field(1260.0, gt=100, le=5000)
     density_tip_kg_m3: float = Field(1690.0, gt=100, le=5000)
     # The continuum corrections (docs/model.md §2): the chain converges to the continuous beam at

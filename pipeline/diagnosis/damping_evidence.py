@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.config.physics import MaterialConfig
-from pipeline.diagnosis.damping_laws import LAWS, in_plane_modes, rayleigh_spec, with_law
+from pipeline.diagnosis.damping_laws import LAWS, in_plane_modes, with_law
 from pipeline.diagnosis.parameters import ModelSpec
 from pipeline.measurements.library import c1_modes, load_library, split_held_out
 from pipeline.model.whisker import WhiskerGeometry
@@ -111,10 +111,5 @@ def c1_engine_model(row: dict, law: str, material: MaterialConfig) -> dict | Non
     (``resonance --modes 3``): material fields and extensions; None for a law the engines lack."""
     if law not in ENGINE_LAWS:
         return None
-    spec = ModelSpec(material).with_values({"E": row["E_pa"], "zeta": row["parameter"]})
-    if law == "rayleigh":
-        spec = rayleigh_spec(spec, c1_geometry())
-    values = spec.values()
-    return {"youngs_modulus_gpa": values["E"] / 1e9, "damping_ratio": values["zeta"],
-            "damping_model": "paper" if law == "eq3" else "kelvin_voigt",
-            "extensions": {"mass_damping": {"alpha": values["mass_damping.alpha"]}} if law == "rayleigh" else {}}
+    return {"youngs_modulus_gpa": row["E_pa"] / 1e9, "damping_ratio": row["parameter"],
+            "damping_model": {"eq3": "paper"}.get(law, law), "extensions": {}}

@@ -7,8 +7,9 @@ Laws (one parameter each, the material's ``damping_ratio``; docs/measurements.md
   in-plane mode's damping ratio;
 - ``kelvin_voigt``: C = β·K, ζ_n = ζ1·ω_n/ω1 (grows with the mode's frequency);
 - ``rayleigh``: C = a·M + b·K with ζ = ζ1 at the first and third in-plane modes (ζ2 below),
-  built as the engines run it (:func:`rayleigh_spec`: Kelvin–Voigt joints b·K and the
-  :class:`~pipeline.model.effects.mass_damping.MassDamping` a·M);
+  the material's ``damping_model: rayleigh`` (:class:`~pipeline.model.damping.RayleighDamping`:
+  joints b·K and the :class:`~pipeline.model.effects.mass_damping.MassDamping` a·M), as the
+  engines run it;
 - ``modal``: C = M·Φ·diag(2ζ1ω_n)·Φᵀ·M, the same ζ1 on every mode (Φ mass-normalised).
 
 Air drag stays as the linearisation has it (added to every law). The engines have eq. 3,
@@ -36,31 +37,15 @@ def _in_plane_omegas(lin: LinearWhisker) -> np.ndarray:
     return np.sort(mod.omega[share > 0.5])
 
 
-def rayleigh_spec(spec: ModelSpec, geometry) -> ModelSpec:
-    """``spec`` (Kelvin–Voigt, ζ1 = its ``zeta``) made Rayleigh as the engines run it: joint
-    dampers β·k_n with β = 2ζ1/(ω1 + ω3) (its ``zeta`` rescaled to that β) and mass-proportional
-    α = 2ζ1·ω1·ω3/(ω1 + ω3) (:class:`~pipeline.model.effects.mass_damping.MassDamping`), ω1, ω3 the
-    undamped first and third in-plane modes: ζ = ζ1 at both, ζ2 below."""
-    kelvin_voigt = ModelSpec(spec.material.model_copy(update={"damping_model": "kelvin_voigt"}), spec.extensions)
-    physics = kelvin_voigt.physics(geometry)
-    omega = _in_plane_omegas(linearise(physics))
-    zeta, w1, w3 = spec.material.damping_ratio, omega[0], omega[2]
-    chain = physics.chain
-    beta = float(chain.damping_nms_per_rad[0] / chain.stiffness_nm_per_rad[0])   # of Kelvin–Voigt at ζ
-    return kelvin_voigt.with_values({"zeta": zeta * (2 * zeta / (w1 + w3)) / beta,
-                                     "mass_damping.alpha": 2 * zeta * w1 * w3 / (w1 + w3)})
-
-
 def with_law(spec: ModelSpec, geometry, law: str) -> LinearWhisker:
     """The linear chain of ``spec`` on ``geometry`` with the damping matrix of ``law``."""
     if law not in LAWS:
         raise ValueError(f"unknown damping law '{law}' ({', '.join(LAWS)})")
-    if law == "eq3":
-        return linearise(ModelSpec(spec.material.model_copy(update={"damping_model": "paper"}),
-                                   spec.extensions).physics(geometry))
-    if law == "rayleigh":
-        return linearise(rayleigh_spec(spec, geometry).physics(geometry))
-    lin = linearise(spec.physics(geometry))
+    engine_law = {"eq3": "paper", "rayleigh": "rayleigh"}.get(law, "kelvin_voigt")
+    lin = linearise(ModelSpec(spec.material.model_copy(update={"damping_model": engine_law}),
+                              spec.extensions).physics(geometry))
+    if law in ("eq3", "rayleigh"):
+        return lin
     drag = lin.damping - np.diag(lin.dofs.damping)
     zeta = spec.material.damping_ratio
     omega = _in_plane_omegas(lin)

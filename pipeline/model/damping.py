@@ -9,8 +9,16 @@ import numpy as np
 from pipeline.model.whisker import link_centres_of_mass, planar_modes
 
 
+class _JointsOnly:
+    """A damping model of joint dampers alone."""
+
+    def mass_damping_per_s(self, chain, base_stiffness_nm_per_rad: float | None = None) -> float:
+        """α (1/s) of its mass-proportional part: none."""
+        return 0.0
+
+
 @dataclass(frozen=True)
-class PaperDamping:
+class PaperDamping(_JointsOnly):
     """Eq. 3 of the paper: c_n = 2·ζ·L_com,n·√(M_n·k_n).
 
     M_n is the mass distal to node n and L_com,n the distance from node n to its centre of
@@ -36,7 +44,7 @@ class PaperDamping:
 
 
 @dataclass(frozen=True)
-class KelvinVoigtDamping:
+class KelvinVoigtDamping(_JointsOnly):
     """Stiffness-proportional (Kelvin–Voigt) damping: c_n = β·k_n with β = 2ζ/ω₁.
 
     ω₁ is the first in-plane mode of the whisker clamped at its base: the chain, on the base
@@ -51,12 +59,41 @@ class KelvinVoigtDamping:
     def coefficients(self, chain, base_stiffness_nm_per_rad: float | None = None) -> np.ndarray:
         """[N−1] c_n of the chain's joints; the base spring of ``base_stiffness_nm_per_rad``
         (N·m/rad), if given, enters ω₁ and takes the same β."""
-        stiffness = (None if base_stiffness_nm_per_rad is None
-                     else np.concatenate([[base_stiffness_nm_per_rad], chain.stiffness_nm_per_rad]))
-        freqs, _ = planar_modes(chain, stiffness)
-        beta = 2 * self.zeta / (2 * np.pi * freqs[0])
+        beta = 2 * self.zeta / _clamped_omegas(chain, base_stiffness_nm_per_rad)[0]
         return beta * chain.stiffness_nm_per_rad
 
 
+@dataclass(frozen=True)
+class RayleighDamping:
+    """Rayleigh damping C = α·M + β·K with ζ at the first and the third in-plane mode:
+
+        β = 2ζ/(ω₁ + ω₃),   α = 2ζ·ω₁·ω₃/(ω₁ + ω₃)   (1/s),
+
+    ω₁, ω₃ as for :class:`KelvinVoigtDamping`. Joint dampers c_n = β·k_n; α·M is the
+    :class:`~pipeline.model.effects.mass_damping.MassDamping` load on the motion relative to the
+    driven base (:func:`~pipeline.model.physics.build_physics` adds it). Mode n then has
+    ζ_n = α/(2ω_n) + β·ω_n/2: ζ at modes 1 and 3, less between them, growing slowly above."""
+
+    zeta: float
+    name: str = "rayleigh"
+
+    def coefficients(self, chain, base_stiffness_nm_per_rad: float | None = None) -> np.ndarray:
+        """[N−1] c_n = β·k_n (N·m·s/rad)."""
+        w1, w3 = _clamped_omegas(chain, base_stiffness_nm_per_rad)[[0, 2]]
+        return 2 * self.zeta / (w1 + w3) * chain.stiffness_nm_per_rad
+
+    def mass_damping_per_s(self, chain, base_stiffness_nm_per_rad: float | None = None) -> float:
+        """α (1/s)."""
+        w1, w3 = _clamped_omegas(chain, base_stiffness_nm_per_rad)[[0, 2]]
+        return float(2 * self.zeta * w1 * w3 / (w1 + w3))
+
+
+def _clamped_omegas(chain, base_stiffness_nm_per_rad: float | None) -> np.ndarray:
+    """In-plane ω_n (rad/s) of the chain clamped at its base, on the base spring if given."""
+    stiffness = (None if base_stiffness_nm_per_rad is None
+                 else np.concatenate([[base_stiffness_nm_per_rad], chain.stiffness_nm_per_rad]))
+    return 2 * np.pi * planar_modes(chain, stiffness)[0]
+
+
 def damping_model(name: str, zeta: float):
-    return {"paper": PaperDamping, "kelvin_voigt": KelvinVoigtDamping}[name](zeta)
+    return {"paper": PaperDamping, "kelvin_voigt": KelvinVoigtDamping, "rayleigh": RayleighDamping}[name](zeta)

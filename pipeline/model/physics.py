@@ -17,6 +17,7 @@ from pipeline.config.material import MaterialConfig
 from pipeline.model.base_motion import BaseInertia
 from pipeline.model.damping import damping_model
 from pipeline.model.effects.follicle import CompliantFollicle
+from pipeline.model.effects.mass_damping import MassDamping
 from pipeline.model.effects.registry import material_effects
 from pipeline.model.effects.twist import Twist
 from pipeline.model.joints import JointLayout, joint_layout
@@ -109,8 +110,9 @@ def build_physics(geometry: WhiskerGeometry, material: MaterialConfig, effects=(
     """The whisker of ``material`` with every effect applied (the hooks of
     :mod:`pipeline.model.effects.base`, effects in ascending ``order``).
 
-    The damping model of ``material`` (eq. 3 or Kelvin–Voigt) sees the final masses and
-    stiffnesses and the effects' base spring. An effect given here replaces the one of the same
+    The damping model of ``material`` (eq. 3, Kelvin–Voigt or Rayleigh) sees the final masses and
+    stiffnesses and the effects' base spring; Rayleigh's α·M is a
+    :class:`~pipeline.model.effects.mass_damping.MassDamping` load after the effects' loads. An effect given here replaces the one of the same
     name that ``material`` switches on (follicle, gravity, base segment).
     """
     given = {e.name for e in effects}
@@ -126,11 +128,12 @@ def build_physics(geometry: WhiskerGeometry, material: MaterialConfig, effects=(
     for effect in effects:
         chain = effect.chain(chain)
     base = next((k for e in effects if (k := e.base_stiffness_nm_per_rad(chain)) is not None), None)
-    coefficients = damping_model(material.damping_model, material.damping_ratio).coefficients(chain, base)
-    chain = replace(chain, damping_nms_per_rad=np.asarray(coefficients, float))
+    law = damping_model(material.damping_model, material.damping_ratio)
+    mass_damping = law.mass_damping_per_s(chain, base)
+    chain = replace(chain, damping_nms_per_rad=np.asarray(law.coefficients(chain, base), float))
     for effect in effects:
         chain = effect.damping(chain)
     physics = WhiskerPhysics(chain)
     for effect in effects:
         physics = effect.physics(physics)
-    return physics
+    return replace(physics, loads=physics.loads + (MassDamping(mass_damping),)) if mass_damping else physics

@@ -24,13 +24,15 @@ from pipeline.engines import units as U
 from pipeline.engines.bullet.client import BulletClient
 from pipeline.engines.bullet.contact import CONTACT_REACH_MM, solve_forces
 from pipeline.engines.bullet.contact_kernels import contact_rows, segment_nodes, warm_start, world_forces
-from pipeline.engines.bullet.mass_matrix import chain_kinematics, implicit_operator_inverse
+from pipeline.engines.bullet.mass_matrix import chain_kinematics, chain_mass_matrix, implicit_operator_inverse
 from pipeline.engines.bullet.multibody import CAPSULE_ALONG_X, IDENTITY_QUAT, LinkList
 from pipeline.engines.bullet.wrench import follicle_wrench
 from pipeline.engines.common import start_rate
+from pipeline.engines.mass_damping import split_mass_damping
 from pipeline.model.array import WhiskerModel
 from pipeline.model.kinematics import ProtractionDrive
 from pipeline.model.effects.loads import LinkState, total_link_forces
+from pipeline.model.effects.mass_damping import MassDamping
 from pipeline.model.rotations import matrix_from_xyzw, rot_z
 
 # Largest change of a free joint angle (rad) before M_FF of the implicit step is recomputed:
@@ -249,7 +251,7 @@ class BulletWhisker:
         driven_only = np.array(self.client.calculateInverseDynamics(
             self.body, q_list, v_list, accel_driven.tolist() + self._free_zeros))   # M_·D·a_D + b
         if loads:
-            driven_only -= self._load_forces(loads, q_list, external)            # ... − Jᵀ·F
+            driven_only -= self._load_forces(loads, q_list, external, record)            # ... − Jᵀ·F
         accel = np.concatenate([accel_driven, self._lhs_inverse @ (
             self._minus_stiffness * q_free - self._free_damping * v[3:] - driven_only[3:])])
         normal_forces = np.zeros(0)
@@ -325,7 +327,7 @@ class BulletWhisker:
         self.sync()
         states = self.client.getLinkStates(self.body, self.whisker_links, computeLinkVelocity=int(velocities),
                                  computeForwardKinematics=True)
-        frames = np.array([matrix_from_xyzw(s[1]) for s in states])
+        frames = matrix_from_xyzw(np.array([s[1] for s in states]))
         zeros = np.zeros((len(states), 3))
         motion = None
         if base:
@@ -335,15 +337,33 @@ class BulletWhisker:
                          np.array([s[6] for s in states]) / U.LENGTH if velocities else zeros,
                          np.array([s[7] for s in states]) if velocities else zeros, motion)
 
-    def _load_forces(self, loads, q: list[float], external: list) -> np.ndarray:
+    def _load_forces(self, loads, q: list[float], external: list, record: bool) -> np.ndarray:
         """The loads' per-link forces appended to ``external`` as (points, forces, torques); returns
-        their generalised force Jᵀ·F [n_dof] (internal units). pybullet takes the Jacobian's point in
-        the link frame (not the centre-of-mass frame): checked by the static tip load test,
-        whose deflection is then independent of the step size."""
+        their generalised force Jᵀ·F [n_dof] (internal units). Mass-proportional damping enters as
+        −α·M_FF·q̇_F (compiled M_FF, :mod:`pipeline.engines.bullet.mass_matrix`: its Jᵀ·F exactly,
+        :mod:`pipeline.engines.mass_damping`), its per-link forces only on a ``record`` step, for the
+        base wrench."""
+        alpha, others = split_mass_damping(loads)
+        generalised = np.zeros(self.n_dof)
+        if others:
+            generalised += self._link_loads(others, q, external, True)
+        if alpha:
+            generalised[3:] -= alpha * (chain_mass_matrix(self.q[3:], *self._mass_chain) @ self.v[3:])
+            if record:
+                self._link_loads((MassDamping(alpha),), q, external, False)
+        return generalised
+
+    def _link_loads(self, loads, q: list[float], external: list, generalise: bool) -> np.ndarray | None:
+        """The per-link forces of ``loads`` appended to ``external``; with ``generalise`` their
+        generalised force Jᵀ·F. pybullet takes the Jacobian's point in the link frame (not the
+        centre-of-mass frame): checked by the static tip load test, whose deflection is then
+        independent of the step size."""
         state = self.link_state(any(load.needs_velocity for load in loads), any(load.needs_base for load in loads))
         force, torque = total_link_forces(loads, self.model.chain, state)
         force, torque = force * U.FORCE, torque * U.TORQUE
         external.append((state.com_m * U.LENGTH, force, torque))
+        if not generalise:
+            return None
         generalised = np.zeros(self.n_dof)
         for i in np.flatnonzero(np.any(force != 0, axis=1) | np.any(torque != 0, axis=1)):
             link = self.whisker_links[i]

@@ -70,8 +70,23 @@ def damped_modes(lin: LinearWhisker) -> tuple[np.ndarray, np.ndarray, np.ndarray
     in_plane[[i for i, s in enumerate(lin.dofs.labels) if s.startswith(("z", "follicle_z"))]] = True
     share = (np.abs(q[in_plane]) ** 2).sum(axis=0) / (np.abs(q) ** 2).sum(axis=0)
     order = np.argsort(values.imag)
+    values, share = values[order], share[order]
     zeta = -values.real / np.abs(values)
-    return values.imag[order] / (2 * np.pi), zeta[order], share[order] > 0.5
+    return values.imag / (2 * np.pi), zeta, _in_plane_flags(values, share)
+
+
+def _in_plane_flags(values: np.ndarray, share: np.ndarray) -> np.ndarray:
+    """Whether each mode (eigenvalues by frequency, their in-plane shares) is in-plane: share > ½,
+    and within a degenerate group (a straight whisker's in- and out-of-plane pair, whose
+    eigenvectors mix arbitrarily) the first round(Σ share) modes."""
+    flags = share > 0.5
+    start = 0
+    for end in range(1, len(values) + 1):
+        if end == len(values) or abs(values[end] - values[start]) > 1e-9 * abs(values[start]):
+            if end - start > 1:
+                flags[start:end] = np.arange(end - start) < round(float(share[start:end].sum()))
+            start = end
+    return flags
 
 
 def _state_matrix(mod: Modal) -> np.ndarray:

@@ -1,6 +1,11 @@
 """The loads' per-link forces (:mod:`pipeline.model.effects.loads`) on a MuJoCo world's links,
-computed from MuJoCo's state before each step and applied as ``xfrc_applied``, so that the
-implicit step sees them. Internal units mm–mg–s, loads in SI."""
+applied as ``xfrc_applied`` (mass-proportional damping also as its generalised force:
+:class:`LinkLoads`), so that the implicit step sees them. They are computed inside each
+step, from the state MuJoCo has just computed for it: in its control callback (``mjcb_control``,
+called by ``mj_step`` after the position and velocity stages, before the forces are summed), so
+that no step recomputes its kinematics for them. The callback is MuJoCo's, one per process: it is
+set only while a step runs (``with`` :class:`LinkLoads`; ``MjSpec.compile`` fails while a Python
+callback is set). Internal units mm–mg–s, loads in SI."""
 
 from __future__ import annotations
 
@@ -8,34 +13,91 @@ import mujoco
 import numpy as np
 
 from pipeline.engines import units as U
+from pipeline.engines.mass_damping import (internal_link_inertia, mujoco_joint_forces, mujoco_sensor_correction,
+                                           split_mass_damping)
 from pipeline.model.effects.loads import LinkState, total_link_forces
 from pipeline.model.whisker import WhiskerChain
 
 
-def apply_link_loads(m: mujoco.MjModel, d: mujoco.MjData, link_bodies: np.ndarray, chains: list[WhiskerChain],
-                     loads: list, loaded: list[int]) -> None:
-    """The per-link forces of ``loads[k]`` on members ``loaded`` (rows k of ``link_bodies``
-    [members, N], chains ``chains[k]``) at the current state, as wrenches about the links'
-    centres of mass."""
-    mujoco.mj_kinematics(m, d)
-    mujoco.mj_comPos(m, d)
-    velocities = any(load.needs_velocity for k in loaded for load in loads[k])
-    if velocities:
-        mujoco.mj_comVel(m, d)
-    for k in loaded:
-        bodies = link_bodies[k]
+SENSOR_OFF = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+
+
+class LinkLoads:
+    """The loads of members ``loaded`` (rows k of ``link_bodies`` [members, N], chains
+    ``chains[k]``, loads ``loads[k]``) on the world ``m`` for a trial: a step of any of its
+    MjData taken inside ``with`` it applies them (module docstring). Mass-proportional damping is
+    applied by the compiled kernels of :mod:`pipeline.engines.mass_damping` as its generalised
+    force on the joints (added to ``qfrc_passive``, which MuJoCo has just computed: the motion of
+    the wrenches on the links, without MuJoCo's cost of summing link wrenches), and a step that
+    read the base sensors has them corrected for it on leaving ``with`` (the base wrench sees the
+    damping as external forces on the links). Every other load by its
+    :meth:`~pipeline.model.effects.loads.Load.link_forces`, as wrenches."""
+
+    def __init__(self, m: mujoco.MjModel, link_bodies: np.ndarray, chains: list[WhiskerChain], loads: list,
+                 loaded: list[int]) -> None:
+        split = [split_mass_damping(loads[k]) for k in loaded]
+        self.model, self.chains, self.link_bodies = m, chains, link_bodies
+        self.others = [(k, rest) for k, (_, rest) in zip(loaded, split) if rest]
+        alpha = np.array([alpha for alpha, _ in split])
+        self.velocities = any(load.needs_velocity for _, rest in self.others for load in rest)
+        self.zeroed = link_bodies[[k for k, (a, _) in zip(loaded, split) if not a]].ravel()
+        self.damping, self.data = None, None
+        if alpha.any():
+            damped = np.array(loaded)[alpha > 0]
+            bodies = link_bodies[damped]
+            self.damping = (alpha[alpha > 0], bodies, m.body_parentid[bodies[:, 0]].copy(),
+                            *internal_link_inertia([chains[k] for k in damped]), m.body_rootid.copy())
+            self.tree = (m.body_parentid.copy(), m.body_jntadr.copy(), m.body_jntnum.copy(), m.jnt_type.copy(),
+                         m.jnt_dofadr.copy())
+            forces = 2 * damped                                 # per member: force, torque sensor of its base site
+            self.sensors = (m.sensor_objid[forces].copy(), m.sensor_adr[forces].copy())
+        self.callback = self._control if loaded else None
+
+    def __enter__(self) -> "LinkLoads":
+        if self.callback is not None:
+            mujoco.set_mjcb_control(self.callback)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.callback is not None:
+            mujoco.set_mjcb_control(None)
+        m, d = self.model, self.data
+        if d is not None and not m.opt.disableflags & SENSOR_OFF:
+            mujoco_sensor_correction(*self.damping, d.cvel, d.xpos, d.xipos, d.ximat, d.subtree_com, *self.sensors,
+                                     d.site_xpos, d.site_xmat, d.sensordata)
+        self.data = None
+
+    def _control(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        if m is self.model:
+            self.apply(m, d)
+
+    def apply(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        """The loads at ``d``'s state (after MuJoCo's velocity stage: positions, ``cvel``); the
+        first MjData a step applies them to is the one whose sensors :meth:`__exit__` corrects."""
+        if self.damping is not None:
+            mujoco_joint_forces(*self.damping, d.cvel, d.xpos, d.xipos, d.ximat, d.subtree_com, *self.tree, d.xaxis,
+                                d.xanchor, d.qfrc_passive, d.xfrc_applied)
+            if self.data is None:
+                self.data = d
+        if len(self.zeroed):
+            d.xfrc_applied[self.zeroed] = 0.0
+        for k, loads in self.others:
+            self._apply_python(m, d, k, loads)
+
+    def _apply_python(self, m: mujoco.MjModel, d: mujoco.MjData, k: int, loads) -> None:
+        bodies = self.link_bodies[k]
         com = d.xipos[bodies] / U.LENGTH
-        if velocities:   # cvel: [ω, v] of the point at the tree's subtree centre of mass
+        if self.velocities:   # cvel: [ω, v] of the point at the tree's subtree centre of mass
             omega = d.cvel[bodies, :3]
             arm = d.xipos[bodies] - d.subtree_com[m.body_rootid[bodies]]
             velocity = (d.cvel[bodies, 3:] + np.cross(omega, arm)) / U.LENGTH
         else:
             omega = velocity = np.zeros_like(com)
-        base = _base_motion(m, d, bodies[0]) if any(load.needs_base for load in loads[k]) else None
+        base = _base_motion(m, d, bodies[0]) if any(load.needs_base for load in loads) else None
         state = LinkState(com, d.ximat[bodies].reshape(-1, 3, 3), velocity, omega, base)
-        force, torque = total_link_forces(loads[k], chains[k], state)
-        d.xfrc_applied[bodies, :3] = force * U.FORCE
-        d.xfrc_applied[bodies, 3:] = torque * U.TORQUE
+        force, torque = total_link_forces(loads, self.chains[k], state)
+        d.xfrc_applied[bodies, :3] += force * U.FORCE
+        d.xfrc_applied[bodies, 3:] += torque * U.TORQUE
 
 
 def _base_motion(m: mujoco.MjModel, d: mujoco.MjData, first_link: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -13,7 +13,7 @@ from pipeline.engines.base import TrialSetup, World, WorldResult
 from pipeline.engines.common import (ContactFlags, implausible, jam_message, link_reach_m, node_arc_fractions,
                                      start_rate)
 from pipeline.engines.mujoco.faces import ScanContacts, triangles_mm
-from pipeline.engines.mujoco.loads import apply_link_loads
+from pipeline.engines.mujoco.loads import LinkLoads
 from pipeline.engines.mujoco.plan import MujocoPlan, head_coordinates
 from pipeline.engines.mujoco.prisms import MeshPrisms, cached_prisms
 from pipeline.engines.mujoco.reach import reachable_parts
@@ -272,19 +272,17 @@ class MujocoWorld(World):
         kinematic, armature, spring_rate = self.kinematic, self.armature, self.spring_rate
         substeps = self.substeps
         substeps.reset()
-        loads = setup.loads
-        chains = [self.whiskers[k].chain for k in self.members]
+        link_loads = LinkLoads(m, self.link_bodies, [self.whiskers[k].chain for k in self.members], setup.loads, loaded)
         yield plan
         for step in range(n_steps + 1):
             np.multiply(spring_rate, qvel, out=qfrc)
             qfrc[kinematic] = armature * (((targets[step] - qpos[kinematic]) / h - qvel[kinematic]) / h)
-            if loaded:
-                apply_link_loads(m, d, self.link_bodies, chains, loads, loaded)
             sample, due = divmod(step, spp)
             records = due == 0 and sample > 0
             if due < 2:
                 option.disableflags = sensors_on if records else sensors_off
-            substeps.step(d, targets[step])
+            with link_loads:
+                substeps.step(d, targets[step])
             if bad_acceleration.number:
                 self._unless_parked(lambda: self._blown_up(step * h), park, result)
             if records:
