@@ -21,9 +21,11 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from pipeline.runner.trial import RunSpec
 
-KERNEL_MODULES = {"mujoco": ("pipeline.engines.mujoco.face_kernels",),   # per engine, the modules of the
-                  "bullet": ("pipeline.engines.bullet.mass_matrix",        # kernels its trials call (they
-                             "pipeline.engines.bullet.gauss_seidel")}      # compile the ones they call)
+KERNEL_MODULES = {   # per engine, the modules of the kernels every dataset trial calls (numba compiles the ones called)
+    "mujoco": ("pipeline.engines.mujoco.face_kernels", "pipeline.engines.triangle_grid"),
+    "bullet": ("pipeline.engines.bullet.mass_matrix", "pipeline.engines.bullet.gauss_seidel",
+               "pipeline.engines.bullet.contact_kernels", "pipeline.engines.bullet.wrench"),
+}
 WARM_FROM_TRIALS = 50    # shorter runs: an extra trial in a child costs more than the memory is worth
 WARM_TIMEOUT_S = 300.0   # a warm-up child still running then is stopped (a first trial compiles in ≈ 20 CPU-s)
 
