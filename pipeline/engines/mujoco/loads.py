@@ -13,8 +13,6 @@ import mujoco
 import numpy as np
 
 from pipeline.engines import units as U
-from pipeline.engines.mass_damping import (internal_link_inertia, mujoco_joint_forces, mujoco_sensor_correction,
-                                           split_mass_damping)
 from pipeline.model.effects.loads import LinkState, total_link_forces
 from pipeline.model.whisker import WhiskerChain
 
@@ -35,23 +33,29 @@ class LinkLoads:
 
     def __init__(self, m: mujoco.MjModel, link_bodies: np.ndarray, chains: list[WhiskerChain], loads: list,
                  loaded: list[int]) -> None:
-        split = [split_mass_damping(loads[k]) for k in loaded]
         self.model, self.chains, self.link_bodies = m, chains, link_bodies
+        self.damping, self.data, self.callback = None, None, None
+        if not loaded:
+            return
+        # imported here, not at the top: numba and the scipy it loads ≈0.5 CPU-s, only worlds with loads need them
+        from pipeline.engines import mass_damping
+
+        self.kernels = mass_damping
+        split = [mass_damping.split_mass_damping(loads[k]) for k in loaded]
         self.others = [(k, rest) for k, (_, rest) in zip(loaded, split) if rest]
         alpha = np.array([alpha for alpha, _ in split])
         self.velocities = any(load.needs_velocity for _, rest in self.others for load in rest)
         self.zeroed = link_bodies[[k for k, (a, _) in zip(loaded, split) if not a]].ravel()
-        self.damping, self.data = None, None
         if alpha.any():
             damped = np.array(loaded)[alpha > 0]
             bodies = link_bodies[damped]
             self.damping = (alpha[alpha > 0], bodies, m.body_parentid[bodies[:, 0]].copy(),
-                            *internal_link_inertia([chains[k] for k in damped]), m.body_rootid.copy())
+                            *mass_damping.internal_link_inertia([chains[k] for k in damped]), m.body_rootid.copy())
             self.tree = (m.body_parentid.copy(), m.body_jntadr.copy(), m.body_jntnum.copy(), m.jnt_type.copy(),
                          m.jnt_dofadr.copy())
             forces = 2 * damped                                 # per member: force, torque sensor of its base site
             self.sensors = (m.sensor_objid[forces].copy(), m.sensor_adr[forces].copy())
-        self.callback = self._control if loaded else None
+        self.callback = self._control
 
     def __enter__(self) -> "LinkLoads":
         if self.callback is not None:
@@ -63,8 +67,8 @@ class LinkLoads:
             mujoco.set_mjcb_control(None)
         m, d = self.model, self.data
         if d is not None and not m.opt.disableflags & SENSOR_OFF:
-            mujoco_sensor_correction(*self.damping, d.cvel, d.xpos, d.xipos, d.ximat, d.subtree_com, *self.sensors,
-                                     d.site_xpos, d.site_xmat, d.sensordata)
+            self.kernels.mujoco_sensor_correction(*self.damping, d.cvel, d.xpos, d.xipos, d.ximat, d.subtree_com,
+                                                  *self.sensors, d.site_xpos, d.site_xmat, d.sensordata)
         self.data = None
 
     def _control(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
@@ -75,7 +79,7 @@ class LinkLoads:
         """The loads at ``d``'s state (after MuJoCo's velocity stage: positions, ``cvel``); the
         first MjData a step applies them to is the one whose sensors :meth:`__exit__` corrects."""
         if self.damping is not None:
-            mujoco_joint_forces(*self.damping, d.cvel, d.xpos, d.xipos, d.ximat, d.subtree_com, *self.tree, d.xaxis,
+            self.kernels.mujoco_joint_forces(*self.damping, d.cvel, d.xpos, d.xipos, d.ximat, d.subtree_com, *self.tree, d.xaxis,
                                 d.xanchor, d.qfrc_passive, d.xfrc_applied)
             if self.data is None:
                 self.data = d
