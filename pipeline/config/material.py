@@ -33,6 +33,9 @@ class FollicleConfig(StrictModel):
 
 # Named material presets (``material: {preset: NAME}`` in a config, ``--preset NAME`` on the CLI):
 # the preset's values fill every material field the config does not set itself.
+_UNTRIMMED = {"youngs_modulus_gpa": 3.59, "damping_ratio": 0.138, "damping_model": "kelvin_voigt",
+              "link_density": "integrated", "base_segment": True,
+              "follicle": {"stiffness_nm_per_rad": 5e-7, "damping_nms_per_rad": 2.1e-9}}
 MATERIAL_PRESETS = {
     # the paper's two trimmed, motor-driven whiskers (α, B1; Table 1): E and θ_ζ of eq. 3 fitted on
     # the continuum chain at N = 20 (pipeline.diagnosis.material_fit: E = 7.91 GPa, θ_ζ = 0.134,
@@ -48,16 +51,12 @@ MATERIAL_PRESETS = {
     # whisker's own base stiffness E·I/S, the largest round value giving Fig. 4's rigid/compliant
     # base-force ratio ≥ 5; c_f for a follicle damping ratio 0.2 on RB1 (c_f = 2·0.2·√(k_f·J),
     # J = 5.7e-11 kg·m²). Uncertain to a factor ≈ 2: only that ratio constrains them.
-    "untrimmed": {"youngs_modulus_gpa": 3.59, "damping_ratio": 0.138, "damping_model": "kelvin_voigt",
-                  "link_density": "integrated", "base_segment": True,
-                  "follicle": {"stiffness_nm_per_rad": 5e-7, "damping_nms_per_rad": 2.1e-9}},
+    "untrimmed": _UNTRIMMED,
     # untrimmed whiskers under Rayleigh damping (pipeline.model.damping.RayleighDamping: ζ1 at modes 1
     # and 3), the law the measurement library supports (docs/measurements.md §10): the same joint fit
     # as 'untrimmed' (`pipeline calibrate --library --where trimmed=no --preset untrimmed_rayleigh`),
     # the same follicle
-    "untrimmed_rayleigh": {"youngs_modulus_gpa": 3.59, "damping_ratio": 0.138, "damping_model": "rayleigh",
-                           "link_density": "integrated", "base_segment": True,
-                           "follicle": {"stiffness_nm_per_rad": 5e-7, "damping_nms_per_rad": 2.1e-9}},
+    "untrimmed_rayleigh": {**_UNTRIMMED, "damping_model": "rayleigh"},
     # the paper's own chain and fit, to reproduce the original and its published numbers: link 1
     # rigid with the follicle, each link's density at its proximal node, E = 7.45 GPa and
     # θ_ζ = 0.118 fitted on α/B1 with that chain (MSA 0.048)
