@@ -101,8 +101,10 @@ class PoseSamplingConfig(StrictModel):
     pitch (nose up, about the head's lateral axis), roll (about its rostral axis). Accepted when
     the head sphere does not meet the surface, the aim ray meets the surface's outer side, no
     surface is nearer a base point than ``min_base_distance_fraction`` of that whisker's
-    length, and at least ``min_whiskers_reaching`` whiskers' rest shapes cross the surface as
-    they sweep through the trial's whisk (protraction −retraction … +protraction).
+    length, no whisker's sweep comes within ``rim_margin_mm`` of an open rim of the mesh (the
+    edge of a scan where the scanner saw nothing), and at least ``min_whiskers_reaching``
+    whiskers' rest shapes cross the surface as they sweep through the trial's whisk
+    (protraction −retraction … +protraction).
     """
 
     distance_mm: Annotated[Range, within(1.0, 200.0)] = Range(low=10.0, high=35.0)
@@ -119,6 +121,8 @@ class PoseSamplingConfig(StrictModel):
     min_base_distance_fraction: float = Field(0.3, ge=0.0, le=1.0,
                                               description="surface ≥ this × arc length from each base point")
     sweep_steps: int = Field(24, ge=2, le=500, description="protraction angles sampled over the whisk")
+    rim_margin_mm: float = Field(1.0, ge=0.0, le=20.0,
+                                 description="whiskers' sweep ≥ this from a mesh's open rims (0: not checked)")
     max_attempts: int = Field(500, ge=1, le=100_000, description="poses tried before the trial fails")
 
 

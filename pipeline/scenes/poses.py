@@ -18,7 +18,11 @@ is accepted when, checked in this order (the first failure is the rejection reas
 ``too_few_whiskers``   fewer than the configured number of whiskers reach the surface while
                        sweeping rigidly (rest shape) through the trial's protraction range: a
                        whisker reaches when one of its links, at one of ``sweep_steps`` angles,
-                       or one of its nodes' paths between consecutive angles crosses a face.
+                       or one of its nodes' paths between consecutive angles crosses a face;
+``behind_surface``     (checked last: the costliest) a whisker's sweep through the protraction
+                       range comes within ``rim_margin_mm`` of an open rim of the mesh (an edge of
+                       one face only, where the scanner saw nothing: the whisker would touch a
+                       reconstruction artefact; :mod:`pipeline.scenes.rims`).
 
 With a moving head (``path``, :mod:`pipeline.scenes.head_paths`), ``head_in_surface`` and
 ``surface_near_base`` hold at :data:`PATH_CHECKS` instants spread over the trial, and a
@@ -41,6 +45,7 @@ from pipeline.model.array import ArrayModel
 from pipeline.model.head_motion import HeadMotion
 from pipeline.model.kinematics import Pose
 from pipeline.scenes.obstacles import TriangleMesh
+from pipeline.scenes.rims import OpenRims
 
 PATH_CHECKS = 8          # instants of a moving head's trajectory the checks hold at
 
@@ -72,6 +77,7 @@ class PoseSampler:
 
     def __init__(self, mesh: TriangleMesh, array: ArrayModel, config: PoseSamplingConfig):
         self.surface = mesh.surface
+        self.rims = OpenRims(mesh.vertices_m, mesh.faces, self.surface, config.rim_margin_mm * 1e-3)
         self.array = array
         self.config = config
         self.base_points = np.array([w.base_point_m for w in array.whiskers])
@@ -119,6 +125,8 @@ class PoseSampler:
         reaching = int(np.any([self.sweeps(p, envelope) for p in path], axis=0).sum())
         if reaching < self.config.min_whiskers_reaching:
             return "too_few_whiskers", reaching
+        if any(self.rims.sweep_near(p.apply(envelope)).any() for p in path):
+            return "behind_surface", reaching
         return None, reaching
 
     def crossings(self, pose: Pose, shapes: np.ndarray) -> np.ndarray:

@@ -132,7 +132,8 @@ def test_a_whisker_that_would_reach_the_back_of_a_face_is_rejected():
     from pipeline.model.kinematics import Pose
 
     array = build_array(model_rat().select("RC1"), MaterialConfig(links=10))
-    config = PoseSamplingConfig(min_whiskers_reaching=1, head_radius_mm=1.0, min_base_distance_fraction=0.0)
+    config = PoseSamplingConfig(min_whiskers_reaching=1, head_radius_mm=1.0, min_base_distance_fraction=0.0,
+                                rim_margin_mm=0.0)         # the patches' rims: tests/scenes/test_rims.py
     tip_start, tip_end = (w[0, -1] for w in PoseSampler(box_mesh((1, 1, 1)), array, config).shapes(THETA))
     path = tip_end - tip_start
     aim = np.array([0.0, 0.0, -1.0])                      # at a patch below the head, facing it
