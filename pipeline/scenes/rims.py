@@ -50,7 +50,7 @@ class OpenRims:
         if not self.edges:
             self.tree = None
             return
-        # imported here, not at the top: ≈0.21 CPU-s on a trial's start-up (as FaceIndex's)
+        # imported here, not at the top: ≈0.27 CPU-s on a trial's start-up (unless FaceIndex loaded it)
         from scipy.spatial import cKDTree
 
         vertices = np.asarray(vertices_m, float)
