@@ -13,8 +13,9 @@ so every point of its sweep nearer than 0.7 × margin to a rim is caught, and no
 ``margin``. Samples behind the surface do not count (more than 30° behind the face nearest them:
 ``(p − q)·n < −|p − q| / 2``, q the nearest surface point, n its face's outward normal): the
 rigid sweep reaches them only through the surface, where the bent whisker does not go; a sample
-beside a rim (in its sheet's plane) counts. A coarse pass on the nodes of the given shapes (with the largest link and step as
-padding) picks the few (angle interval, whisker) pairs worth sampling finely.
+beside a rim (in its sheet's plane) counts. A coarse pass on the nodes of the given shapes
+(padded by the largest link and step) picks the few (angle interval, whisker) pairs worth
+sampling finely.
 """
 
 from __future__ import annotations
