@@ -28,11 +28,13 @@ def test_boundary_edges_are_those_of_one_face():
 
 
 def test_a_link_is_near_within_the_margin_and_not_beyond():
-    """A rim along x at the origin; one link along x sweeping along y past it at height z: near
-    when it passes within 0.7 × margin, not when it stays beyond the margin."""
+    """A rim along x at the origin, its sheet facing +z; one link along x sweeping along y past it
+    at height z: near when it passes within 0.7 × margin in front, not when it stays beyond the
+    margin, nor when it passes as near behind the sheet (where the rigid sweep only gets through
+    the surface)."""
     square = patch([0.0, -0.01, 0.0], [0.0, 0.0, 1.0], 0.01)           # its edge y = 0 spans x ±1 cm
     rims = OpenRims(square.vertices_m, square.faces, square.surface, MARGIN_M)
-    for height, near in ((0.69 * MARGIN_M, True), (1.01 * MARGIN_M, False)):
+    for height, near in ((0.69 * MARGIN_M, True), (1.01 * MARGIN_M, False), (-0.69 * MARGIN_M, False)):
         link = np.array([[-0.002, -0.005, height], [0.002, -0.005, height]])
         sweep = np.stack([link, link + [0.0, 0.01, 0.0]])[:, None]      # [K=2, W=1, 2, 3]: y −5 → +5 mm
         assert rims.sweep_near(sweep).tolist() == [near]
