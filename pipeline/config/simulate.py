@@ -123,7 +123,7 @@ class PoseSamplingConfig(StrictModel):
     sweep_steps: int = Field(24, ge=2, le=500, description="protraction angles sampled over the whisk")
     rim_margin_mm: float = Field(1.0, ge=0.0, le=20.0,
                                  description="whiskers' sweep ≥ this from a mesh's open rims (0: not checked)")
-    max_attempts: int = Field(500, ge=1, le=100_000, description="poses tried before the trial fails")
+    max_attempts: int = Field(3000, ge=1, le=100_000, description="poses tried before the trial fails")
 
 
 class WhiskSamplingConfig(StrictModel):

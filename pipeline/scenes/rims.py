@@ -64,6 +64,7 @@ class OpenRims:
         points = ends[edge, 0] + fraction[:, None] * (ends[edge, 1] - ends[edge, 0])
         self.points_m = np.concatenate([points, vertices[np.unique(edges)]])
         self.tree = cKDTree(self.points_m)
+        self.bounds_m = np.array([self.points_m.min(axis=0), self.points_m.max(axis=0)])
 
     def sweep_near(self, shapes_m: np.ndarray) -> np.ndarray:
         """[W] whether whisker w, moving through ``shapes_m`` [K ≥ 2, W, N+1, 3] (world, in
@@ -75,8 +76,12 @@ class OpenRims:
         link = np.linalg.norm(np.diff(shapes_m, axis=2), axis=3).max()
         step = np.linalg.norm(np.diff(shapes_m, axis=0), axis=3).max()
         reach = self.margin_m + 0.5 * (link + step) + self.spacing_m
-        distance, _ = self.tree.query(shapes_m.reshape(-1, 3), distance_upper_bound=reach)
-        close = np.isfinite(distance).reshape(shapes_m.shape[:3]).any(axis=2)     # [K, W]
+        points = shapes_m.reshape(-1, 3)
+        boxed = np.flatnonzero(((points >= self.bounds_m[0] - reach) & (points <= self.bounds_m[1] + reach)).all(axis=1))
+        distance, _ = self.tree.query(points[boxed], distance_upper_bound=reach)
+        found = np.zeros(len(points), bool)
+        found[boxed[np.isfinite(distance)]] = True
+        close = found.reshape(shapes_m.shape[:3]).any(axis=2)                     # [K, W]
         intervals = close[:-1] | close[1:]                                        # [K-1, W]
         for k, w in zip(*np.nonzero(intervals)):
             if not near[w]:
