@@ -96,6 +96,7 @@ class MujocoWorld(World):
         self.link_bodies = np.array([[named(body, f"w{k}/l{i}") for i in range(self.links)]
                                      for k in members])
         self.link_lengths_mm = np.array([self.whiskers[k].chain.link_lengths_m for k in members]) * U.LENGTH
+        self.flat_link_bodies, self.flat_link_lengths_mm = self.link_bodies.ravel(), self.link_lengths_mm.ravel()
 
         def joints(b):
             return np.arange(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
@@ -344,16 +345,12 @@ class MujocoWorld(World):
     def _touched(self, d: mujoco.MjData) -> tuple[np.ndarray, ...]:
         """The penetrating contacts of ``d``'s last step: their links (flat indices whisker·N +
         link), contact points (midway between the surfaces) and their links' proximal and
-        distal nodes (mm; MuJoCo's contacts and positions are both those at the step's start)."""
+        distal nodes (mm; MuJoCo's contacts and positions are both those at the step's start;
+        :func:`~pipeline.engines.mujoco.contact_kernels.touching_links`)."""
         contact = d.contact
-        pressed = (contact.dist <= 0.0) & (contact.exclude == 0)
-        links = self.link_of_geom[contact.geom[pressed]].max(axis=1)   # the pair's whisker link, or −1
-        mine = links >= 0
-        links = links[mine]
-        bodies = self.link_bodies.ravel()[links]
-        proximal = d.xpos[bodies]
-        distal = proximal + d.xmat[bodies][:, 0::3] * self.link_lengths_mm.ravel()[links, None]
-        return links, contact.pos[pressed][mine], proximal, distal
+        return self.substeps.kernels().touching_links(contact.dist, contact.exclude, contact.geom, contact.pos, d.xpos,
+                                                      d.xmat, self.link_of_geom, self.flat_link_bodies,
+                                                      self.flat_link_lengths_mm)
 
     def _record(self, result: WorldResult, sample: int, contact: np.ndarray, point_of_contact: np.ndarray,
                 time_s: float) -> None:
