@@ -299,15 +299,16 @@ class FreeMotion:
         speed = max((float(np.linalg.norm(o.velocity_m_s)) for o in scene.obstacles), default=0.0)
         for k, (_, head_nodes, pad) in self.motions.items():
             pad = pad + 0.5 * speed * period                            # obstacles move between samples
-            nodes = pose.apply(head_nodes).reshape(-1, 3)              # [T·(N+1), 3]
-            times = np.repeat(times_s, head_nodes.shape[1])
+            path = pose.apply(head_nodes)                              # [T, N+1, 3]
+            nodes = path.reshape(-1, 3)
             centre = nodes.mean(axis=0)                                # first the bounding sphere
             radius = np.linalg.norm(nodes - centre, axis=1).max()
             span = np.array([times_s.min(), times_s.max()])
             if np.all(clearance_m(np.stack([centre, centre]), span, scene) > radius + pad):
                 result[k] = True
-            else:
-                result[k] = bool(np.all(clearance_m(nodes, times, scene, beyond_m=pad) > pad))
+            else:                                 # then the tip's path (it reaches farthest), then every node's
+                result[k] = bool(np.all(clearance_m(path[:, -1], times_s, scene, beyond_m=pad) > pad)) and bool(
+                    np.all(clearance_m(nodes, np.repeat(times_s, head_nodes.shape[1]), scene, beyond_m=pad) > pad))
         return result
 
     def recall(self, k: int, pose) -> tuple[np.ndarray, np.ndarray]:

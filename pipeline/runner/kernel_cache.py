@@ -22,7 +22,8 @@ if TYPE_CHECKING:
     from pipeline.runner.trial import RunSpec
 
 KERNEL_MODULES = {   # per engine, the modules of the kernels every dataset trial calls (numba compiles the ones called)
-    "mujoco": ("pipeline.engines.mujoco.face_kernels", "pipeline.engines.triangle_grid"),
+    "mujoco": ("pipeline.engines.mujoco.face_kernels", "pipeline.engines.mujoco.contact_kernels",
+               "pipeline.engines.triangle_grid"),
     "bullet": ("pipeline.engines.bullet.mass_matrix", "pipeline.engines.bullet.gauss_seidel",
                "pipeline.engines.bullet.contact_kernels", "pipeline.engines.bullet.wrench"),
 }

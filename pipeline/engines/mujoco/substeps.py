@@ -62,6 +62,7 @@ class ContactLossSubsteps:
         self.touching = np.zeros(members, bool)
         self._last: tuple[np.ndarray, ...] = ()
         self._scratch: mujoco.MjData | None = None
+        self._contact_kernels = None
         self._start = (np.empty(model.nq), np.empty(model.nv), np.empty(model.nv))
 
     def reset(self) -> None:
@@ -95,19 +96,21 @@ class ContactLossSubsteps:
 
     def _contacts(self, d: mujoco.MjData) -> tuple[np.ndarray, ...]:
         """The penetrating contacts of ``d``'s step start: their members, link bodies, points
-        (mm, world), unit normals toward the link and gaps (mm)."""
+        (mm, world), points in their link body's frame, unit normals toward the link and gaps (mm)
+        (:func:`~pipeline.engines.mujoco.contact_kernels.pressed_contacts`)."""
         contact = d.contact
-        pressed = (contact.dist <= 0.0) & (contact.exclude == 0)
-        geoms = contact.geom[pressed]
-        link_second = self.member_of_geom[geoms[:, 1]] >= 0          # normals point from geom 0 to geom 1
-        members = self.member_of_geom[geoms].max(axis=1)
-        mine = members >= 0
-        link_geoms = np.where(link_second, geoms[:, 1], geoms[:, 0])[mine]
-        normals = contact.frame[pressed][mine, :3] * np.where(link_second[mine], 1.0, -1.0)[:, None]
-        bodies = self.model.geom_bodyid[link_geoms]
-        points = contact.pos[pressed][mine]
-        local = np.einsum("cji,cj->ci", d.xmat[bodies].reshape(-1, 3, 3), points - d.xpos[bodies])
-        return members[mine], bodies, points, local, normals, contact.dist[pressed][mine]
+        return self.kernels().pressed_contacts(contact.dist, contact.exclude, contact.geom, contact.frame,
+                                                contact.pos, d.xpos, d.xmat, self.member_of_geom,
+                                                self.model.geom_bodyid)
+
+    def kernels(self):
+        """:mod:`~pipeline.engines.mujoco.contact_kernels`, imported at a world's first contact."""
+        if self._contact_kernels is None:
+            # imported here, not at the top: numba ≈0.17 CPU-s, a trial without contacts needs none
+            from pipeline.engines.mujoco import contact_kernels
+
+            self._contact_kernels = contact_kernels
+        return self._contact_kernels
 
     def _sinking(self, d: mujoco.MjData, last: tuple[np.ndarray, ...], lost: np.ndarray) -> np.ndarray:
         """[members] whether some contact of the last step, carried with its link to the end of

@@ -93,9 +93,11 @@ class MujocoWorld(World):
                 hinges.setdefault((position, "xyz".index(j.local_axis)), []).append(
                     (member, m.jnt_qposadr[named(joint, f"w{k}/{j.label}")]))
         self.follicle = [(axis, *map(np.array, zip(*rows))) for (_, axis), rows in sorted(hinges.items())]
+        self.identities = np.tile(np.eye(3), (len(members), 1, 1))     # the follicle's rotations start here
         self.link_bodies = np.array([[named(body, f"w{k}/l{i}") for i in range(self.links)]
                                      for k in members])
         self.link_lengths_mm = np.array([self.whiskers[k].chain.link_lengths_m for k in members]) * U.LENGTH
+        self.flat_link_bodies, self.flat_link_lengths_mm = self.link_bodies.ravel(), self.link_lengths_mm.ravel()
 
         def joints(b):
             return np.arange(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
@@ -344,32 +346,31 @@ class MujocoWorld(World):
     def _touched(self, d: mujoco.MjData) -> tuple[np.ndarray, ...]:
         """The penetrating contacts of ``d``'s last step: their links (flat indices whisker·N +
         link), contact points (midway between the surfaces) and their links' proximal and
-        distal nodes (mm; MuJoCo's contacts and positions are both those at the step's start)."""
+        distal nodes (mm; MuJoCo's contacts and positions are both those at the step's start;
+        :func:`~pipeline.engines.mujoco.contact_kernels.touching_links`)."""
         contact = d.contact
-        pressed = (contact.dist <= 0.0) & (contact.exclude == 0)
-        links = self.link_of_geom[contact.geom[pressed]].max(axis=1)   # the pair's whisker link, or −1
-        mine = links >= 0
-        links = links[mine]
-        bodies = self.link_bodies.ravel()[links]
-        proximal = d.xpos[bodies]
-        distal = proximal + d.xmat[bodies][:, 0::3] * self.link_lengths_mm.ravel()[links, None]
-        return links, contact.pos[pressed][mine], proximal, distal
+        return self.substeps.kernels().touching_links(contact.dist, contact.exclude, contact.geom, contact.pos, d.xpos,
+                                                      d.xmat, self.link_of_geom, self.flat_link_bodies,
+                                                      self.flat_link_lengths_mm)
 
     def _record(self, result: WorldResult, sample: int, contact: np.ndarray, point_of_contact: np.ndarray,
                 time_s: float) -> None:
         """Base wrench (SI, whisker frame), node positions (m), contact flags and points of
         contact of one sample."""
         d = self.data
-        wrench = d.sensordata.reshape(-1, 2, 3).copy()          # [w, (force, torque), 3], site frame
+        wrench = d.sensordata.reshape(-1, 2, 3)                 # [w, (force, torque), 3], site frame
         if self.follicle:
-            rotation = np.tile(np.eye(3), (len(wrench), 1, 1))
+            rotation = self.identities.copy()
             for axis, member, qpos in self.follicle:
                 rotation[member] = rotation[member] @ axis_rotation(axis, d.qpos[qpos])
             wrench = wrench @ rotation.transpose(0, 2, 1)
+        row = result.wrench[sample]
         with np.errstate(over="ignore", invalid="ignore"):           # a jam shows as inf/nan
-            result.wrench[sample] = np.concatenate([wrench[:, 0] / U.FORCE, wrench[:, 1] / U.TORQUE], axis=1)
-        nodes = np.concatenate([d.xpos[self.link_bodies], d.site_xpos[self.tip_sites][:, None]], axis=1)
-        result.nodes[sample] = nodes / U.LENGTH
+            np.divide(wrench[:, 0], U.FORCE, out=row[:, :3])
+            np.divide(wrench[:, 1], U.TORQUE, out=row[:, 3:])
+        nodes = result.nodes[sample]
+        np.divide(d.xpos[self.link_bodies], U.LENGTH, out=nodes[:, :-1])
+        np.divide(d.site_xpos[self.tip_sites], U.LENGTH, out=nodes[:, -1])
         if self.joint_log is not None:                       # hinges: qpos address = dof address
             self.joint_log[sample] = [(d.qpos[q].copy(), d.qvel[q].copy()) for q in self.free_qpos]
         result.contact[sample] = contact
