@@ -59,10 +59,14 @@ def find_contacts(client: BulletClient, obstacles, whiskers, still: bool) -> dic
 
     ``obstacles``: (body id, velocity [3] mm/s, :class:`~pipeline.engines.one_sided.OneSidedMesh` or None, offset [3] mm of
     the mesh frame) of each; ``whiskers``: the :class:`~pipeline.engines.bullet.whisker.BulletWhisker`
-    to look at. ``getClosestPoints`` (within :data:`CLEARANCE_MM`) gives the points. With ``still``
+    to look at. ``getClosestPoints`` gives the points. With ``still``
     (obstacles and bases at rest) a whisker–obstacle pair is not looked at again until the
     whisker's travel bound (:attr:`~pipeline.engines.bullet.whisker.BulletWhisker.travel_mm`) could
-    have closed the gap found last down to the reach: the same contacts, fewer queries.
+    have closed the gap found last down to the reach: the same contacts, fewer queries. The query
+    reaches :data:`CLEARANCE_MM` (a gap found up to it is leeway) unless the pair had a point
+    within the reach at its last query, or nothing is still (the pair is looked at again on the next
+    step anyway): then only the reach, and fewer points come back (Bullet's points within the reach
+    are the same whatever the distance asked: each triangle's, or shape's, is computed on its own).
     On a mesh they only name the links near it: the contacts are those of :func:`~pipeline.engines.one_sided.one_sided` at
     the capsule axis points Bullet found and at both nodes of each such link (the deepest
     point of a link that crosses a face is an end, where Bullet's witness point is not).
@@ -77,19 +81,17 @@ def find_contacts(client: BulletClient, obstacles, whiskers, still: bool) -> dic
             if still and whisker.travel_mm < whisker.next_query_mm.get(obstacle, 0.0):
                 continue
             whisker.sync()
-            body = whisker.body
-            points = [point for point in client.getClosestPoints(obstacle, body, CLEARANCE_MM)
-                      if point[4] in whisker.local_link]
-            gap = min((point[8] for point in points), default=CLEARANCE_MM)
-            whisker.next_query_mm[obstacle] = whisker.travel_mm + gap - CONTACT_REACH_MM
-            points = [point for point in points if point[8] <= CONTACT_REACH_MM]
-            if not points:
+            distance = CLEARANCE_MM if still and obstacle not in whisker.within_reach else CONTACT_REACH_MM
+            link_of, gaps, where, normals = _as_arrays(client.getClosestPoints(obstacle, whisker.body, distance),
+                                                       whisker.link_index)
+            whisker.next_query_mm[obstacle] = whisker.travel_mm + (gaps.min() if len(gaps) else distance) - CONTACT_REACH_MM
+            near = gaps <= CONTACT_REACH_MM
+            if not near.any():
+                whisker.within_reach.discard(obstacle)
                 continue
-            link_of = np.array([whisker.local_link[point[4]] for point in points])
-            where = np.array([point[6] for point in points])
-            normals = -np.array([point[7] for point in points])   # on B (the whisker), toward A (the obstacle)
-            gaps = np.array([point[8] for point in points])
-            kept = np.ones(len(points), bool)
+            whisker.within_reach.add(obstacle)
+            link_of, gaps, where, normals = link_of[near], gaps[near], where[near], normals[near]
+            kept = np.ones(len(gaps), bool)
             if mesh is not None:
                 touched = np.unique(link_of)
                 axis = np.concatenate([where + whisker.capsule_radii[link_of, None] * normals,
@@ -97,8 +99,22 @@ def find_contacts(client: BulletClient, obstacles, whiskers, still: bool) -> dic
                 link_of = np.concatenate([link_of, np.repeat(touched, 2)])
                 kept, where, normals, gaps = one_sided(axis, whisker.capsule_radii[link_of], mesh, offset,
                                                        CONTACT_REACH_MM)
-            found.setdefault(body, []).extend(_distinct(kept, link_of, where, normals, gaps, velocity))
+            found.setdefault(whisker.body, []).extend(_distinct(kept, link_of, where, normals, gaps, velocity))
     return {body: points for body, points in found.items() if points}
+
+
+def _as_arrays(points, link_index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``getClosestPoints``' points (obstacle A, whisker B) as arrays, those on whisker links only
+    (``link_index`` [Bullet links]: a Bullet link's whisker link, −1 for none): whisker link [P],
+    gap [P] (mm), point on the whisker [P, 3] and normal [P, 3] toward the whisker (from A)."""
+    if not points:
+        return np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3))
+    table = np.array([(point[4], point[8], *point[6], *point[7]) for point in points])
+    link_of = link_index[table[:, 0].astype(np.int64)]
+    on_whisker = link_of >= 0
+    table = table[on_whisker]
+    return (link_of[on_whisker], table[:, 1], np.ascontiguousarray(table[:, 2:5]),
+            -np.ascontiguousarray(table[:, 5:8]))
 
 
 def _distinct(kept: np.ndarray, link_of: np.ndarray, where: np.ndarray, normals: np.ndarray, gaps: np.ndarray,

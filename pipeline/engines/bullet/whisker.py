@@ -128,7 +128,8 @@ class BulletWhisker:
         self.link1_angle = chain.link_angles_rad[0]
         self.link_lengths = chain.link_lengths_m * U.LENGTH
         self.tip_offset = float(self.link_lengths[-1])
-        self.local_link = {link: i for i, link in enumerate(self.whisker_links)}
+        self.link_index = np.full(len(links.inertia), -1, np.int64)     # Bullet link → whisker link (−1: none)
+        self.link_index[self.whisker_links] = np.arange(chain.links)
         self.capsule_radii = 0.5 * (chain.node_radii_m[:-1] + chain.node_radii_m[1:]) * U.LENGTH
         # dofs moving whisker link i: those of its joint and before (a serial chain)
         self.ancestor_dofs = np.searchsorted(self.dofs, self.whisker_links, side="right")
@@ -160,7 +161,7 @@ class BulletWhisker:
         beyond_node_mm = np.cumsum(chain.link_lengths_m[::-1])[::-1] * U.LENGTH + self.capsule_radii.max()
         free_nodes = [joint.node for node in range(chain.links) for joint in layout.at_node(node)]
         self.joint_reach_mm = np.concatenate([np.full(3, self.reach_mm), beyond_node_mm[free_nodes]])
-        self.travel_mm, self.next_query_mm = 0.0, {}
+        self.travel_mm, self.next_query_mm, self.within_reach = 0.0, {}, set()
         if built:
             self.build()
 
@@ -191,7 +192,7 @@ class BulletWhisker:
         v_driven = self.rates * start_rate(drive, h)
         self._lhs_inverse = None                            # the next step computes M afresh
         self._last_contacts = None
-        self.travel_mm, self.next_query_mm = 0.0, {}
+        self.travel_mm, self.next_query_mm, self.within_reach = 0.0, {}, set()
         self._set_state(np.concatenate([q_driven, free_angles]), np.concatenate([v_driven, free_rates]))
 
     def _set_state(self, q: np.ndarray, v: np.ndarray) -> None:
