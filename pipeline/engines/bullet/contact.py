@@ -28,7 +28,7 @@ Internal units mm–mg–s.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -44,18 +44,29 @@ TOLERANCE = 1e-6             # Gauss–Seidel stops when no force changes by mor
 
 
 @dataclass(frozen=True)
-class ContactPoint:
-    """One contact of a whisker link with an obstacle (internal units, world frame)."""
+class Contacts:
+    """A whisker's contact points with the obstacles, P of them (internal units, world frame)."""
 
-    link: int                # 0-based whisker link
-    point_mm: np.ndarray     # [3] on the whisker's surface
-    normal: np.ndarray       # [3] unit, from the obstacle toward the whisker
-    gap_mm: float            # distance to the obstacle, < 0 inside
-    surface_velocity: np.ndarray   # [3] mm/s, the obstacle's (friction acts on the relative sliding)
+    links: np.ndarray            # [P] 0-based whisker link
+    points_mm: np.ndarray        # [P, 3] on the whisker's surface
+    normals: np.ndarray          # [P, 3] unit, from the obstacle toward the whisker
+    gaps_mm: np.ndarray          # [P] distance to the obstacle, < 0 inside
+    surface_velocity: np.ndarray   # [P, 3] mm/s, the obstacle's (friction acts on the relative sliding)
+
+    def __len__(self) -> int:
+        return len(self.links)
+
+    @classmethod
+    def joined(cls, parts: list["Contacts"]) -> "Contacts":
+        """The points of ``parts`` in turn."""
+        if len(parts) == 1:
+            return parts[0]
+        return cls(*(np.concatenate([getattr(part, column.name) for part in parts]) for column in fields(cls)))
 
 
-def find_contacts(client: BulletClient, obstacles, whiskers, still: bool) -> dict[int, list[ContactPoint]]:
-    """Contact points within :data:`CONTACT_REACH_MM` of the obstacles, per whisker body id.
+def find_contacts(client: BulletClient, obstacles, whiskers, still: bool) -> dict[int, Contacts]:
+    """:class:`Contacts` within :data:`CONTACT_REACH_MM` of the obstacles, per whisker body id
+    (a whisker with none is left out).
 
     ``obstacles``: (body id, velocity [3] mm/s, :class:`~pipeline.engines.one_sided.OneSidedMesh` or None, offset [3] mm of
     the mesh frame) of each; ``whiskers``: the :class:`~pipeline.engines.bullet.whisker.BulletWhisker`
@@ -75,7 +86,7 @@ def find_contacts(client: BulletClient, obstacles, whiskers, still: bool) -> dic
     whose normal opposes a deeper one's of the same link and obstacle (a link between two
     faces of a sheet thinner than the reach: pushed from both sides, the step's problem has no
     bounded solution; the deeper side pushes it out)."""
-    found: dict[int, list[ContactPoint]] = {}
+    found: dict[int, list[Contacts]] = {}
     for obstacle, velocity, mesh, offset in obstacles:
         for whisker in whiskers:
             if still and whisker.travel_mm < whisker.next_query_mm.get(obstacle, 0.0):
@@ -99,8 +110,10 @@ def find_contacts(client: BulletClient, obstacles, whiskers, still: bool) -> dic
                 link_of = np.concatenate([link_of, np.repeat(touched, 2)])
                 kept, where, normals, gaps = one_sided(axis, whisker.capsule_radii[link_of], mesh, offset,
                                                        CONTACT_REACH_MM)
-            found.setdefault(whisker.body, []).extend(_distinct(kept, link_of, where, normals, gaps, velocity))
-    return {body: points for body, points in found.items() if points}
+            chosen = _distinct(kept, link_of, where, normals, gaps, velocity)
+            if len(chosen):
+                found.setdefault(whisker.body, []).append(chosen)
+    return {body: Contacts.joined(parts) for body, parts in found.items()}
 
 
 def _as_arrays(points, link_index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -118,14 +131,16 @@ def _as_arrays(points, link_index: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
 
 
 def _distinct(kept: np.ndarray, link_of: np.ndarray, where: np.ndarray, normals: np.ndarray, gaps: np.ndarray,
-              velocity: np.ndarray) -> list[ContactPoint]:
+              velocity: np.ndarray) -> Contacts:
     """The ``kept`` points, deepest first, less those within :data:`MERGE_MM` of a deeper one of
     the same link or with a normal opposing its (:func:`find_contacts`,
     :func:`~pipeline.engines.one_sided_kernels.distinct_points`)."""
+    where, normals = np.asarray(where, float), np.asarray(normals, float)
     order = np.argsort(gaps, kind="stable")
     order = order[np.asarray(kept, bool)[order]]
-    chosen = distinct_points(order, link_of, np.asarray(where, float), np.asarray(normals, float), MERGE_MM)
-    return [ContactPoint(int(link_of[i]), where[i], normals[i], float(gaps[i]), velocity) for i in chosen]
+    chosen = distinct_points(order, link_of, where, normals, MERGE_MM)
+    return Contacts(link_of[chosen], where[chosen], normals[chosen], gaps[chosen],
+                    np.repeat(np.asarray(velocity, float)[None], len(chosen), axis=0))
 
 
 def solve_forces(G: np.ndarray, u0: np.ndarray, gaps_mm: np.ndarray, h: float, mu: float,

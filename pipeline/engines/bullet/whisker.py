@@ -22,7 +22,7 @@ import pybullet as p
 
 from pipeline.engines import units as U
 from pipeline.engines.bullet.client import BulletClient
-from pipeline.engines.bullet.contact import CONTACT_REACH_MM, solve_forces
+from pipeline.engines.bullet.contact import CONTACT_REACH_MM, Contacts, solve_forces
 from pipeline.engines.bullet.contact_kernels import contact_rows, segment_nodes, warm_start, world_forces
 from pipeline.engines.bullet.mass_matrix import chain_kinematics, chain_mass_matrix, implicit_operator_inverse
 from pipeline.engines.bullet.multibody import CAPSULE_ALONG_X, IDENTITY_QUAT, LinkList
@@ -225,7 +225,7 @@ class BulletWhisker:
     def driven_angles(self) -> np.ndarray:
         return self.q[:3].copy()
 
-    def step(self, q_target: np.ndarray, h: float, loads=(), contacts=(),
+    def step(self, q_target: np.ndarray, h: float, loads=(), contacts: Contacts | None = None,
              friction: float = 0.0, iterations: int = 50, record: bool = False) -> np.ndarray:
         """One linearly implicit step of size h (s) toward driven angles q_target, integrated here
         (semi-implicit Euler v ← v + h·a, q ← q + h·v, as Bullet's own step with the torques
@@ -234,7 +234,7 @@ class BulletWhisker:
         accelerations are kept for :meth:`base_wrench` (the step that starts at a sample's time).
 
         ``loads`` (:mod:`pipeline.model.effects.loads`) enter the implicit solve as the generalised force
-        Jᵀ·F. So do the forces at ``contacts`` (:class:`~pipeline.engines.bullet.contact.ContactPoint`),
+        Jᵀ·F. So do the forces at ``contacts`` (:class:`~pipeline.engines.bullet.contact.Contacts`),
         solved within the same implicit operator with Coulomb ``friction`` μ
         (:mod:`pipeline.engines.bullet.contact`, ``iterations`` Gauss–Seidel sweeps at most, from
         the forces of the step before at the same points: :func:`~pipeline.engines.bullet.contact_kernels.warm_start`). The free–free block
@@ -267,7 +267,7 @@ class BulletWhisker:
         self._set_state(q + h * v_after, v_after)
         return normal_forces
 
-    def _contact_forces(self, contacts, q: list[float], v: np.ndarray, accel: np.ndarray, h: float,
+    def _contact_forces(self, contacts: Contacts, q: list[float], v: np.ndarray, accel: np.ndarray, h: float,
                         friction: float, iterations: int, external: list) -> np.ndarray:
         """Solve the contact forces of the step (:mod:`pipeline.engines.bullet.contact`), add
         their free-joint response W·J_Fᵀ·f to ``accel`` (in place) and append them to
@@ -278,25 +278,24 @@ class BulletWhisker:
         beyond l (not l's ancestors in the serial chain) zeroed. The solve starts from the forces of
         the step before at the same points (:func:`~pipeline.engines.bullet.contact_kernels.warm_start`)."""
         c = self.client
-        links = np.array([contact.link for contact in contacts])
-        points = np.array([contact.point_mm for contact in contacts])
+        links, points = contacts.links, contacts.points_mm
         farthest = self.whisker_links[links.max()]
         self.sync()
         origin = np.asarray(c.getLinkState(self.body, farthest, computeForwardKinematics=True)[4])
         linear, angular = self.jacobian(farthest, [0.0, 0.0, 0.0], q)
-        frames, arms = contact_rows(np.array([contact.normal for contact in contacts]), points, origin, friction > 0)
+        frames, arms = contact_rows(contacts.normals, points, origin, friction > 0)
         per_point = len(frames) // len(contacts)                     # rows n (, t1, t2) per point
         jacobian = frames @ linear + arms @ angular                   # [P or 3P, n_dof]
         jacobian[self._beyond_link[np.repeat(links, per_point)]] = 0.0
         response = self._lhs_inverse @ jacobian[:, 3:].T             # W·J_Fᵀ
         velocity = jacobian @ (v + h * accel)                         # after the step, without contact
         if friction > 0:                         # friction acts on sliding relative to the surface
-            surface = np.repeat([contact.surface_velocity for contact in contacts], 3, axis=0)
+            surface = np.repeat(contacts.surface_velocity, 3, axis=0)
             velocity -= np.einsum("ij,ij->i", frames, surface) * (np.arange(len(frames)) % 3 > 0)
         start = None if self._last_contacts is None else warm_start(links, points, frames, *self._last_contacts,
                                                                      CONTACT_REACH_MM)
         forces = solve_forces(h * jacobian[:, 3:] @ response, velocity,
-                              np.array([contact.gap_mm for contact in contacts]), h, friction, iterations, start)
+                              contacts.gaps_mm, h, friction, iterations, start)
         accel[3:] += response @ forces
         world = world_forces(frames, forces, len(contacts))
         self._last_contacts = (links, points, world)
