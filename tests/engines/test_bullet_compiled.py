@@ -4,7 +4,8 @@ plain Python on contact problems recorded from peg sweeps and a dataset trial
 (bullet_contact_problems.npz: G, u₀, gaps, (h, μ, sweeps), warm start per problem); the spring
 joints' mass matrix (pipeline.engines.bullet.mass_matrix) against Bullet's calculateMassMatrix; the
 base wrench (pipeline.engines.bullet.wrench) against the same Newton–Euler in numpy; the contact
-step's per-point bookkeeping (pipeline.engines.bullet.contact_kernels) against the numpy it
+step's per-point bookkeeping (pipeline.engines.bullet.contact_kernels) and the step's arithmetic
+around the inverse dynamics (pipeline.engines.bullet.step_kernels) against the numpy they
 replaced, to round-off."""
 
 import math
@@ -19,6 +20,7 @@ from pipeline.engines.bullet.client import BulletClient
 from pipeline.engines.bullet.contact import CONTACT_REACH_MM, PENETRATION_ERP, TOLERANCE, solve_forces
 from pipeline.engines.bullet.contact_kernels import contact_rows, segment_nodes, warm_start, world_forces
 from pipeline.engines.bullet.mass_matrix import chain_mass_matrix, implicit_operator_inverse
+from pipeline.engines.bullet.step_kernels import advance, driven_accelerations, largest_change, step_accelerations
 from pipeline.engines.bullet.whisker import BulletWhisker
 from pipeline.model.array import build_array
 from pipeline.model.morphology import model_rat
@@ -251,6 +253,32 @@ def test_the_compiled_link_nodes_are_numpys():
     along = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)], axis=1)
     _same(segment_nodes(origins, quaternions, lengths),
                                   np.stack([origins, origins + lengths[:, None] * along], axis=1))
+
+
+def test_the_compiled_step_arithmetic_is_numpys(whiskers):
+    """A step's accelerations and advance at random states of real whiskers (their implicit
+    operator, stiffness and damping) against the numpy of the step."""
+    rng = np.random.default_rng(13)
+    h = 1e-4
+    for whisker in whiskers:
+        free = whisker.n_dof - 3
+        diagonal = h * whisker.damping[3:] + h * h * whisker.stiffness[3:]
+        for _ in range(20):
+            q, v = 0.05 * rng.normal(size=whisker.n_dof), 20 * rng.normal(size=whisker.n_dof)
+            lhs_inverse = implicit_operator_inverse(q[3:], diagonal, *whisker._mass_chain)
+            target, driven_only = q[:3] + 1e-3 * rng.normal(size=3), rng.normal(size=whisker.n_dof)
+            then = q[3:] + 1e-4 * rng.normal(size=free)
+            assert largest_change(q[3:], then) == np.abs(q[3:] - then).max()
+            accel_driven = driven_accelerations(target, q, v, h)
+            _same(accel_driven, ((target - q[:3]) / h - v[:3]) / h)
+            accel = step_accelerations(accel_driven, lhs_inverse, -whisker.stiffness[3:], whisker.damping[3:], q, v,
+                                       driven_only)
+            _same(accel, np.concatenate([accel_driven, lhs_inverse @ (
+                -whisker.stiffness[3:] * q[3:] - whisker.damping[3:] * v[3:] - driven_only[3:])]))
+            v_after = v + h * accel
+            for got, expected in zip(advance(q, v, accel, h, whisker.joint_reach_mm),
+                                     (q + h * v_after, v_after, h * float(whisker.joint_reach_mm @ np.abs(v_after)))):
+                _same(np.asarray(got), np.asarray(expected))
 
 
 def test_the_chains_own_link_frames_are_bullets(whiskers):

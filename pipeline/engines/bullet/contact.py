@@ -38,7 +38,7 @@ from pipeline.engines.one_sided import MERGE_MM, one_sided
 from pipeline.engines.one_sided_kernels import distinct_points
 
 CONTACT_REACH_MM = 0.25      # speculative contact distance (a tip moves ≲ 0.15 mm per step)
-CLEARANCE_MM = 1.0           # distance queried: a gap found up to this is a whisker's leeway (find_contacts)
+CLEARANCE_MM = 2.0           # distance queried: a gap found up to this is a whisker's leeway (find_contacts)
 PENETRATION_ERP = 0.2        # fraction of a penetration removed per step
 TOLERANCE = 1e-6             # Gauss–Seidel stops when no force changes by more than this × the largest
 

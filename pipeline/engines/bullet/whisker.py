@@ -26,6 +26,7 @@ from pipeline.engines.bullet.contact import CONTACT_REACH_MM, Contacts, solve_fo
 from pipeline.engines.bullet.contact_kernels import contact_rows, segment_nodes, warm_start, world_forces
 from pipeline.engines.bullet.mass_matrix import chain_kinematics, chain_mass_matrix, implicit_operator_inverse
 from pipeline.engines.bullet.multibody import CAPSULE_ALONG_X, IDENTITY_QUAT, LinkList
+from pipeline.engines.bullet.step_kernels import advance, driven_accelerations, largest_change, step_accelerations
 from pipeline.engines.bullet.wrench import follicle_wrench
 from pipeline.engines.common import start_rate
 from pipeline.engines.mass_damping import split_mass_damping
@@ -244,17 +245,16 @@ class BulletWhisker:
         driven joints land on q_target exactly."""
         q, v = self.q, self.v
         q_list, v_list = q.tolist(), v.tolist()
-        q_free = q[3:]
-        if self._lhs_inverse is None or np.abs(q_free - self._factorised_at).max() > MASS_REFRESH_RAD:
+        if self._lhs_inverse is None or largest_change(q[3:], self._factorised_at) > MASS_REFRESH_RAD:
             self._factorise(q_list, h)
         external = []                                   # (points, forces, torques) on the links
-        accel_driven = ((q_target - q[:3]) / h - v[:3]) / h
+        accel_driven = driven_accelerations(np.asarray(q_target, float), q, v, h)
         driven_only = np.array(self.client.calculateInverseDynamics(
             self.body, q_list, v_list, accel_driven.tolist() + self._free_zeros))   # M_·D·a_D + b
         if loads:
             driven_only -= self._load_forces(loads, q_list, external, record)            # ... − Jᵀ·F
-        accel = np.concatenate([accel_driven, self._lhs_inverse @ (
-            self._minus_stiffness * q_free - self._free_damping * v[3:] - driven_only[3:])])
+        accel = step_accelerations(accel_driven, self._lhs_inverse, self._minus_stiffness, self._free_damping,
+                                   q, v, driven_only)
         normal_forces = np.zeros(0)
         if contacts:
             normal_forces = self._contact_forces(contacts, q_list, v, accel, h, friction, iterations, external)
@@ -262,9 +262,9 @@ class BulletWhisker:
             self._last_contacts = None                  # a contact that comes back starts afresh
         if record:
             self._record_wrench(q_list, v, accel, external)
-        v_after = v + h * accel
-        self.travel_mm += h * float(self.joint_reach_mm @ np.abs(v_after))
-        self._set_state(q + h * v_after, v_after)
+        q_after, v_after, travel = advance(q, v, accel, h, self.joint_reach_mm)
+        self.travel_mm += travel
+        self._set_state(q_after, v_after)
         return normal_forces
 
     def _contact_forces(self, contacts: Contacts, q: list[float], v: np.ndarray, accel: np.ndarray, h: float,
