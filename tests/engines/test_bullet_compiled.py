@@ -18,7 +18,7 @@ from pipeline.config.physics import MaterialConfig
 from pipeline.engines import units as U
 from pipeline.engines.bullet.client import BulletClient
 from pipeline.engines.bullet.contact import CONTACT_REACH_MM, PENETRATION_ERP, TOLERANCE, solve_forces
-from pipeline.engines.bullet.contact_kernels import contact_rows, segment_nodes, warm_start, world_forces
+from pipeline.engines.bullet.contact_kernels import contact_rows, contact_system, segment_nodes, warm_start, world_forces
 from pipeline.engines.bullet.mass_matrix import chain_mass_matrix, implicit_operator_inverse
 from pipeline.engines.bullet.step_kernels import advance, driven_accelerations, largest_change, step_accelerations
 from pipeline.engines.bullet.whisker import BulletWhisker
@@ -242,6 +242,31 @@ def test_the_compiled_contact_bookkeeping_is_numpys():
         forces = rng.normal(size=len(frames))
         _same(world_forces(frames, forces, count),
                                       np.einsum("ij,i->ij", expected, forces).reshape(count, per_point, 3).sum(axis=1))
+
+
+def test_the_compiled_contact_system_is_numpys(whiskers):
+    """The step's contact problem (W·J_Fᵀ, u₀, G) from random rows and Jacobians, points on random
+    links of real whiskers (their implicit operators and links beyond), against the numpy of the step."""
+    rng = np.random.default_rng(17)
+    h = 1e-4
+    for whisker in whiskers:
+        diagonal = h * whisker.damping[3:] + h * h * whisker.stiffness[3:]
+        for case in range(20):
+            count, tangents = int(rng.integers(1, 8)), bool(case % 2)
+            normals = rng.normal(size=(count, 3))
+            normals /= np.linalg.norm(normals, axis=1)[:, None]
+            frames, arms = contact_rows(normals, 10 * rng.normal(size=(count, 3)), np.zeros(3), tangents)
+            linear, angular = rng.normal(size=(3, whisker.n_dof)), rng.normal(size=(3, whisker.n_dof))
+            links = rng.integers(0, len(whisker.whisker_links), count)
+            lhs_inverse = implicit_operator_inverse(0.05 * rng.normal(size=whisker.n_dof - 3), diagonal, *whisker._mass_chain)
+            v, accel = rng.normal(size=whisker.n_dof), 1e3 * rng.normal(size=whisker.n_dof)
+            jacobian = frames @ linear + arms @ angular
+            jacobian[whisker._beyond_link[np.repeat(links, len(frames) // count)]] = 0.0
+            response = lhs_inverse @ jacobian[:, 3:].T
+            expected = (response, jacobian @ (v + h * accel), h * jacobian[:, 3:] @ response)
+            got = contact_system(frames, arms, linear, angular, whisker._beyond_link, links, lhs_inverse, v, accel, h)
+            for actual, wanted in zip(got, expected):
+                _same(actual, wanted)
 
 
 def test_the_compiled_link_nodes_are_numpys():

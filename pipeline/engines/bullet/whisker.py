@@ -23,7 +23,7 @@ import pybullet as p
 from pipeline.engines import units as U
 from pipeline.engines.bullet.client import BulletClient
 from pipeline.engines.bullet.contact import CONTACT_REACH_MM, Contacts, solve_forces
-from pipeline.engines.bullet.contact_kernels import contact_rows, segment_nodes, warm_start, world_forces
+from pipeline.engines.bullet.contact_kernels import contact_rows, contact_system, segment_nodes, warm_start, world_forces
 from pipeline.engines.bullet.mass_matrix import chain_kinematics, chain_mass_matrix, implicit_operator_inverse
 from pipeline.engines.bullet.multibody import CAPSULE_ALONG_X, IDENTITY_QUAT, LinkList
 from pipeline.engines.bullet.step_kernels import advance, driven_accelerations, largest_change, step_accelerations
@@ -285,17 +285,14 @@ class BulletWhisker:
         linear, angular = self.jacobian(farthest, [0.0, 0.0, 0.0], q)
         frames, arms = contact_rows(contacts.normals, points, origin, friction > 0)
         per_point = len(frames) // len(contacts)                     # rows n (, t1, t2) per point
-        jacobian = frames @ linear + arms @ angular                   # [P or 3P, n_dof]
-        jacobian[self._beyond_link[np.repeat(links, per_point)]] = 0.0
-        response = self._lhs_inverse @ jacobian[:, 3:].T             # W·J_Fᵀ
-        velocity = jacobian @ (v + h * accel)                         # after the step, without contact
+        response, velocity, G = contact_system(frames, arms, linear, angular, self._beyond_link, links,
+                                               self._lhs_inverse, v, accel, h)      # W·J_Fᵀ, u₀, G
         if friction > 0:                         # friction acts on sliding relative to the surface
             surface = np.repeat(contacts.surface_velocity, 3, axis=0)
             velocity -= np.einsum("ij,ij->i", frames, surface) * (np.arange(len(frames)) % 3 > 0)
         start = None if self._last_contacts is None else warm_start(links, points, frames, *self._last_contacts,
                                                                      CONTACT_REACH_MM)
-        forces = solve_forces(h * jacobian[:, 3:] @ response, velocity,
-                              contacts.gaps_mm, h, friction, iterations, start)
+        forces = solve_forces(G, velocity, contacts.gaps_mm, h, friction, iterations, start)
         accel[3:] += response @ forces
         world = world_forces(frames, forces, len(contacts))
         self._last_contacts = (links, points, world)
