@@ -277,12 +277,9 @@ class BulletWhisker:
         link l has the row d·J_lin + ((p − o) × d)·J_ang along d, with the columns of the joints
         beyond l (not l's ancestors in the serial chain) zeroed. The solve starts from the forces of
         the step before at the same points (:func:`~pipeline.engines.bullet.contact_kernels.warm_start`)."""
-        c = self.client
         links, points = contacts.links, contacts.points_mm
-        farthest = self.whisker_links[links.max()]
-        self.sync()
-        origin = np.asarray(c.getLinkState(self.body, farthest, computeForwardKinematics=True)[4])
-        linear, angular = self.jacobian(farthest, [0.0, 0.0, 0.0], q)
+        origin = self.link_nodes(links.max())[0]                      # the farthest link's frame origin
+        linear, angular = self.jacobian(self.whisker_links[links.max()], [0.0, 0.0, 0.0], q)
         frames, arms = contact_rows(contacts.normals, points, origin, friction > 0)
         per_point = len(frames) // len(contacts)                     # rows n (, t1, t2) per point
         response, velocity, G = contact_system(frames, arms, linear, angular, self._beyond_link, links,
