@@ -157,7 +157,8 @@ class BulletWhisker:
         # by ≤ r·|Δq|; the points it moves lie beyond its node, so r ≤ the arc length from that
         # node to the tip plus the largest radius: the whole whisker's for the driven and follicle
         # joints at the base); next_query_mm: per obstacle body, the travel at which its gap may
-        # have closed to the reach (:func:`~pipeline.engines.bullet.contact.find_contacts`)
+        # have closed to the reach; within_reach: the obstacle bodies with a point within the reach
+        # at their last query (:func:`~pipeline.engines.bullet.contact.find_contacts`)
         self.reach_mm = float(chain.link_lengths_m.sum() * U.LENGTH + self.capsule_radii.max())
         beyond_node_mm = np.cumsum(chain.link_lengths_m[::-1])[::-1] * U.LENGTH + self.capsule_radii.max()
         free_nodes = [joint.node for node in range(chain.links) for joint in layout.at_node(node)]
