@@ -25,7 +25,8 @@ KERNEL_MODULES = {   # per engine, the modules of the kernels every dataset tria
     "mujoco": ("pipeline.engines.mujoco.face_kernels", "pipeline.engines.mujoco.contact_kernels",
                "pipeline.engines.triangle_grid"),
     "bullet": ("pipeline.engines.bullet.mass_matrix", "pipeline.engines.bullet.gauss_seidel",
-               "pipeline.engines.bullet.contact_kernels", "pipeline.engines.bullet.wrench"),
+               "pipeline.engines.bullet.contact_kernels", "pipeline.engines.bullet.wrench",
+               "pipeline.engines.bullet.step_kernels"),
 }
 WARM_FROM_TRIALS = 50    # shorter runs: an extra trial in a child costs more than the memory is worth
 WARM_TIMEOUT_S = 300.0   # a warm-up child still running then is stopped (a first trial compiles in ≈ 20 CPU-s)

@@ -4,7 +4,8 @@ plain Python on contact problems recorded from peg sweeps and a dataset trial
 (bullet_contact_problems.npz: G, u₀, gaps, (h, μ, sweeps), warm start per problem); the spring
 joints' mass matrix (pipeline.engines.bullet.mass_matrix) against Bullet's calculateMassMatrix; the
 base wrench (pipeline.engines.bullet.wrench) against the same Newton–Euler in numpy; the contact
-step's per-point bookkeeping (pipeline.engines.bullet.contact_kernels) against the numpy it
+step's per-point bookkeeping (pipeline.engines.bullet.contact_kernels) and the step's arithmetic
+around the inverse dynamics (pipeline.engines.bullet.step_kernels) against the numpy they
 replaced, to round-off."""
 
 import math
@@ -17,8 +18,9 @@ from pipeline.config.physics import MaterialConfig
 from pipeline.engines import units as U
 from pipeline.engines.bullet.client import BulletClient
 from pipeline.engines.bullet.contact import CONTACT_REACH_MM, PENETRATION_ERP, TOLERANCE, solve_forces
-from pipeline.engines.bullet.contact_kernels import contact_rows, segment_nodes, warm_start, world_forces
+from pipeline.engines.bullet.contact_kernels import contact_rows, contact_system, segment_nodes, warm_start, world_forces
 from pipeline.engines.bullet.mass_matrix import chain_mass_matrix, implicit_operator_inverse
+from pipeline.engines.bullet.step_kernels import advance, driven_accelerations, largest_change, step_accelerations
 from pipeline.engines.bullet.whisker import BulletWhisker
 from pipeline.model.array import build_array
 from pipeline.model.morphology import model_rat
@@ -242,6 +244,31 @@ def test_the_compiled_contact_bookkeeping_is_numpys():
                                       np.einsum("ij,i->ij", expected, forces).reshape(count, per_point, 3).sum(axis=1))
 
 
+def test_the_compiled_contact_system_is_numpys(whiskers):
+    """The step's contact problem (W·J_Fᵀ, u₀, G) from random rows and Jacobians, points on random
+    links of real whiskers (their implicit operators and links beyond), against the numpy of the step."""
+    rng = np.random.default_rng(17)
+    h = 1e-4
+    for whisker in whiskers:
+        diagonal = h * whisker.damping[3:] + h * h * whisker.stiffness[3:]
+        for case in range(20):
+            count, tangents = int(rng.integers(1, 8)), bool(case % 2)
+            normals = rng.normal(size=(count, 3))
+            normals /= np.linalg.norm(normals, axis=1)[:, None]
+            frames, arms = contact_rows(normals, 10 * rng.normal(size=(count, 3)), np.zeros(3), tangents)
+            linear, angular = rng.normal(size=(3, whisker.n_dof)), rng.normal(size=(3, whisker.n_dof))
+            links = rng.integers(0, len(whisker.whisker_links), count)
+            lhs_inverse = implicit_operator_inverse(0.05 * rng.normal(size=whisker.n_dof - 3), diagonal, *whisker._mass_chain)
+            v, accel = rng.normal(size=whisker.n_dof), 1e3 * rng.normal(size=whisker.n_dof)
+            jacobian = frames @ linear + arms @ angular
+            jacobian[whisker._beyond_link[np.repeat(links, len(frames) // count)]] = 0.0
+            response = lhs_inverse @ jacobian[:, 3:].T
+            expected = (response, jacobian @ (v + h * accel), h * jacobian[:, 3:] @ response)
+            got = contact_system(frames, arms, linear, angular, whisker._beyond_link, links, lhs_inverse, v, accel, h)
+            for actual, wanted in zip(got, expected):
+                _same(actual, wanted)
+
+
 def test_the_compiled_link_nodes_are_numpys():
     rng = np.random.default_rng(11)
     quaternions = rng.normal(size=(200, 4))
@@ -251,6 +278,32 @@ def test_the_compiled_link_nodes_are_numpys():
     along = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)], axis=1)
     _same(segment_nodes(origins, quaternions, lengths),
                                   np.stack([origins, origins + lengths[:, None] * along], axis=1))
+
+
+def test_the_compiled_step_arithmetic_is_numpys(whiskers):
+    """A step's accelerations and advance at random states of real whiskers (their implicit
+    operator, stiffness and damping) against the numpy of the step."""
+    rng = np.random.default_rng(13)
+    h = 1e-4
+    for whisker in whiskers:
+        free = whisker.n_dof - 3
+        diagonal = h * whisker.damping[3:] + h * h * whisker.stiffness[3:]
+        for _ in range(20):
+            q, v = 0.05 * rng.normal(size=whisker.n_dof), 20 * rng.normal(size=whisker.n_dof)
+            lhs_inverse = implicit_operator_inverse(q[3:], diagonal, *whisker._mass_chain)
+            target, driven_only = q[:3] + 1e-3 * rng.normal(size=3), rng.normal(size=whisker.n_dof)
+            then = q[3:] + 1e-4 * rng.normal(size=free)
+            assert largest_change(q[3:], then) == np.abs(q[3:] - then).max()
+            accel_driven = driven_accelerations(target, q, v, h)
+            _same(accel_driven, ((target - q[:3]) / h - v[:3]) / h)
+            accel = step_accelerations(accel_driven, lhs_inverse, -whisker.stiffness[3:], whisker.damping[3:], q, v,
+                                       driven_only)
+            _same(accel, np.concatenate([accel_driven, lhs_inverse @ (
+                -whisker.stiffness[3:] * q[3:] - whisker.damping[3:] * v[3:] - driven_only[3:])]))
+            v_after = v + h * accel
+            for got, expected in zip(advance(q, v, accel, h, whisker.joint_reach_mm),
+                                     (q + h * v_after, v_after, h * float(whisker.joint_reach_mm @ np.abs(v_after)))):
+                _same(np.asarray(got), np.asarray(expected))
 
 
 def test_the_chains_own_link_frames_are_bullets(whiskers):

@@ -29,8 +29,9 @@ step).
 Cost per whisker-step: one inverse dynamics (M_·D·a_D + b), the mass matrix and its inverse on
 the steps that refresh it (compiled from the multibody's links by composite rigid bodies:
 :mod:`~pipeline.engines.bullet.mass_matrix`, Bullet's ``calculateMassMatrix`` to round-off),
-the contact step's per-point bookkeeping compiled with numpy's arithmetic
-(:mod:`~pipeline.engines.bullet.contact_kernels`), numpy for the rest; Bullet never steps a whisker
+the contact step's per-point bookkeeping and problem (:mod:`~pipeline.engines.bullet.contact_kernels`)
+and the step's arithmetic around the inverse dynamics (:mod:`~pipeline.engines.bullet.step_kernels`)
+compiled with numpy's arithmetic, numpy for the rest; Bullet never steps a whisker
 (no ``stepSimulation``, torques or external forces handed to it). Bullet's joints are written
 (``resetJointStatesMultiDof``) only before its link frames or collision are asked for: the
 contact search, a step with contacts or loads (a sample's nodes and the base wrench's frames

@@ -28,7 +28,7 @@ Internal units mm–mg–s.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -38,31 +38,46 @@ from pipeline.engines.one_sided import MERGE_MM, one_sided
 from pipeline.engines.one_sided_kernels import distinct_points
 
 CONTACT_REACH_MM = 0.25      # speculative contact distance (a tip moves ≲ 0.15 mm per step)
-CLEARANCE_MM = 1.0           # distance queried: a gap found up to this is a whisker's leeway (find_contacts)
+CLEARANCE_MM = 2.0           # distance queried: a gap found up to this is a whisker's leeway (find_contacts)
 PENETRATION_ERP = 0.2        # fraction of a penetration removed per step
 TOLERANCE = 1e-6             # Gauss–Seidel stops when no force changes by more than this × the largest
 
 
 @dataclass(frozen=True)
-class ContactPoint:
-    """One contact of a whisker link with an obstacle (internal units, world frame)."""
+class Contacts:
+    """A whisker's contact points with the obstacles, P of them (internal units, world frame)."""
 
-    link: int                # 0-based whisker link
-    point_mm: np.ndarray     # [3] on the whisker's surface
-    normal: np.ndarray       # [3] unit, from the obstacle toward the whisker
-    gap_mm: float            # distance to the obstacle, < 0 inside
-    surface_velocity: np.ndarray   # [3] mm/s, the obstacle's (friction acts on the relative sliding)
+    links: np.ndarray            # [P] 0-based whisker link
+    points_mm: np.ndarray        # [P, 3] on the whisker's surface
+    normals: np.ndarray          # [P, 3] unit, from the obstacle toward the whisker
+    gaps_mm: np.ndarray          # [P] distance to the obstacle, < 0 inside
+    surface_velocity: np.ndarray   # [P, 3] mm/s, the obstacle's (friction acts on the relative sliding)
+
+    def __len__(self) -> int:
+        return len(self.links)
+
+    @classmethod
+    def joined(cls, parts: list["Contacts"]) -> "Contacts":
+        """The points of ``parts`` in turn."""
+        if len(parts) == 1:
+            return parts[0]
+        return cls(*(np.concatenate([getattr(part, column.name) for part in parts]) for column in fields(cls)))
 
 
-def find_contacts(client: BulletClient, obstacles, whiskers, still: bool) -> dict[int, list[ContactPoint]]:
-    """Contact points within :data:`CONTACT_REACH_MM` of the obstacles, per whisker body id.
+def find_contacts(client: BulletClient, obstacles, whiskers, still: bool) -> dict[int, Contacts]:
+    """:class:`Contacts` within :data:`CONTACT_REACH_MM` of the obstacles, per whisker body id
+    (a whisker with none is left out).
 
     ``obstacles``: (body id, velocity [3] mm/s, :class:`~pipeline.engines.one_sided.OneSidedMesh` or None, offset [3] mm of
     the mesh frame) of each; ``whiskers``: the :class:`~pipeline.engines.bullet.whisker.BulletWhisker`
-    to look at. ``getClosestPoints`` (within :data:`CLEARANCE_MM`) gives the points. With ``still``
+    to look at. ``getClosestPoints`` gives the points. With ``still``
     (obstacles and bases at rest) a whisker–obstacle pair is not looked at again until the
     whisker's travel bound (:attr:`~pipeline.engines.bullet.whisker.BulletWhisker.travel_mm`) could
-    have closed the gap found last down to the reach: the same contacts, fewer queries.
+    have closed the gap found last down to the reach: the same contacts, fewer queries. The query
+    reaches :data:`CLEARANCE_MM` (a gap found up to it is leeway) unless the pair had a point
+    within the reach at its last query, or nothing is still (the pair is looked at again on the next
+    step anyway): then only the reach, and fewer points come back (Bullet's points within the reach
+    are the same whatever the distance asked: each triangle's, or shape's, is computed on its own).
     On a mesh they only name the links near it: the contacts are those of :func:`~pipeline.engines.one_sided.one_sided` at
     the capsule axis points Bullet found and at both nodes of each such link (the deepest
     point of a link that crosses a face is an end, where Bullet's witness point is not).
@@ -71,25 +86,23 @@ def find_contacts(client: BulletClient, obstacles, whiskers, still: bool) -> dic
     whose normal opposes a deeper one's of the same link and obstacle (a link between two
     faces of a sheet thinner than the reach: pushed from both sides, the step's problem has no
     bounded solution; the deeper side pushes it out)."""
-    found: dict[int, list[ContactPoint]] = {}
+    found: dict[int, list[Contacts]] = {}
     for obstacle, velocity, mesh, offset in obstacles:
         for whisker in whiskers:
             if still and whisker.travel_mm < whisker.next_query_mm.get(obstacle, 0.0):
                 continue
             whisker.sync()
-            body = whisker.body
-            points = [point for point in client.getClosestPoints(obstacle, body, CLEARANCE_MM)
-                      if point[4] in whisker.local_link]
-            gap = min((point[8] for point in points), default=CLEARANCE_MM)
-            whisker.next_query_mm[obstacle] = whisker.travel_mm + gap - CONTACT_REACH_MM
-            points = [point for point in points if point[8] <= CONTACT_REACH_MM]
-            if not points:
+            distance = CLEARANCE_MM if still and obstacle not in whisker.within_reach else CONTACT_REACH_MM
+            link_of, gaps, where, normals = _as_arrays(client.getClosestPoints(obstacle, whisker.body, distance),
+                                                       whisker.link_index)
+            whisker.next_query_mm[obstacle] = whisker.travel_mm + (gaps.min() if len(gaps) else distance) - CONTACT_REACH_MM
+            near = gaps <= CONTACT_REACH_MM
+            if not near.any():
+                whisker.within_reach.discard(obstacle)
                 continue
-            link_of = np.array([whisker.local_link[point[4]] for point in points])
-            where = np.array([point[6] for point in points])
-            normals = -np.array([point[7] for point in points])   # on B (the whisker), toward A (the obstacle)
-            gaps = np.array([point[8] for point in points])
-            kept = np.ones(len(points), bool)
+            whisker.within_reach.add(obstacle)
+            link_of, gaps, where, normals = link_of[near], gaps[near], where[near], normals[near]
+            kept = np.ones(len(gaps), bool)
             if mesh is not None:
                 touched = np.unique(link_of)
                 axis = np.concatenate([where + whisker.capsule_radii[link_of, None] * normals,
@@ -97,19 +110,37 @@ def find_contacts(client: BulletClient, obstacles, whiskers, still: bool) -> dic
                 link_of = np.concatenate([link_of, np.repeat(touched, 2)])
                 kept, where, normals, gaps = one_sided(axis, whisker.capsule_radii[link_of], mesh, offset,
                                                        CONTACT_REACH_MM)
-            found.setdefault(body, []).extend(_distinct(kept, link_of, where, normals, gaps, velocity))
-    return {body: points for body, points in found.items() if points}
+            chosen = _distinct(kept, link_of, where, normals, gaps, velocity)
+            if len(chosen):
+                found.setdefault(whisker.body, []).append(chosen)
+    return {body: Contacts.joined(parts) for body, parts in found.items()}
+
+
+def _as_arrays(points, link_index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``getClosestPoints``' points (obstacle A, whisker B) as arrays, those on whisker links only
+    (``link_index`` [Bullet links]: a Bullet link's whisker link, −1 for none): whisker link [P],
+    gap [P] (mm), point on the whisker [P, 3] and normal [P, 3] toward the whisker (from A)."""
+    if not points:
+        return np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3))
+    table = np.array([(point[4], point[8], *point[6], *point[7]) for point in points])
+    link_of = link_index[table[:, 0].astype(np.int64)]
+    on_whisker = link_of >= 0
+    table = table[on_whisker]
+    return (link_of[on_whisker], table[:, 1], np.ascontiguousarray(table[:, 2:5]),
+            -np.ascontiguousarray(table[:, 5:8]))
 
 
 def _distinct(kept: np.ndarray, link_of: np.ndarray, where: np.ndarray, normals: np.ndarray, gaps: np.ndarray,
-              velocity: np.ndarray) -> list[ContactPoint]:
+              velocity: np.ndarray) -> Contacts:
     """The ``kept`` points, deepest first, less those within :data:`MERGE_MM` of a deeper one of
     the same link or with a normal opposing its (:func:`find_contacts`,
     :func:`~pipeline.engines.one_sided_kernels.distinct_points`)."""
+    where, normals = np.asarray(where, float), np.asarray(normals, float)
     order = np.argsort(gaps, kind="stable")
     order = order[np.asarray(kept, bool)[order]]
-    chosen = distinct_points(order, link_of, np.asarray(where, float), np.asarray(normals, float), MERGE_MM)
-    return [ContactPoint(int(link_of[i]), where[i], normals[i], float(gaps[i]), velocity) for i in chosen]
+    chosen = distinct_points(order, link_of, where, normals, MERGE_MM)
+    return Contacts(link_of[chosen], where[chosen], normals[chosen], gaps[chosen],
+                    np.repeat(np.asarray(velocity, float)[None], len(chosen), axis=0))
 
 
 def solve_forces(G: np.ndarray, u0: np.ndarray, gaps_mm: np.ndarray, h: float, mu: float,

@@ -1,12 +1,13 @@
 """The per-point bookkeeping of a Bullet contact step, compiled (numba): contact frames, the
-moment arms of the Jacobian rows, the warm start and the points' world forces
+moment arms of the Jacobian rows, the step's contact problem, the warm start and the points' world forces
 (:meth:`~pipeline.engines.bullet.whisker.BulletWhisker._contact_forces`). On every step with
 contacts numpy's call overhead on these few-row arrays cost more than the arithmetic.
 
 The arithmetic is numpy's, operation for operation, so that the step's results are the same
 to the bit: a 3-term dot product as numpy's ``matmul`` takes it with this build's OpenBLAS
 (fused multiply–adds: :func:`dot3`, and in another order for a [3, 3] matrix times a vector:
-:func:`warm_start`), sums of three in numpy's order. tests/engines/test_bullet_compiled.py checks
+:func:`warm_start`), sums of three in numpy's order, matrix products through BLAS as numpy's
+(``np.dot``: :func:`contact_system`). tests/engines/test_bullet_compiled.py checks
 them against the numpy they replace.
 """
 
@@ -59,6 +60,28 @@ def contact_rows(normals: np.ndarray, points: np.ndarray, origin: np.ndarray,
             dx, dy, dz = frames[row, 0], frames[row, 1], frames[row, 2]
             arms[row, 0], arms[row, 1], arms[row, 2] = y * dz - z * dy, z * dx - x * dz, x * dy - y * dx
     return frames, arms
+
+
+@numba.njit(cache=True)
+def contact_system(frames: np.ndarray, arms: np.ndarray, linear: np.ndarray, angular: np.ndarray,
+                   beyond: np.ndarray, links: np.ndarray, lhs_inverse: np.ndarray, v: np.ndarray,
+                   accel: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The contact step's problem from its rows (``frames``, ``arms`` [R, 3] of :func:`contact_rows`,
+    R = P·rows for the points of whisker ``links`` [P]) and the Jacobian (``linear``, ``angular``
+    [3, n]) at their origin, J [R, n] (a row d·J_lin + arm·J_ang with the columns of the joints
+    ``beyond`` [links, n] its point's link zeroed): (W·J_Fᵀ [n − 3, R] with W = ``lhs_inverse``;
+    u₀ = J·(v + h·a) [R], the rows' velocities after the step without contact; G = (h·J_F)·W·J_Fᵀ
+    [R, R]), F the spring joints (all but the first 3)."""
+    per_point = len(frames) // len(links)
+    jacobian = np.dot(frames, linear) + np.dot(arms, angular)
+    for r in range(len(frames)):
+        link = links[r // per_point]
+        for j in range(jacobian.shape[1]):
+            if beyond[link, j]:
+                jacobian[r, j] = 0.0
+    free = np.ascontiguousarray(jacobian[:, 3:])
+    response = np.dot(lhs_inverse, free.T)
+    return response, np.dot(jacobian, v + h * accel), np.dot(h * free, response)
 
 
 @numba.njit(cache=True)

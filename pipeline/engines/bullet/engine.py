@@ -13,7 +13,7 @@ from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, TrialSetup, World, WorldResult
 from pipeline.engines.bullet.client import BulletClient
-from pipeline.engines.bullet.contact import find_contacts
+from pipeline.engines.bullet.contact import Contacts, find_contacts
 from pipeline.engines.bullet.plan import BulletPlan, relative_to_head
 from pipeline.engines.bullet.multibody import MAX_MULTIBODY_LINKS, quat
 from pipeline.engines.bullet.whisker import BulletWhisker
@@ -192,11 +192,12 @@ class BulletWorld(World):
             for k in running:
                 w = self.bodies[k]
                 target = held[k] if held[k] is not None else w.rest_driven + w.rates * plan.theta[step, k]
-                points = contacts.get(w.body, ())
-                segments = w.link_nodes([point.link for point in points]) if points else ()   # at the step's start
+                points = contacts.get(w.body)
+                segments = w.link_nodes(points.links) if points else None   # at the step's start
                 normal = w.step(target, h, loads[k], points, config.contact_friction,
                                 config.solver_iterations, records)
-                self._flag_contacts(k, points, segments, normal, flags, result.touched)
+                if points:
+                    self._flag_contacts(k, points, segments, normal, flags, result.touched)
             if setup.hold_on_contact:
                 for k in np.flatnonzero(flags.touching.any(axis=1)):
                     if held[k] is None:
@@ -210,22 +211,18 @@ class BulletWorld(World):
                     running.remove(k)
                 yield sample - 1
 
-    def _flag_contacts(self, k: int, points, segments: list, normal_forces: np.ndarray, flags: ContactFlags,
-                       touched: np.ndarray) -> None:
+    def _flag_contacts(self, k: int, points: Contacts, segments: np.ndarray, normal_forces: np.ndarray,
+                       flags: ContactFlags, touched: np.ndarray) -> None:
         """Add whisker k's contacts of this step to ``flags``: a link touches when it penetrates or
         is pushed on (a resting contact can sit a hair above zero), at its point on the whisker's
-        surface (``segments``: per point its link's nodes at the step's start); ``touched`` [w]
+        surface (``segments`` [P, 2, 3]: per point its link's nodes at the step's start); ``touched`` [w]
         marks whiskers with any contact point at all (within reach)."""
-        if not points:
-            return
         touched[k] = True
-        pressed = [i for i, (point, force) in enumerate(zip(points, normal_forces))
-                   if point.gap_mm <= 0.0 or force > 0.0]
-        if pressed:
-            segments = np.array([segments[i] for i in pressed])
-            pressed = [points[i] for i in pressed]
-            flags.add(k * flags.touching.shape[1] + np.array([point.link for point in pressed]),
-                      np.array([point.point_mm for point in pressed]), segments[:, 0], segments[:, 1])
+        pressed = (points.gaps_mm <= 0.0) | (normal_forces > 0.0)
+        if pressed.any():
+            segments = segments[pressed]
+            flags.add(k * flags.touching.shape[1] + points.links[pressed], points.points_mm[pressed],
+                      segments[:, 0], segments[:, 1])
 
     def close(self) -> None:
         if self.client is not None:

@@ -63,10 +63,10 @@ class BulletPlan:
 
 
 def relative_to_head(contacts: dict, origin_mm: np.ndarray, velocity_mm_s: np.ndarray, omega: np.ndarray) -> dict:
-    """``contacts`` (body → points) with each surface's velocity taken relative to the moving
+    """``contacts`` (body → :class:`~pipeline.engines.bullet.contact.Contacts`) with each surface's velocity taken relative to the moving
     head frame's point there (``origin_mm``, ``velocity_mm_s``, ``omega``: the head's, world
     frame): the chain's velocities are relative to its base, so friction then acts on the true
     sliding velocity."""
-    return {body: [replace(point, surface_velocity=point.surface_velocity - velocity_mm_s
-                           - np.cross(omega, point.point_mm - origin_mm)) for point in points]
+    return {body: replace(points, surface_velocity=points.surface_velocity - velocity_mm_s
+                          - np.cross(omega, points.points_mm - origin_mm))
             for body, points in contacts.items()}

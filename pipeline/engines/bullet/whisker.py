@@ -22,10 +22,11 @@ import pybullet as p
 
 from pipeline.engines import units as U
 from pipeline.engines.bullet.client import BulletClient
-from pipeline.engines.bullet.contact import CONTACT_REACH_MM, solve_forces
-from pipeline.engines.bullet.contact_kernels import contact_rows, segment_nodes, warm_start, world_forces
+from pipeline.engines.bullet.contact import CONTACT_REACH_MM, Contacts, solve_forces
+from pipeline.engines.bullet.contact_kernels import contact_rows, contact_system, segment_nodes, warm_start, world_forces
 from pipeline.engines.bullet.mass_matrix import chain_kinematics, chain_mass_matrix, implicit_operator_inverse
 from pipeline.engines.bullet.multibody import CAPSULE_ALONG_X, IDENTITY_QUAT, LinkList
+from pipeline.engines.bullet.step_kernels import advance, driven_accelerations, largest_change, step_accelerations
 from pipeline.engines.bullet.wrench import follicle_wrench
 from pipeline.engines.common import start_rate
 from pipeline.engines.mass_damping import split_mass_damping
@@ -128,7 +129,8 @@ class BulletWhisker:
         self.link1_angle = chain.link_angles_rad[0]
         self.link_lengths = chain.link_lengths_m * U.LENGTH
         self.tip_offset = float(self.link_lengths[-1])
-        self.local_link = {link: i for i, link in enumerate(self.whisker_links)}
+        self.link_index = np.full(len(links.inertia), -1, np.int64)     # Bullet link → whisker link (−1: none)
+        self.link_index[self.whisker_links] = np.arange(chain.links)
         self.capsule_radii = 0.5 * (chain.node_radii_m[:-1] + chain.node_radii_m[1:]) * U.LENGTH
         # dofs moving whisker link i: those of its joint and before (a serial chain)
         self.ancestor_dofs = np.searchsorted(self.dofs, self.whisker_links, side="right")
@@ -155,12 +157,13 @@ class BulletWhisker:
         # by ≤ r·|Δq|; the points it moves lie beyond its node, so r ≤ the arc length from that
         # node to the tip plus the largest radius: the whole whisker's for the driven and follicle
         # joints at the base); next_query_mm: per obstacle body, the travel at which its gap may
-        # have closed to the reach (:func:`~pipeline.engines.bullet.contact.find_contacts`)
+        # have closed to the reach; within_reach: the obstacle bodies with a point within the reach
+        # at their last query (:func:`~pipeline.engines.bullet.contact.find_contacts`)
         self.reach_mm = float(chain.link_lengths_m.sum() * U.LENGTH + self.capsule_radii.max())
         beyond_node_mm = np.cumsum(chain.link_lengths_m[::-1])[::-1] * U.LENGTH + self.capsule_radii.max()
         free_nodes = [joint.node for node in range(chain.links) for joint in layout.at_node(node)]
         self.joint_reach_mm = np.concatenate([np.full(3, self.reach_mm), beyond_node_mm[free_nodes]])
-        self.travel_mm, self.next_query_mm = 0.0, {}
+        self.travel_mm, self.next_query_mm, self.within_reach = 0.0, {}, set()
         if built:
             self.build()
 
@@ -191,7 +194,7 @@ class BulletWhisker:
         v_driven = self.rates * start_rate(drive, h)
         self._lhs_inverse = None                            # the next step computes M afresh
         self._last_contacts = None
-        self.travel_mm, self.next_query_mm = 0.0, {}
+        self.travel_mm, self.next_query_mm, self.within_reach = 0.0, {}, set()
         self._set_state(np.concatenate([q_driven, free_angles]), np.concatenate([v_driven, free_rates]))
 
     def _set_state(self, q: np.ndarray, v: np.ndarray) -> None:
@@ -224,7 +227,7 @@ class BulletWhisker:
     def driven_angles(self) -> np.ndarray:
         return self.q[:3].copy()
 
-    def step(self, q_target: np.ndarray, h: float, loads=(), contacts=(),
+    def step(self, q_target: np.ndarray, h: float, loads=(), contacts: Contacts | None = None,
              friction: float = 0.0, iterations: int = 50, record: bool = False) -> np.ndarray:
         """One linearly implicit step of size h (s) toward driven angles q_target, integrated here
         (semi-implicit Euler v ← v + h·a, q ← q + h·v, as Bullet's own step with the torques
@@ -233,7 +236,7 @@ class BulletWhisker:
         accelerations are kept for :meth:`base_wrench` (the step that starts at a sample's time).
 
         ``loads`` (:mod:`pipeline.model.effects.loads`) enter the implicit solve as the generalised force
-        Jᵀ·F. So do the forces at ``contacts`` (:class:`~pipeline.engines.bullet.contact.ContactPoint`),
+        Jᵀ·F. So do the forces at ``contacts`` (:class:`~pipeline.engines.bullet.contact.Contacts`),
         solved within the same implicit operator with Coulomb ``friction`` μ
         (:mod:`pipeline.engines.bullet.contact`, ``iterations`` Gauss–Seidel sweeps at most, from
         the forces of the step before at the same points: :func:`~pipeline.engines.bullet.contact_kernels.warm_start`). The free–free block
@@ -243,17 +246,16 @@ class BulletWhisker:
         driven joints land on q_target exactly."""
         q, v = self.q, self.v
         q_list, v_list = q.tolist(), v.tolist()
-        q_free = q[3:]
-        if self._lhs_inverse is None or np.abs(q_free - self._factorised_at).max() > MASS_REFRESH_RAD:
+        if self._lhs_inverse is None or largest_change(q[3:], self._factorised_at) > MASS_REFRESH_RAD:
             self._factorise(q_list, h)
         external = []                                   # (points, forces, torques) on the links
-        accel_driven = ((q_target - q[:3]) / h - v[:3]) / h
+        accel_driven = driven_accelerations(np.asarray(q_target, float), q, v, h)
         driven_only = np.array(self.client.calculateInverseDynamics(
             self.body, q_list, v_list, accel_driven.tolist() + self._free_zeros))   # M_·D·a_D + b
         if loads:
             driven_only -= self._load_forces(loads, q_list, external, record)            # ... − Jᵀ·F
-        accel = np.concatenate([accel_driven, self._lhs_inverse @ (
-            self._minus_stiffness * q_free - self._free_damping * v[3:] - driven_only[3:])])
+        accel = step_accelerations(accel_driven, self._lhs_inverse, self._minus_stiffness, self._free_damping,
+                                   q, v, driven_only)
         normal_forces = np.zeros(0)
         if contacts:
             normal_forces = self._contact_forces(contacts, q_list, v, accel, h, friction, iterations, external)
@@ -261,12 +263,12 @@ class BulletWhisker:
             self._last_contacts = None                  # a contact that comes back starts afresh
         if record:
             self._record_wrench(q_list, v, accel, external)
-        v_after = v + h * accel
-        self.travel_mm += h * float(self.joint_reach_mm @ np.abs(v_after))
-        self._set_state(q + h * v_after, v_after)
+        q_after, v_after, travel = advance(q, v, accel, h, self.joint_reach_mm)
+        self.travel_mm += travel
+        self._set_state(q_after, v_after)
         return normal_forces
 
-    def _contact_forces(self, contacts, q: list[float], v: np.ndarray, accel: np.ndarray, h: float,
+    def _contact_forces(self, contacts: Contacts, q: list[float], v: np.ndarray, accel: np.ndarray, h: float,
                         friction: float, iterations: int, external: list) -> np.ndarray:
         """Solve the contact forces of the step (:mod:`pipeline.engines.bullet.contact`), add
         their free-joint response W·J_Fᵀ·f to ``accel`` (in place) and append them to
@@ -276,26 +278,19 @@ class BulletWhisker:
         link l has the row d·J_lin + ((p − o) × d)·J_ang along d, with the columns of the joints
         beyond l (not l's ancestors in the serial chain) zeroed. The solve starts from the forces of
         the step before at the same points (:func:`~pipeline.engines.bullet.contact_kernels.warm_start`)."""
-        c = self.client
-        links = np.array([contact.link for contact in contacts])
-        points = np.array([contact.point_mm for contact in contacts])
-        farthest = self.whisker_links[links.max()]
-        self.sync()
-        origin = np.asarray(c.getLinkState(self.body, farthest, computeForwardKinematics=True)[4])
-        linear, angular = self.jacobian(farthest, [0.0, 0.0, 0.0], q)
-        frames, arms = contact_rows(np.array([contact.normal for contact in contacts]), points, origin, friction > 0)
+        links, points = contacts.links, contacts.points_mm
+        origin = self.link_nodes(links.max())[0]                      # the farthest link's frame origin
+        linear, angular = self.jacobian(self.whisker_links[links.max()], [0.0, 0.0, 0.0], q)
+        frames, arms = contact_rows(contacts.normals, points, origin, friction > 0)
         per_point = len(frames) // len(contacts)                     # rows n (, t1, t2) per point
-        jacobian = frames @ linear + arms @ angular                   # [P or 3P, n_dof]
-        jacobian[self._beyond_link[np.repeat(links, per_point)]] = 0.0
-        response = self._lhs_inverse @ jacobian[:, 3:].T             # W·J_Fᵀ
-        velocity = jacobian @ (v + h * accel)                         # after the step, without contact
+        response, velocity, G = contact_system(frames, arms, linear, angular, self._beyond_link, links,
+                                               self._lhs_inverse, v, accel, h)      # W·J_Fᵀ, u₀, G
         if friction > 0:                         # friction acts on sliding relative to the surface
-            surface = np.repeat([contact.surface_velocity for contact in contacts], 3, axis=0)
+            surface = np.repeat(contacts.surface_velocity, 3, axis=0)
             velocity -= np.einsum("ij,ij->i", frames, surface) * (np.arange(len(frames)) % 3 > 0)
         start = None if self._last_contacts is None else warm_start(links, points, frames, *self._last_contacts,
                                                                      CONTACT_REACH_MM)
-        forces = solve_forces(h * jacobian[:, 3:] @ response, velocity,
-                              np.array([contact.gap_mm for contact in contacts]), h, friction, iterations, start)
+        forces = solve_forces(G, velocity, contacts.gaps_mm, h, friction, iterations, start)
         accel[3:] += response @ forces
         world = world_forces(frames, forces, len(contacts))
         self._last_contacts = (links, points, world)
