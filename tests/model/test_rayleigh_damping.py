@@ -6,6 +6,9 @@ import numpy as np
 import pytest
 
 from pipeline.config.physics import EngineConfig, MaterialConfig, ModelConfig
+from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial
+from pipeline.diagnosis.objective import protocol_trial
+from pipeline.diagnosis.parameters import ModelSpec
 from pipeline.measurements.library import c1_modes
 from pipeline.model.effects.mass_damping import MassDamping
 from pipeline.model.physics import build_physics
@@ -41,10 +44,6 @@ def test_resonance_protocol_on_the_chain_reports_c1s_three_modes_under_the_rayle
     """The protocol's ring-down fit (from ``SETTLE_S`` after the stop) on the linear chain: f1–f3
     within 5 % of the chain's eigenvalues (from the stop itself it reported 38.7 / 57.5 / 94.5 Hz:
     a product of modes 1 and 2 taken for mode 2)."""
-    from pipeline.diagnosis.fastsim import FastSimulator, PreparedTrial
-    from pipeline.diagnosis.objective import protocol_trial
-    from pipeline.diagnosis.parameters import ModelSpec
-
     expected_f, _ = chain_damped_modes(build_physics(C1.geometry, PRESET))
     trial = protocol_trial("c1")
     tip = FastSimulator().simulate(ModelSpec(PRESET).physics(C1.geometry), [PreparedTrial(trial, (0, 0, -1.0))])[0]
