@@ -11,7 +11,11 @@ lowest ΔBIC, continue their fits (``FINAL_ITERATIONS``) with the candidate's ``
 parameters added (drag: the quadratic C_d): a short fit can stop short of a strong effect,
 letting a surrogate win, and a first fit without its refine parameter can fit the training
 trials and still miss the held-out ones (linear drag fitted to one pulse mispredicts a
-faster one when the drag is quadratic). Paired held-out z of a candidate against the model
+faster one when the drag is quadratic). A fit that ends worse on its training trials than the
+model it extends (RSS_c > RSS₀: the optimiser stopped in another basin, from a start whose E
+and ζ were matched to the data rather than to that model) is fitted again from that model's
+optimum with the candidate's parameters at their null values
+(:meth:`~.candidates.Candidate.nested_start`), and the better of the two fits kept. Paired held-out z of a candidate against the model
 it extends: z = (Σr₀² − Σr_c²)/(2σ̂·|p₀ − p_c|) (r residuals, p predictions: the shared noise
 cancels).
 """
@@ -100,8 +104,20 @@ class Session:
 
 
 def fit_candidate(session: Session, baseline: Fit, name: str, start: ModelSpec, names,
-                  iterations: int) -> CandidateScore:
-    return score_fit(session, baseline, name, fit(session.train, start, names, max_iterations=iterations))
+                  iterations: int, nested: ModelSpec | None = None) -> CandidateScore:
+    """A candidate fitted from ``start`` on the training half; again from ``nested`` (the
+    baseline with the candidate's parameters at their null values) when the first fit ends
+    worse than the baseline, the better fit kept (module docstring)."""
+    result = fit(session.train, start, names, max_iterations=iterations)
+    if nested is not None and _rss(result) > _rss(baseline):
+        restarted = fit(session.train, nested, names, max_iterations=iterations)
+        if _rss(restarted) < _rss(result):
+            result = restarted
+    return score_fit(session, baseline, name, result)
+
+
+def _rss(result: Fit) -> float:
+    return float(result.residuals @ result.residuals)
 
 
 def score_fit(session: Session, baseline: Fit, name: str, result: Fit) -> CandidateScore:
@@ -117,14 +133,16 @@ def fit_candidates(session: Session, baseline: Fit, chosen: list[Candidate]) -> 
     fits continued (module docstring)."""
     scales = WhiskerScales.of(baseline.spec.physics(session.measurement.geometry))
     scores = []
+    nested = {c.name: c.nested_start(baseline.spec, scales) for c in chosen}
     for c in chosen:
         start = best_start(session.train, session.train_features, c.on(baseline.spec), c.starts(scales))
         scores.append(fit_candidate(session, baseline, c.name, start, baseline.names + c.params,
-                                    CANDIDATE_ITERATIONS))
+                                    CANDIDATE_ITERATIONS, nested[c.name]))
     for lead in leaders(scores):
         refine = next(c.refine for c in chosen if c.name == lead.name)
         scores[scores.index(lead)] = fit_candidate(session, baseline, lead.name, lead.fit.spec.with_values(refine),
-                                                   lead.fit.names + tuple(refine), FINAL_ITERATIONS)
+                                                   lead.fit.names + tuple(refine), FINAL_ITERATIONS,
+                                                   nested[lead.name])
     return scores
 
 

@@ -59,7 +59,11 @@ class Candidate:
     (tests/truth2); ``kelvin_voigt``, tried only when the model's law is eq. 3, is not
     calibrated (the largest effect candidate's).
     ``law``: the damping model (``MaterialConfig.damping_model``) the candidate fits with, for a
-    damping-law candidate; ``None``: the model's own."""
+    damping-law candidate; ``None``: the model's own.
+    ``null``: its parameters (``refine``'s included) where the extension leaves the model it
+    extends unchanged, or as near as their bounds allow (a follicle ``NULL_FOLLICLE_RATIO``
+    times stiffer than the whisker, drag and α at their lower bounds); ``None``: no such point
+    (twist: G/E → ∞ is beyond its bounds; the laws without parameters)."""
 
     name: str
     params: tuple[str, ...]
@@ -67,6 +71,7 @@ class Candidate:
     absorbs: float
     refine: dict[str, float] = field(default_factory=dict)
     law: str | None = None
+    null: Callable[[WhiskerScales], dict[str, float]] | None = None
 
     def applies_to(self, material) -> bool:
         """False for a damping-law candidate that is already the model's law."""
@@ -78,26 +83,48 @@ class Candidate:
             return spec
         return type(spec)(spec.material.model_copy(update={"damping_model": self.law}), spec.extensions)
 
+    def nested_start(self, spec, scales: WhiskerScales):
+        """``spec`` (the model this candidate extends) with the candidate's parameters at their
+        null values: the same model, where :func:`~.candidate_fits.fit_candidate` restarts a fit
+        that ends worse than ``spec``; None when the candidate does not nest ``spec`` (no null,
+        or a damping law other than ``spec``'s)."""
+        if self.null is None or self.law not in (None, spec.material.damping_model):
+            return None
+        return spec.with_values(self.null(scales))
+
 
 def _values(param: str, values) -> Callable[[WhiskerScales], list[dict[str, float]]]:
     return lambda scales: [{param: v} for v in values]
 
 
+def _null(values: dict[str, float]) -> Callable[[WhiskerScales], dict[str, float]]:
+    return lambda scales: values
+
+
+NULL_FOLLICLE_RATIO = 1e3    # k_f/k_w of a follicle taken for rigid (0.1 % of the base's compliance)
+
 CANDIDATES: tuple[Candidate, ...] = (
     Candidate("follicle", ("follicle.k_f", "follicle.c_f"),
-              lambda s: [s.follicle(r, 0.2) for r in (1.0, 5.0, 25.0)], 0.0034),
+              lambda s: [s.follicle(r, 0.2) for r in (1.0, 5.0, 25.0)], 0.0034,
+              null=lambda s: s.follicle(NULL_FOLLICLE_RATIO, 0.2)),
     Candidate("stiffness_gradient", ("stiffness_gradient.gamma",),
-              _values("stiffness_gradient.gamma", (-1.5, 0.0, 1.5)), 0.0027),
+              _values("stiffness_gradient.gamma", (-1.5, 0.0, 1.5)), 0.0027,
+              null=_null({"stiffness_gradient.gamma": 0.0})),
     Candidate("damping_gradient", ("damping_gradient.gamma",),
-              _values("damping_gradient.gamma", (-2.0, 0.0, 2.0)), 0.0052),
-    Candidate("density", ("density.gradient",), _values("density.gradient", (-1.5, 0.0, 1.5)), 0.0043),
-    Candidate("length", ("length.scale",), _values("length.scale", (0.8, 0.95, 1.1)), 0.0020),
-    Candidate("drag", ("drag.linear",), _values("drag.linear", (3e-5, 3e-4)), 0.0064, {"drag.quadratic": 2.0}),
-    Candidate("gravity", ("gravity.g",), _values("gravity.g", (5.0, 15.0)), 0.0062),
+              _values("damping_gradient.gamma", (-2.0, 0.0, 2.0)), 0.0052,
+              null=_null({"damping_gradient.gamma": 0.0})),
+    Candidate("density", ("density.gradient",), _values("density.gradient", (-1.5, 0.0, 1.5)), 0.0043,
+              null=_null({"density.gradient": 0.0})),
+    Candidate("length", ("length.scale",), _values("length.scale", (0.8, 0.95, 1.1)), 0.0020,
+              null=_null({"length.scale": 1.0})),
+    Candidate("drag", ("drag.linear",), _values("drag.linear", (3e-5, 3e-4)), 0.0064, {"drag.quadratic": 2.0},
+              null=_null({"drag.linear": 1e-7, "drag.quadratic": 0.0})),
+    Candidate("gravity", ("gravity.g",), _values("gravity.g", (5.0, 15.0)), 0.0062,
+              null=_null({"gravity.g": 0.0})),
     Candidate("twist", ("twist.g_over_e",), _values("twist.g_over_e", (0.05, 0.3, 1.0)), 0.0002),
     Candidate("rayleigh", ("mass_damping.alpha",),
               lambda s: [{"mass_damping.alpha": 2 * z * s.rate_per_s} for z in (0.03, 0.1)], 0.0030,
-              law="kelvin_voigt"),
+              law="kelvin_voigt", null=_null({"mass_damping.alpha": 1e-3})),
     Candidate("eq3", (), lambda s: [{}], 0.0001, law="paper"),
     Candidate("kelvin_voigt", (), lambda s: [{}], 0.0064, law="kelvin_voigt"),
 )

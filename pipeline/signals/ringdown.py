@@ -28,6 +28,8 @@ RANK_TOLERANCE = 1e-4       # singular values below this fraction of the largest
 NYQUIST_MARGIN = 0.98       # poles above this fraction of Nyquist are not trusted
 MAX_ZETA = 0.9              # more damped poles are not counted as oscillating modes
 HARMONIC_TOLERANCE = 0.02   # relative frequency match of a distortion product of stronger components
+PRODUCT_BANDWIDTH_SHARE = 0.25  # or this share of its own decay rate σ (a broad component's ω is that uncertain)
+MAX_HARMONIC_ORDER = 3      # harmonics m·f of a mode taken for products (the m-th's share falls as (A/S)^(m−1))
 PRODUCT_RATE_TOLERANCE = 0.35  # relative decay-rate match of one (weak components' rates are less certain)
 MIN_SHARE = 0.01            # modes whose RMS over the record is below this fraction of the largest are dropped
 
@@ -141,23 +143,26 @@ def _unresolved(omega_d: np.ndarray, rates: np.ndarray, amplitudes: np.ndarray) 
 
 
 def _distortion_products(freqs: np.ndarray, rates: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """True where a component is a harmonic m·(f, σ) of a stronger one, or a sum or difference
+    """True where a component is a harmonic m·(f, σ), 2 ≤ m ≤ ``MAX_HARMONIC_ORDER``, of a stronger one, or a sum or difference
     tone (f_j ± f_k, σ_j + σ_k) of two stronger ones, within ``HARMONIC_TOLERANCE`` in frequency
-    and ``PRODUCT_RATE_TOLERANCE`` in decay rate: products of the geometric nonlinearity (the tip's y is not
+    or ``PRODUCT_BANDWIDTH_SHARE`` of the component's own decay rate σ_i (ω, rad/s: the frequency of
+    a weak, broad component is known to a fraction of its half-power band), and within
+    ``PRODUCT_RATE_TOLERANCE`` in decay rate: products of the geometric nonlinearity (the tip's y is not
     linear in the joint angles), not modes."""
     out = np.zeros(len(freqs), bool)
+    tolerance = np.maximum(HARMONIC_TOLERANCE, PRODUCT_BANDWIDTH_SHARE * rates / np.maximum(freqs, 1e-300))
     for i in range(len(freqs)):
         stronger = np.flatnonzero(weights > weights[i])
         for j in stronger:
             order = round(freqs[i] / freqs[j])
-            if (order >= 2 and abs(freqs[i] / (order * freqs[j]) - 1) < HARMONIC_TOLERANCE
+            if (2 <= order <= MAX_HARMONIC_ORDER and abs(freqs[i] / (order * freqs[j]) - 1) < tolerance[i]
                     and abs(rates[i] / (order * rates[j]) - 1) < PRODUCT_RATE_TOLERANCE):
                 out[i] = True
             for k in stronger:
                 if k <= j:
                     continue
                 for tone in (freqs[j] + freqs[k], abs(freqs[j] - freqs[k])):
-                    if (abs(freqs[i] / tone - 1) < HARMONIC_TOLERANCE
+                    if (abs(freqs[i] / tone - 1) < tolerance[i]
                             and abs(rates[i] / (rates[j] + rates[k]) - 1) < PRODUCT_RATE_TOLERANCE):
                         out[i] = True
     return out
@@ -208,8 +213,9 @@ def fit_ringdown(signal: np.ndarray, rate_hz: float, modes: int = 3) -> Modes:
     valid = (omega_d < NYQUIST_MARGIN * 2 * np.pi * nyquist) & (zeta < MAX_ZETA)
     if not valid.any():
         return empty
+    counted = np.where(valid, weight, 0.0)      # a pole that is no mode hides none (an ω → 0, ζ → 1 drift)
     significant = (valid & (weight >= MIN_SHARE * weight[valid].max())
-                   & ~_distortion_products(omega_d, rate, weight) & ~_unresolved(omega_d, rate, weight))
+                   & ~_distortion_products(omega_d, rate, counted) & ~_unresolved(omega_d, rate, counted))
     order = np.argsort(omega_d[significant])[:modes]
     return Modes(omega_d[significant][order] / (2 * np.pi), zeta[significant][order],
                  amplitude[significant][order], float(np.sqrt(np.mean(residual ** 2)) * scale))
