@@ -5,12 +5,7 @@ from __future__ import annotations
 import numpy as np
 import open3d as o3d
 
-
-def unique_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(unique undirected edges (m, 2), number of faces using each)."""
-    edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    unique, counts = np.unique(edges, axis=0, return_counts=True)
-    return unique, counts
+from pipeline.scenes.rims import unique_edges
 
 
 def sample_surface(vertices: np.ndarray, faces: np.ndarray, count: int,

@@ -29,13 +29,20 @@ SAMPLES_PER_MARGIN = 4      # rim and sweep samples per margin length
 BEHIND_COSINE = -0.5        # (p − q)·n / |p − q| below this: a sample behind the surface
 
 
-def boundary_edges(faces: np.ndarray) -> np.ndarray:
-    """[E, 2] vertex pairs (smaller index first) of the edges used by exactly one face."""
+def unique_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(the undirected edges of ``faces`` [E, 2], smaller index first, in lexicographic order; the
+    number of faces using each [E])."""
     faces = np.asarray(faces, np.int64)
     edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
     keys = edges[:, 0] * (int(faces.max(initial=0)) + 1) + edges[:, 1]
     _, first, counts = np.unique(keys, return_index=True, return_counts=True)
-    return edges[first[counts == 1]]
+    return edges[first], counts
+
+
+def boundary_edges(faces: np.ndarray) -> np.ndarray:
+    """[E, 2] vertex pairs (smaller index first) of the edges used by exactly one face."""
+    edges, uses = unique_edges(faces)
+    return edges[uses == 1]
 
 
 class OpenRims:
