@@ -9,6 +9,7 @@ import pytest
 
 from pipeline.config import load_config
 from pipeline.config.physics import ModelConfig
+from pipeline.config.simulate import SimulateConfig
 from pipeline.errors import UserError
 
 REPO = Path(__file__).resolve().parents[2]
@@ -94,3 +95,13 @@ def test_env_error_names_the_variable():
     with pytest.raises(UserError, match="environment"):
         load_config(ModelConfig, env_prefix="PIPELINE_MODEL_",
                     environ={"PIPELINE_MODEL_MATERIAL__LINKS": "1"})
+
+
+@pytest.mark.parametrize("text", ["poses:\n  rim_margin_mm: -1\n", "poses:\n  max_attempts: 0\n"])
+def test_pose_sampling_errors_name_the_field(tmp_path, text):
+    path = tmp_path / "simulate.yaml"
+    path.write_text(text)
+    with pytest.raises(UserError) as info:
+        load_config(SimulateConfig, path)
+    assert f"poses.{text.split()[1].rstrip(':')}" in str(info.value)
+    assert "\n" not in str(info.value)
