@@ -125,7 +125,7 @@ class PoseSampler:
         reaching = int(np.any([self.sweeps(p, envelope) for p in path], axis=0).sum())
         if reaching < self.config.min_whiskers_reaching:
             return "too_few_whiskers", reaching
-        if any(self.rims.sweep_near(p.apply(envelope)).any() for p in path):
+        if any(self.rims.sweep_near(p.apply(envelope)) for p in path):
             return "behind_surface", reaching
         return None, reaching
 
@@ -150,7 +150,7 @@ class PoseSampler:
         if len(world) < 2:
             return np.zeros(world.shape[1], bool)
         step = np.diff(world, axis=0)
-        t_hit, normals = self.surface.cast(world[:-1], step)
+        t_hit, normals = self.surface.cast_segments(world[:-1], step)
         k, w, n = step.shape[:3]
         hit = (t_hit <= 1.0).reshape(k, w, n)
         back = (np.einsum("ij,ij->i", normals, step.reshape(-1, 3)) > 0.0).reshape(k, w, n)
@@ -162,7 +162,7 @@ class PoseSampler:
         nodes' paths between consecutive angles does."""
         world = pose.apply(envelope)                                   # [K, W, N+1, 3]
         k, w = world.shape[:2]
-        t_hit, _ = self.surface.cast(world[:-1, :, 1:], np.diff(world[:, :, 1:], axis=0))
+        t_hit, _ = self.surface.cast_segments(world[:-1, :, 1:], np.diff(world[:, :, 1:], axis=0))
         swept = (t_hit.reshape(k - 1, w, -1) <= 1.0).any(axis=(0, 2))
         return self.surface.segments_cross(world).any(axis=0) | swept
 

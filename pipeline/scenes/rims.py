@@ -22,11 +22,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from pipeline.scenes.distance_bounds import DistanceBounds
 from pipeline.scenes.obstacles import points_along
 from pipeline.scenes.surface import SurfaceQueries
 
 SAMPLES_PER_MARGIN = 4      # rim and sweep samples per margin length
 BEHIND_COSINE = -0.5        # (p − q)·n / |p − q| below this: a sample behind the surface
+BOUND_PAD_M = 1e-6          # a point is looked up in the k-d tree unless its grid bound exceeds the reach by this
 
 
 def unique_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -71,29 +73,29 @@ class OpenRims:
         points = ends[edge, 0] + fraction[:, None] * (ends[edge, 1] - ends[edge, 0])
         self.points_m = np.concatenate([points, vertices[np.unique(edges)]])
         self.tree = cKDTree(self.points_m)
-        self.bounds_m = np.array([self.points_m.min(axis=0), self.points_m.max(axis=0)])
+        self.bounds = DistanceBounds(self.points_m, self.points_m, self.margin_m)
 
-    def sweep_near(self, shapes_m: np.ndarray) -> np.ndarray:
-        """[W] whether whisker w, moving through ``shapes_m`` [K ≥ 2, W, N+1, 3] (world, in
-        order), comes within the margin of a rim (module docstring)."""
+    def sweep_near(self, shapes_m: np.ndarray) -> bool:
+        """Whether a whisker, moving through ``shapes_m`` [K ≥ 2, W, N+1, 3] (world, in order),
+        comes within the margin of a rim (module docstring)."""
         shapes_m = np.asarray(shapes_m, float)
-        near = np.zeros(shapes_m.shape[1], bool)
         if self.tree is None:
-            return near
+            return False
         link = np.linalg.norm(np.diff(shapes_m, axis=2), axis=3).max()
         step = np.linalg.norm(np.diff(shapes_m, axis=0), axis=3).max()
         reach = self.margin_m + 0.5 * (link + step) + self.spacing_m
-        points = shapes_m.reshape(-1, 3)
-        boxed = np.flatnonzero(((points >= self.bounds_m[0] - reach) & (points <= self.bounds_m[1] + reach)).all(axis=1))
-        distance, _ = self.tree.query(points[boxed], distance_upper_bound=reach)
-        found = np.zeros(len(points), bool)
-        found[boxed[np.isfinite(distance)]] = True
-        close = found.reshape(shapes_m.shape[:3]).any(axis=2)                     # [K, W]
+        close = self._within(shapes_m.reshape(-1, 3), reach).reshape(shapes_m.shape[:3]).any(axis=2)  # [K, W]
         intervals = close[:-1] | close[1:]                                        # [K-1, W]
-        for k, w in zip(*np.nonzero(intervals)):
-            if not near[w]:
-                near[w] = self._interval_near(shapes_m[k, w], shapes_m[k + 1, w])
-        return near
+        return any(self._interval_near(shapes_m[k, w], shapes_m[k + 1, w]) for k, w in zip(*np.nonzero(intervals)))
+
+    def _within(self, points_m: np.ndarray, reach_m: float) -> np.ndarray:
+        """[P] whether each point [P, 3] lies within ``reach_m`` of a rim sample (the grid's bound
+        first, the k-d tree only for the points it leaves)."""
+        found = self.bounds.lower_m(points_m) <= reach_m + BOUND_PAD_M
+        if found.any():
+            distance, _ = self.tree.query(points_m[found], distance_upper_bound=reach_m)
+            found[found] = np.isfinite(distance)
+        return found
 
     def _interval_near(self, start_m: np.ndarray, end_m: np.ndarray) -> bool:
         """Whether the links of one whisker, moving from nodes ``start_m`` to ``end_m`` [N+1, 3],
@@ -101,16 +103,14 @@ class OpenRims:
         moves = int(np.ceil(np.linalg.norm(end_m - start_m, axis=1).max() / self.spacing_m))
         fractions = np.linspace(0.0, 1.0, max(moves, 1) + 1)[:, None, None]
         nodes = start_m + fractions * (end_m - start_m)                           # [S, N+1, 3]
-        return bool(self._points_near(points_along(nodes, self.spacing_m)).any())
+        return self._points_near(points_along(nodes, self.spacing_m).reshape(-1, 3))
 
-    def _points_near(self, points_m: np.ndarray) -> np.ndarray:
-        """[...] whether one of the points ``points_m`` [..., P, 3], not behind the surface, lies
-        within the margin of a rim."""
-        points = points_m.reshape(-1, 3)
-        distance, _ = self.tree.query(points, distance_upper_bound=self.margin_m)
-        near = np.isfinite(distance)
-        if near.any():
-            nearest, normal = self.surface.closest_points(points[near])
-            offset = points[near] - nearest
-            near[near] = np.einsum("ij,ij->i", offset, normal) >= BEHIND_COSINE * np.linalg.norm(offset, axis=1)
-        return near.reshape(points_m.shape[:-1]).any(axis=-1)
+    def _points_near(self, points_m: np.ndarray) -> bool:
+        """Whether one of the points ``points_m`` [P, 3], not behind the surface, lies within the
+        margin of a rim."""
+        near = self._within(points_m, self.margin_m)
+        if not near.any():
+            return False
+        nearest, normal = self.surface.closest_points(points_m[near])
+        offset = points_m[near] - nearest
+        return bool(np.any(np.einsum("ij,ij->i", offset, normal) >= BEHIND_COSINE * np.linalg.norm(offset, axis=1)))

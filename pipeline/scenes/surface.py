@@ -3,7 +3,14 @@ RaycastingScene, one thread), and which faces lie near given points (a k-d tree 
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
+
+from pipeline.scenes.distance_bounds import DistanceBounds
+
+BOUNDS_VOXEL_M = 1e-3    # voxel of the grid that tells segments too far from the mesh to reach it
+SEGMENT_PAD_M = 1e-4     # a segment is cast unless it is this much shorter than its start's bound
 
 
 class SurfaceQueries:
@@ -47,11 +54,27 @@ class SurfaceQueries:
         hits = self.scene.cast_rays(self._o3d.core.Tensor(rays.astype(np.float32)), nthreads=1)
         return hits["t_hit"].numpy().astype(float), hits["primitive_normals"].numpy().astype(float)
 
+    @cached_property
+    def bounds(self) -> DistanceBounds:
+        """Lower bounds of points' distances to the faces' bounding boxes (built on first use)."""
+        return DistanceBounds(self._corners.min(axis=1), self._corners.max(axis=1), BOUNDS_VOXEL_M)
+
+    def cast_segments(self, origins: np.ndarray, steps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`cast` for segments o + t·s, 0 ≤ t ≤ 1: the same t and normals for every segment
+        that hits at t ≤ 1; a segment whose start lies further from the mesh than its length is
+        not cast (t inf, normal 0)."""
+        origins, steps = np.reshape(origins, (-1, 3)), np.reshape(steps, (-1, 3))
+        cast = self.bounds.may_reach(origins, steps, SEGMENT_PAD_M)
+        t_hit, normals = np.full(len(origins), np.inf), np.zeros((len(origins), 3))
+        if cast.any():
+            t_hit[cast], normals[cast] = self.cast(origins[cast], steps[cast])
+        return t_hit, normals
+
     def segments_cross(self, nodes: np.ndarray) -> np.ndarray:
         """[..., W] whether a segment between consecutive nodes of ``nodes`` [..., W, N+1, 3]
         crosses the surface."""
         nodes = np.asarray(nodes, float)
-        t_hit, _ = self.cast(nodes[..., :-1, :], np.diff(nodes, axis=-2))
+        t_hit, _ = self.cast_segments(nodes[..., :-1, :], np.diff(nodes, axis=-2))
         return (t_hit.reshape(nodes.shape[:-2] + (-1,)) <= 1.0).any(axis=-1)
 
     def random_point(self, rng: np.random.Generator) -> np.ndarray:

@@ -37,7 +37,7 @@ def test_a_link_is_near_within_the_margin_and_not_beyond():
     for height, near in ((0.69 * MARGIN_M, True), (1.01 * MARGIN_M, False), (-0.69 * MARGIN_M, False)):
         link = np.array([[-0.002, -0.005, height], [0.002, -0.005, height]])
         sweep = np.stack([link, link + [0.0, 0.01, 0.0]])[:, None]      # [K=2, W=1, 2, 3]: y −5 → +5 mm
-        assert rims.sweep_near(sweep).tolist() == [near]
+        assert rims.sweep_near(sweep) == near
 
 
 def rim_sampler(sheet: TriangleMesh, margin_mm: float) -> PoseSampler:
