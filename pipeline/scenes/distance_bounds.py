@@ -43,19 +43,19 @@ class DistanceBounds:
         points = np.ascontiguousarray(np.reshape(points_m, (-1, 3)), float)
         return _lower_bounds(points, self.low, self.voxel_m, self.grid)
 
-    def may_reach(self, origins_m: np.ndarray, steps_m: np.ndarray, pad_m: float) -> np.ndarray:
-        """[P] whether segment o → o + s may come within ``pad_m`` of the boxes: its start's
-        bound is not more than its length + pad; ``origins_m``, ``steps_m`` [P, 3]."""
-        origins = np.ascontiguousarray(np.reshape(origins_m, (-1, 3)), float)
-        steps = np.ascontiguousarray(np.reshape(steps_m, (-1, 3)), float)
-        return _may_reach(origins, steps, float(pad_m), self.low, self.voxel_m, self.grid)
+    def segments_reaching(self, starts_m: np.ndarray, ends_m: np.ndarray, pad_m: float) -> np.ndarray:
+        """[S] the indices of the segments ``starts_m`` → ``ends_m`` [P, 3] that may come within
+        ``pad_m`` of the boxes: the bounds at their two ends add up to no more than their length
+        + pad (a point of the segment on a box lies within the length of both ends)."""
+        starts = np.ascontiguousarray(np.reshape(starts_m, (-1, 3)), float)
+        ends = np.ascontiguousarray(np.reshape(ends_m, (-1, 3)), float)
+        return _segments_reaching(starts, ends, float(pad_m), self.low, self.voxel_m, self.grid)
 
 
 @numba.njit(cache=True)
 def _voxel(x: float, low: float, voxel: float, size: int) -> int:
     """The index of the voxel holding coordinate x along one axis, clipped into [0, size)."""
-    index = int(np.floor((x - low) / voxel))
-    return min(max(index, 0), size - 1)
+    return int(min(max((x - low) / voxel, 0.0), size - 1.0))
 
 
 @numba.njit(cache=True)
@@ -110,11 +110,15 @@ def _lower_bounds(points: np.ndarray, low: np.ndarray, voxel: float, grid: np.nd
 
 
 @numba.njit(cache=True)
-def _may_reach(origins: np.ndarray, steps: np.ndarray, pad: float, low: np.ndarray, voxel: float,
-               grid: np.ndarray) -> np.ndarray:
-    """[P] whether each segment's start bound is at most its length + pad."""
-    out = np.empty(len(origins), np.bool_)
-    for p in range(len(origins)):
-        length = np.sqrt(steps[p, 0] ** 2 + steps[p, 1] ** 2 + steps[p, 2] ** 2)
-        out[p] = _bound(origins[p, 0], origins[p, 1], origins[p, 2], low, voxel, grid) <= length + pad
-    return out
+def _segments_reaching(starts: np.ndarray, ends: np.ndarray, pad: float, low: np.ndarray, voxel: float,
+                       grid: np.ndarray) -> np.ndarray:
+    """[S] :meth:`DistanceBounds.segments_reaching`, in increasing order."""
+    out = np.empty(len(starts), np.int64)
+    count = 0
+    for i in range(len(starts)):
+        a, b = starts[i], ends[i]
+        length = np.sqrt((b[0] - a[0]) ** 2 + (b[1] - a[1]) ** 2 + (b[2] - a[2]) ** 2)
+        if _bound(a[0], a[1], a[2], low, voxel, grid) + _bound(b[0], b[1], b[2], low, voxel, grid) <= length + pad:
+            out[count] = i
+            count += 1
+    return out[:count]

@@ -46,6 +46,7 @@ from pipeline.model.head_motion import HeadMotion
 from pipeline.model.kinematics import Pose
 from pipeline.scenes.obstacles import TriangleMesh
 from pipeline.scenes.rims import OpenRims
+from pipeline.scenes.sweeps import PlacedWhisk, Whisk
 
 PATH_CHECKS = 8          # instants of a moving head's trajectory the checks hold at
 
@@ -103,12 +104,15 @@ class PoseSampler:
         origin = target - distance * aim
         return (Pose(tuple(origin.tolist()), orientation.euler_zyx_rad), side, distance, aim)
 
-    def check(self, pose: Pose, aim: np.ndarray, start: np.ndarray, envelope: np.ndarray,
-              away: tuple[np.ndarray, ...] = (), head: HeadMotion | None = None) -> tuple[str | None, int]:
-        """(rejection reason or None, whiskers reaching) of a candidate pose; ``start`` and
-        ``envelope`` are :meth:`shapes` at the starting angle and over the protraction range,
-        ``away`` :meth:`shapes` from the starting angle toward each end of it (:meth:`away_from`);
-        ``head`` the trajectory from ``pose`` (module docstring)."""
+    def whisk(self, theta_start_rad: float, thetas_rad) -> Whisk:
+        """The rest shapes a trial's checks use: from ``theta_start_rad`` over the envelope
+        angles ``thetas_rad`` (:class:`~pipeline.scenes.sweeps.Whisk`)."""
+        return Whisk.of(self.shapes, theta_start_rad, thetas_rad)
+
+    def check(self, pose: Pose, aim: np.ndarray, whisk: Whisk,
+              head: HeadMotion | None = None) -> tuple[str | None, int]:
+        """(rejection reason or None, whiskers reaching) of a candidate pose for the shapes
+        ``whisk`` (:meth:`whisk`); ``head`` the trajectory from ``pose`` (module docstring)."""
         path = [pose] if head is None else [head.pose(t) for t in np.linspace(0.0, head.duration_s, PATH_CHECKS)]
         origin = np.asarray(pose.position_m)
         t_hit, normal = self.surface.cast(origin, aim)
@@ -118,53 +122,18 @@ class PoseSampler:
             return "head_in_surface", 0
         if any(np.any(self.surface.distance(p.apply(self.base_points)) < self.min_base_distance) for p in path):
             return "surface_near_base", 0
-        if self.crossings(pose, start).any():
+        placed = [PlacedWhisk(whisk, p, self.surface) for p in path]
+        at_pose = placed[0] if path[0] is pose else PlacedWhisk(whisk, pose, self.surface)
+        if at_pose.links_cross([whisk.start]).any():
             return "starts_in_surface", 0
-        if any(self.meets_back(p, shapes).any() for p in path for shapes in away):
+        if any(p.meets_back(run).any() for p in placed for run in whisk.away):
             return "behind_surface", 0
-        reaching = int(np.any([self.sweeps(p, envelope) for p in path], axis=0).sum())
+        reaching = int(np.any([p.sweeps() for p in placed], axis=0).sum())
         if reaching < self.config.min_whiskers_reaching:
             return "too_few_whiskers", reaching
-        if any(self.rims.sweep_near(p.apply(envelope)) for p in path):
+        if any(self.rims.sweep_near(p.world[whisk.envelope]) for p in placed):
             return "behind_surface", reaching
         return None, reaching
-
-    def crossings(self, pose: Pose, shapes: np.ndarray) -> np.ndarray:
-        """[K, W] whether a link of whisker w's rest shape at angle k crosses the surface."""
-        return self.surface.segments_cross(pose.apply(shapes))
-
-
-    def away_from(self, theta_start_rad: float, thetas_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`shapes` at the starting angle, then at the angles of ``thetas_rad`` beyond it,
-        in the order the whisker reaches them: protracting, then retracting."""
-        thetas_rad = np.asarray(thetas_rad)
-        forward = np.sort(thetas_rad[thetas_rad > theta_start_rad])
-        backward = np.sort(thetas_rad[thetas_rad < theta_start_rad])[::-1]
-        return tuple(self.shapes([theta_start_rad, *side]) for side in (forward, backward))
-
-    def meets_back(self, pose: Pose, shapes: np.ndarray) -> np.ndarray:
-        """[W] whether a node of whisker w, moving through ``shapes`` [K, W, N+1, 3] (head frame,
-        in order), meets the back of a face (a face whose outward normal points along its path)
-        before any front."""
-        world = pose.apply(shapes)[:, :, 1:]                           # the base point stays put
-        if len(world) < 2:
-            return np.zeros(world.shape[1], bool)
-        step = np.diff(world, axis=0)
-        t_hit, normals = self.surface.cast_segments(world[:-1], step)
-        k, w, n = step.shape[:3]
-        hit = (t_hit <= 1.0).reshape(k, w, n)
-        back = (np.einsum("ij,ij->i", normals, step.reshape(-1, 3)) > 0.0).reshape(k, w, n)
-        first = np.argmax(hit, axis=0)                                  # [W, N] first interval hit
-        return (hit.any(axis=0) & np.take_along_axis(back, first[None], axis=0)[0]).any(axis=1)
-
-    def sweeps(self, pose: Pose, envelope: np.ndarray) -> np.ndarray:
-        """[W] whether whisker w crosses the surface at an angle of the envelope, or one of its
-        nodes' paths between consecutive angles does."""
-        world = pose.apply(envelope)                                   # [K, W, N+1, 3]
-        k, w = world.shape[:2]
-        t_hit, _ = self.surface.cast_segments(world[:-1, :, 1:], np.diff(world[:, :, 1:], axis=0))
-        swept = (t_hit.reshape(k - 1, w, -1) <= 1.0).any(axis=(0, 2))
-        return self.surface.segments_cross(world).any(axis=0) | swept
 
     def sample(self, rng: np.random.Generator, theta_range_rad: tuple[float, float],
                theta_start_rad: float, path=None, duration_s: float = 0.0) -> PoseSample:
@@ -172,14 +141,12 @@ class PoseSampler:
         ``theta_start_rad``, the head moving along ``path(pose, aim, duration_s)`` (a
         :class:`~pipeline.model.head_motion.HeadMotion`; None: still); raises
         :class:`PoseSamplingError` after ``max_attempts``."""
-        start = self.shapes([theta_start_rad])
-        thetas = np.linspace(*theta_range_rad, self.config.sweep_steps)
-        envelope, away = self.shapes(thetas), self.away_from(theta_start_rad, thetas)
+        whisk = self.whisk(theta_start_rad, np.linspace(*theta_range_rad, self.config.sweep_steps))
         rejections = dict.fromkeys(REASONS, 0)
         for attempt in range(1, self.config.max_attempts + 1):
             pose, side, distance, aim = self.draw_candidate(rng)
             head = None if path is None else path(pose, aim, duration_s)
-            reason, reaching = self.check(pose, aim, start, envelope, away, head)
+            reason, reaching = self.check(pose, aim, whisk, head)
             if reason is None:
                 return PoseSample(pose, side, distance, reaching, attempt, rejections, head)
             rejections[reason] += 1

@@ -59,23 +59,25 @@ class SurfaceQueries:
         """Lower bounds of points' distances to the faces' bounding boxes (built on first use)."""
         return DistanceBounds(self._corners.min(axis=1), self._corners.max(axis=1), BOUNDS_VOXEL_M)
 
-    def cast_segments(self, origins: np.ndarray, steps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`cast` for segments o + t·s, 0 ≤ t ≤ 1: the same t and normals for every segment
-        that hits at t ≤ 1; a segment whose start lies further from the mesh than its length is
-        not cast (t inf, normal 0)."""
-        origins, steps = np.reshape(origins, (-1, 3)), np.reshape(steps, (-1, 3))
-        cast = self.bounds.may_reach(origins, steps, SEGMENT_PAD_M)
-        t_hit, normals = np.full(len(origins), np.inf), np.zeros((len(origins), 3))
-        if cast.any():
-            t_hit[cast], normals[cast] = self.cast(origins[cast], steps[cast])
-        return t_hit, normals
+    def segment_hits(self, starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rays from ``starts`` toward ``ends`` [..., 3]: (t [...] in units of the segment, as
+        :meth:`cast` gives it, normals [..., 3]) for each segment the mesh's bounds leave; t inf
+        and normal 0 for the others, none of which hits at t ≤ 1."""
+        shape = np.shape(starts)[:-1]
+        starts = np.ascontiguousarray(np.reshape(starts, (-1, 3)), float)
+        ends = np.ascontiguousarray(np.reshape(ends, (-1, 3)), float)
+        t_hit, normals = np.full(len(starts), np.inf), np.zeros((len(starts), 3))
+        cast = self.bounds.segments_reaching(starts, ends, SEGMENT_PAD_M)
+        if len(cast):
+            t_hit[cast], normals[cast] = self.cast(starts[cast], ends[cast] - starts[cast])
+        return t_hit.reshape(shape), normals.reshape(shape + (3,))
 
     def segments_cross(self, nodes: np.ndarray) -> np.ndarray:
         """[..., W] whether a segment between consecutive nodes of ``nodes`` [..., W, N+1, 3]
         crosses the surface."""
         nodes = np.asarray(nodes, float)
-        t_hit, _ = self.cast_segments(nodes[..., :-1, :], np.diff(nodes, axis=-2))
-        return (t_hit.reshape(nodes.shape[:-2] + (-1,)) <= 1.0).any(axis=-1)
+        t_hit, _ = self.segment_hits(nodes[..., :-1, :], nodes[..., 1:, :])
+        return (t_hit <= 1.0).any(axis=-1)
 
     def random_point(self, rng: np.random.Generator) -> np.ndarray:
         """A point drawn uniformly over the surface area."""

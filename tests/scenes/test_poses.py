@@ -12,6 +12,7 @@ from pipeline.model.array import build_array
 from pipeline.model.morphology import model_rat
 from pipeline.scenes.obstacles import TriangleMesh
 from pipeline.scenes.poses import REASONS, PoseSampler, PoseSamplingError
+from pipeline.scenes.sweeps import PlacedWhisk
 
 THETA = (np.radians(-15.0), np.radians(35.0))
 
@@ -34,18 +35,17 @@ def sampler() -> PoseSampler:
 def test_accepted_poses_satisfy_every_rule(sampler):
     config = sampler.config
     arc = np.array([w.chain.geometry.arc_length_m for w in sampler.array.whiskers])
-    start = sampler.shapes([THETA[0]])
-    envelope = sampler.shapes(np.linspace(*THETA, config.sweep_steps))
-    away = sampler.away_from(THETA[0], np.linspace(*THETA, config.sweep_steps))
+    whisk = sampler.whisk(THETA[0], np.linspace(*THETA, config.sweep_steps))
     for i in range(5):
         sample = sampler.sample(np.random.default_rng([7, i]), THETA, THETA[0])
         pose = sample.pose
         assert sampler.surface.distance(np.asarray(pose.position_m))[0] >= config.head_radius_mm * 1e-3
         base_distance = sampler.surface.distance(pose.apply(sampler.base_points))
         assert np.all(base_distance >= config.min_base_distance_fraction * arc)
-        assert not sampler.crossings(pose, start).any()
-        assert not any(sampler.meets_back(pose, shapes).any() for shapes in away)
-        assert sample.whiskers_reaching == sampler.sweeps(pose, envelope).sum() >= config.min_whiskers_reaching
+        placed = PlacedWhisk(whisk, pose, sampler.surface)
+        assert not placed.links_cross([whisk.start]).any()
+        assert not any(placed.meets_back(run).any() for run in whisk.away)
+        assert sample.whiskers_reaching == placed.sweeps().sum() >= config.min_whiskers_reaching
         assert 10e-3 <= sample.distance_m <= 35e-3 and sample.side in (1, -1)
         assert set(sample.rejections) == set(REASONS)
         assert sum(sample.rejections.values()) == sample.attempts - 1
@@ -98,13 +98,12 @@ def test_no_acceptable_pose_reports_the_reasons():
 def test_head_inside_a_closed_object_or_too_near_is_rejected(sampler):
     from pipeline.model.kinematics import Pose
 
-    start = sampler.shapes([THETA[0]])
-    envelope = sampler.shapes(np.linspace(*THETA, sampler.config.sweep_steps))
+    whisk = sampler.whisk(THETA[0], np.linspace(*THETA, sampler.config.sweep_steps))
     inside = Pose((0.0, 0.0, 0.0))                       # the box's centre
     for aim in np.eye(3):
-        assert sampler.check(inside, aim, start, envelope)[0] == "behind_surface"
+        assert sampler.check(inside, aim, whisk)[0] == "behind_surface"
     near = Pose((0.035, 0.0, 0.0))                       # 5 mm outside the +x face, head radius 8 mm
-    assert sampler.check(near, np.array([-1.0, 0.0, 0.0]), start, envelope)[0] == "head_in_surface"
+    assert sampler.check(near, np.array([-1.0, 0.0, 0.0]), whisk)[0] == "head_in_surface"
 
 
 def patch(centre_m, normal, half_m: float) -> TriangleMesh:
@@ -141,7 +140,6 @@ def test_a_whisker_that_would_reach_the_back_of_a_face_is_rejected():
     for toward_tip, reason in ((True, None), (False, "behind_surface")):
         across = patch(tip_start + 0.5 * path, -path if toward_tip else path, 0.003)
         sampler = PoseSampler(joined(floor, across), array, config)
-        thetas = np.linspace(*THETA, config.sweep_steps)
-        away = sampler.away_from(THETA[0], thetas)
-        assert sampler.meets_back(Pose(), away[0]).tolist() == [not toward_tip]
-        assert sampler.check(Pose(), aim, sampler.shapes([THETA[0]]), sampler.shapes(thetas), away)[0] == reason
+        whisk = sampler.whisk(THETA[0], np.linspace(*THETA, config.sweep_steps))
+        assert PlacedWhisk(whisk, Pose(), sampler.surface).meets_back(whisk.away[0]).tolist() == [not toward_tip]
+        assert sampler.check(Pose(), aim, whisk)[0] == reason
