@@ -9,6 +9,7 @@ frame (y toward the concave side) is R·Rx(−π/2). Left whiskers are mirrored 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -147,9 +148,12 @@ class Pose:
         nose up > 0) and roll (about rostral y), all rad (docs/frames.md)."""
         return cls(tuple(position_m), (float(yaw_rad), float(roll_rad), float(pitch_rad)))
 
-    @property
+    @cached_property
     def rotation(self) -> np.ndarray:
-        return rotation_zyx(*self.euler_zyx_rad)
+        """[3, 3] head axes in the world (computed once per pose, read-only: every transform uses it)."""
+        rotation = rotation_zyx(*self.euler_zyx_rad)
+        rotation.flags.writeable = False
+        return rotation
 
     def apply(self, points: np.ndarray) -> np.ndarray:
         return np.asarray(points) @ self.rotation.T + np.asarray(self.position_m)

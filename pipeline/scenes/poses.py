@@ -49,6 +49,7 @@ from pipeline.scenes.rims import OpenRims
 from pipeline.scenes.sweeps import PlacedWhisk, Whisk
 
 PATH_CHECKS = 8          # instants of a moving head's trajectory the checks hold at
+DISTANCE_TOLERANCE_M = 1e-6   # bounds decide a distance test only when this clear (Open3D: single precision)
 
 
 @dataclass(frozen=True)
@@ -82,6 +83,7 @@ class PoseSampler:
         self.array = array
         self.config = config
         self.base_points = np.array([w.base_point_m for w in array.whiskers])
+        self.base_radii = np.linalg.norm(self.base_points, axis=1)        # from the array origin
         self.min_base_distance = config.min_base_distance_fraction * np.array(
             [w.chain.geometry.arc_length_m for w in array.whiskers])
 
@@ -104,6 +106,22 @@ class PoseSampler:
         origin = target - distance * aim
         return (Pose(tuple(origin.tolist()), orientation.euler_zyx_rad), side, distance, aim)
 
+    def base_too_near(self, pose: Pose, origin_distance_m: float) -> bool:
+        """Whether the surface comes nearer a base point than its minimum distance, the array
+        origin ``origin_distance_m`` from the surface. A base point r from the origin lies within
+        origin distance ± r of the surface, and at least its grid bound away
+        (:attr:`SurfaceQueries.bounds`): only the points these leave undecided are queried, the
+        least clear first on its own (most often the one too near)."""
+        if np.any(origin_distance_m + self.base_radii < self.min_base_distance - DISTANCE_TOLERANCE_M):
+            return True
+        points = pose.apply(self.base_points)
+        slack = np.maximum(origin_distance_m - self.base_radii, self.surface.bounds.lower_m(points)) \
+            - self.min_base_distance
+        unsure = np.flatnonzero(slack < DISTANCE_TOLERANCE_M)
+        unsure = unsure[np.argsort(slack[unsure], kind="stable")]
+        return any(np.any(self.surface.distance(points[batch]) < self.min_base_distance[batch])
+                   for batch in (unsure[:1], unsure[1:]) if len(batch))
+
     def whisk(self, theta_start_rad: float, thetas_rad) -> Whisk:
         """The rest shapes a trial's checks use: from ``theta_start_rad`` over the envelope
         angles ``thetas_rad`` (:class:`~pipeline.scenes.sweeps.Whisk`)."""
@@ -118,9 +136,10 @@ class PoseSampler:
         t_hit, normal = self.surface.cast(origin, aim)
         if not np.isfinite(t_hit[0]) or normal[0] @ aim > 0.0:
             return "behind_surface", 0
-        if self.surface.distance(np.array([p.position_m for p in path])).min() < self.config.head_radius_mm * 1e-3:
+        head_distance = self.surface.distance(np.array([p.position_m for p in path]))
+        if head_distance.min() < self.config.head_radius_mm * 1e-3:
             return "head_in_surface", 0
-        if any(np.any(self.surface.distance(p.apply(self.base_points)) < self.min_base_distance) for p in path):
+        if any(self.base_too_near(p, d) for p, d in zip(path, head_distance)):
             return "surface_near_base", 0
         placed = [PlacedWhisk(whisk, p, self.surface) for p in path]
         at_pose = placed[0] if path[0] is pose else PlacedWhisk(whisk, pose, self.surface)
