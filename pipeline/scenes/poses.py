@@ -150,7 +150,7 @@ class PoseSampler:
         reaching = int(np.any([p.sweeps() for p in placed], axis=0).sum())
         if reaching < self.config.min_whiskers_reaching:
             return "too_few_whiskers", reaching
-        if any(self.rims.sweep_near(p.world[whisk.envelope]) for p in placed):
+        if any(self.rims.sweep_near(p.world[whisk.envelope], whisk.longest_m) for p in placed):
             return "behind_surface", reaching
         return None, reaching
 

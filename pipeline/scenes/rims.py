@@ -47,6 +47,13 @@ def boundary_edges(faces: np.ndarray) -> np.ndarray:
     return edges[uses == 1]
 
 
+def longest_moves(shapes_m: np.ndarray) -> tuple[float, float]:
+    """(the longest link, the longest node step between consecutive shapes) of chains moving
+    through ``shapes_m`` [K, W, N+1, 3] (m)."""
+    return (float(np.linalg.norm(np.diff(shapes_m, axis=2), axis=3).max()),
+            float(np.linalg.norm(np.diff(shapes_m, axis=0), axis=3).max()))
+
+
 class OpenRims:
     """Points along the open rims of one triangle mesh, with a k-d tree to find them; ``surface``
     the mesh's queries (to tell samples behind it)."""
@@ -75,27 +82,29 @@ class OpenRims:
         self.tree = cKDTree(self.points_m)
         self.bounds = DistanceBounds(self.points_m, self.points_m, self.margin_m)
 
-    def sweep_near(self, shapes_m: np.ndarray) -> bool:
+    def sweep_near(self, shapes_m: np.ndarray, longest_m: tuple[float, float] | None = None) -> bool:
         """Whether a whisker, moving through ``shapes_m`` [K ≥ 2, W, N+1, 3] (world, in order),
-        comes within the margin of a rim (module docstring)."""
+        comes within the margin of a rim (module docstring); ``longest_m`` the longest link and
+        node step between consecutive shapes if known (the same in any frame)."""
         shapes_m = np.asarray(shapes_m, float)
         if self.tree is None:
             return False
-        link = np.linalg.norm(np.diff(shapes_m, axis=2), axis=3).max()
-        step = np.linalg.norm(np.diff(shapes_m, axis=0), axis=3).max()
+        link, step = longest_m if longest_m is not None else longest_moves(shapes_m)
         reach = self.margin_m + 0.5 * (link + step) + self.spacing_m
-        close = self._within(shapes_m.reshape(-1, 3), reach).reshape(shapes_m.shape[:3]).any(axis=2)  # [K, W]
-        intervals = close[:-1] | close[1:]                                        # [K-1, W]
-        return any(self._interval_near(shapes_m[k, w], shapes_m[k + 1, w]) for k, w in zip(*np.nonzero(intervals)))
+        nearest = self._distances(shapes_m.reshape(-1, 3), reach).reshape(shapes_m.shape[:3]).min(axis=2)  # [K, W]
+        intervals = np.minimum(nearest[:-1], nearest[1:])                         # [K-1, W]
+        k, w = np.nonzero(np.isfinite(intervals))
+        order = np.argsort(intervals[k, w], kind="stable")                       # the likeliest first
+        return any(self._interval_near(shapes_m[k, w], shapes_m[k + 1, w]) for k, w in zip(k[order], w[order]))
 
-    def _within(self, points_m: np.ndarray, reach_m: float) -> np.ndarray:
-        """[P] whether each point [P, 3] lies within ``reach_m`` of a rim sample (the grid's bound
-        first, the k-d tree only for the points it leaves)."""
-        found = self.bounds.lower_m(points_m) <= reach_m + BOUND_PAD_M
-        if found.any():
-            distance, _ = self.tree.query(points_m[found], distance_upper_bound=reach_m)
-            found[found] = np.isfinite(distance)
-        return found
+    def _distances(self, points_m: np.ndarray, reach_m: float) -> np.ndarray:
+        """[P] each point's [P, 3] distance to the nearest rim sample, inf beyond ``reach_m`` (the
+        grid's bound first, the k-d tree only for the points it leaves)."""
+        distance = np.full(len(points_m), np.inf)
+        found = np.flatnonzero(self.bounds.lower_m(points_m) <= reach_m + BOUND_PAD_M)
+        if len(found):
+            distance[found], _ = self.tree.query(points_m[found], distance_upper_bound=reach_m)
+        return distance
 
     def _interval_near(self, start_m: np.ndarray, end_m: np.ndarray) -> bool:
         """Whether the links of one whisker, moving from nodes ``start_m`` to ``end_m`` [N+1, 3],
@@ -108,7 +117,7 @@ class OpenRims:
     def _points_near(self, points_m: np.ndarray) -> bool:
         """Whether one of the points ``points_m`` [P, 3], not behind the surface, lies within the
         margin of a rim."""
-        near = self._within(points_m, self.margin_m)
+        near = np.isfinite(self._distances(points_m, self.margin_m))
         if not near.any():
             return False
         nearest, normal = self.surface.closest_points(points_m[near])

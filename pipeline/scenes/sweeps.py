@@ -19,6 +19,7 @@ import numba
 import numpy as np
 
 from pipeline.model.kinematics import Pose
+from pipeline.scenes.rims import longest_moves
 from pipeline.scenes.surface import SEGMENT_PAD_M, SurfaceQueries
 
 
@@ -34,6 +35,11 @@ class Whisk:
     start: int
     envelope: np.ndarray
     away: tuple[np.ndarray, np.ndarray]
+
+    @cached_property
+    def longest_m(self) -> tuple[float, float]:
+        """(the longest link, the longest node step between consecutive envelope angles)."""
+        return longest_moves(self.nodes[self.envelope])
 
     @classmethod
     def of(cls, shapes, theta_start_rad: float, thetas_rad) -> "Whisk":
