@@ -98,6 +98,7 @@ class FaceIndex:
         from scipy.spatial import cKDTree
 
         corners = np.asarray(vertices_m, float)[np.asarray(faces)]          # [F, 3, 3]
+        self._lower, self._upper = corners.min(axis=1), corners.max(axis=1)
         self.centroids = corners.mean(axis=1)
         self.radii = np.linalg.norm(corners - self.centroids[:, None], axis=2).max(axis=1)
         self.tree = cKDTree(self.centroids)
@@ -116,9 +117,19 @@ class FaceIndex:
                 gaps[k] = gap.min()
         return faces_near, gaps
 
+    @cached_property
+    def bounds(self) -> DistanceBounds:
+        """Lower bounds of points' distances to the faces' bounding boxes (built on first use)."""
+        return DistanceBounds(self._lower, self._upper, BOUNDS_VOXEL_M)
+
     def lower_distance_m(self, points_m: np.ndarray, beyond_m: float = np.inf) -> np.ndarray:
         """[P] a lower bound of each point's distance to the mesh; one above ``beyond_m`` may be
-        given as inf (the k-d tree stops searching there: several times faster)."""
+        given as inf (the k-d tree stops searching there: several times faster; and a point whose
+        grid bound lies beyond it is not searched for)."""
         pad = self.radii.max()
-        distance, _ = self.tree.query(points_m, distance_upper_bound=beyond_m + pad)
+        points_m = np.asarray(points_m, float).reshape(-1, 3)
+        distance = np.full(len(points_m), np.inf)
+        ask = slice(None) if not np.isfinite(beyond_m) else \
+            np.flatnonzero(self.bounds.lower_m(points_m) <= beyond_m + pad + SEGMENT_PAD_M)
+        distance[ask], _ = self.tree.query(points_m[ask], distance_upper_bound=beyond_m + pad)
         return distance - pad

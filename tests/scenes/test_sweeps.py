@@ -143,3 +143,15 @@ def test_distance_bounds_never_exceed_the_distance(monkeypatch, max_voxels):
     assert (bounds.voxel_m > 5e-4) == (max_voxels == 2000)            # coarsened only when too large
     chebyshev = distance_transform_cdt(bounds.grid != 0, metric="chessboard")
     assert np.array_equal(np.minimum(chebyshev, distance_bounds.CAP), bounds.grid)
+
+
+def test_face_index_bound_with_a_cutoff_is_the_plain_tree_query(sampler):
+    """FaceIndex.lower_distance_m with a finite cutoff skips the points the voxel grid puts
+    beyond it: the same values as querying every point."""
+    index = bumpy_sheet().face_index
+    points = np.random.default_rng(2).uniform(-0.04, 0.04, (5000, 3))
+    pad = index.radii.max()
+    for beyond in (0.0, 0.002, 0.01):
+        plain = index.tree.query(points, distance_upper_bound=beyond + pad)[0] - pad
+        found = index.lower_distance_m(points, beyond)
+        assert np.array_equal(found, plain) and np.isfinite(found).any() and np.isinf(found).any()
