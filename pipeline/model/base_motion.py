@@ -105,8 +105,7 @@ class BaseInertia:
         last = self._last.get(id(whisker))
         if last is not None and last[0] is whisker and last[1] is drive and last[2] == t_s:
             return last[3]
-        theta = [float(drive(t_s, d)) for d in range(4)]
-        omega, alpha, alpha_rate = angular_motion(whisker, *theta)
+        omega, alpha, alpha_rate = angular_motion(whisker, *drive.state(t_s))
         force = self.generalised_force(omega, alpha)
         rate = (-self.coupling @ alpha_rate - self.centrifugal @ product_rates(omega, alpha)) / self.stiffness
         state = ((force - self.damping * rate) / self.stiffness, rate)

@@ -46,6 +46,7 @@ class ProtractionDrive:
     frequency_hz: float = float("nan")
     continued_after_s: float = float("inf")
     _spline: object = field(init=False, repr=False, compare=False)
+    _states: dict = field(init=False, repr=False, compare=False)     # :meth:`state`'s answers
 
     def __post_init__(self):
         t, a = np.asarray(self.time_s, float), np.asarray(self.angle_rad, float)
@@ -63,6 +64,7 @@ class ProtractionDrive:
         else:
             raise UserError(f"unknown interpolation '{self.interpolation}' (cubic or linear)")
         object.__setattr__(self, "_spline", spline)
+        object.__setattr__(self, "_states", {})
 
     @property
     def duration_s(self) -> float:
@@ -76,6 +78,13 @@ class ProtractionDrive:
         if derivative == 0:
             return self._spline(at)
         return np.where(inside, self._spline(at, derivative), 0.0)
+
+    def state(self, t_s: float) -> tuple[float, float, float, float]:
+        """(θ rad, θ̇ rad/s, θ̈ rad/s², θ⃛ rad/s³) at ``t_s`` (s), computed once per time (every
+        whisker of a trial starts from the drive's state at t = 0)."""
+        if t_s not in self._states:
+            self._states[t_s] = tuple(float(self(t_s, d)) for d in range(4))
+        return self._states[t_s]
 
     def continued(self, end_s: float, interval_s: float) -> "ProtractionDrive":
         """This drive as a trial ending at ``end_s`` (s) with output interval ``interval_s`` (s)

@@ -31,7 +31,11 @@ at every instant: an upper bound of what the whisk reaches there).
 
 Head angles are the anatomical yaw (config: heading), pitch and roll of docs/frames.md,
 turned into a :class:`~pipeline.model.kinematics.Pose` by ``Pose.anatomical``. Distances use Open3D's
-``RaycastingScene`` (one thread). Units: metres and radians.
+``RaycastingScene`` (one thread). The checks skip work whose answer is already known, never
+changing one: the rest shapes are placed once per candidate and each link and node path is cast
+once (:mod:`pipeline.scenes.sweeps`); a segment, base point or rim sample that a voxel grid's
+distance bound (:mod:`pipeline.scenes.distance_bounds`) shows out of reach is not queried.
+Units: metres and radians.
 """
 
 from __future__ import annotations

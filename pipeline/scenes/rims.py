@@ -15,7 +15,8 @@ so every point of its sweep nearer than 0.7 × margin to a rim is caught, and no
 rigid sweep reaches them only through the surface, where the bent whisker does not go; a sample
 beside a rim (in its sheet's plane) counts. A coarse pass on the nodes of the given shapes
 (padded by the largest link and step) picks the few (angle interval, whisker) pairs worth
-sampling finely.
+sampling finely, nearest first; a voxel grid's bound of the distance to the rim samples spares
+the k-d tree the points it puts out of reach.
 """
 
 from __future__ import annotations

@@ -72,3 +72,14 @@ def test_quasi_steady_start_remembers_one_drive_by_identity():
     assert inertia.quasi_steady(whisker, fast, t_s=0.01) is not other   # keyed by the time too
     with pytest.raises(ValueError):
         first[0][0] = 1.0                                       # shared: read-only
+
+
+def test_a_drive_state_is_its_derivatives_computed_once_per_time():
+    """Every whisker's quasi-steady start asks the drive for θ and three derivatives at t = 0:
+    the drive answers each time once, with the values its spline gives."""
+    drive = sinusoidal_whisk(frequency_hz=9.0)
+    for t_s in (0.0, 0.013):
+        state = drive.state(t_s)
+        assert state == tuple(float(drive(t_s, d)) for d in range(4))
+        assert drive.state(t_s) is state
+    assert drive.continued(0.1, 0.001).state(0.0) == drive.state(0.0)      # a copy computes its own
