@@ -167,6 +167,13 @@ class Pose:
     def apply(self, points: np.ndarray) -> np.ndarray:
         return np.asarray(points) @ self.rotation.T + np.asarray(self.position_m)
 
+    def moved_to(self, position_m) -> "Pose":
+        """This orientation at ``position_m`` (m), its rotation kept if already computed."""
+        pose = Pose(tuple(position_m), self.euler_zyx_rad)
+        if "rotation" in self.__dict__:
+            pose.__dict__["rotation"] = self.rotation
+        return pose
+
     @classmethod
     def parse(cls, text: str) -> "Pose":
         """'x,y,z,yaw,pitch,roll': position in mm, anatomical angles in degrees (docs/frames.md)."""

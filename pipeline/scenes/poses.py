@@ -108,7 +108,7 @@ class PoseSampler:
         aim = orientation.rotation @ np.array([side * np.cos(elevation) * np.cos(azimuth),
                                                np.cos(elevation) * np.sin(azimuth), np.sin(elevation)])
         origin = target - distance * aim
-        return (Pose(tuple(origin.tolist()), orientation.euler_zyx_rad), side, distance, aim)
+        return (orientation.moved_to(origin.tolist()), side, distance, aim)
 
     def base_too_near(self, pose: Pose, origin_distance_m: float) -> bool:
         """Whether the surface comes nearer a base point than its minimum distance, the array

@@ -155,3 +155,15 @@ def test_face_index_bound_with_a_cutoff_is_the_plain_tree_query(sampler):
         plain = index.tree.query(points, distance_upper_bound=beyond + pad)[0] - pad
         found = index.lower_distance_m(points, beyond)
         assert np.array_equal(found, plain) and np.isfinite(found).any() and np.isinf(found).any()
+
+
+def test_a_moved_pose_keeps_its_orientation_and_rotation():
+    from pipeline.model.kinematics import Pose
+
+    turned = Pose.anatomical(yaw_rad=0.3, pitch_rad=-0.2, roll_rad=0.1)
+    fresh = turned.moved_to([0.01, 0.02, 0.03])                       # before the rotation is computed
+    kept = (turned.rotation, turned.moved_to([0.01, 0.02, 0.03]))[1]   # after: carried over
+    for pose in (fresh, kept):
+        assert pose == Pose((0.01, 0.02, 0.03), turned.euler_zyx_rad)
+        assert np.array_equal(pose.rotation, Pose((0.01, 0.02, 0.03), turned.euler_zyx_rad).rotation)
+    assert kept.rotation is turned.rotation and not kept.rotation.flags.writeable
