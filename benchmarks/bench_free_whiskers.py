@@ -87,7 +87,8 @@ def main() -> None:
             parser.error(f"{cheap_engine.name} has no coarse path at its step {cheap_engine.dt_s:g} s: give --dt")
     coarse = full_config.model_copy(update={"engine": coarse_engine})
     print(f"{args.engine}: {len(array.whiskers)} whiskers, full step {full_config.engine.dt_s:g} s, "
-          f"coarse path {coarse.engine.name} at {coarse.engine.dt_s:g} s")
+          + (f"cheap path {args.cheap}" if args.cheap in ("linear", "extrapolated") else
+           f"coarse path {coarse.engine.name} at {coarse.engine.dt_s:g} s"))
     cheap = (create_engine(coarse, array) if args.versus or args.cheap in ("linear", "extrapolated")
              else coarse_path_engine(engine_class(coarse.engine.name), array, coarse.engine))
     engines = {"full": create_engine(full_config, array), "coarse": cheap}
