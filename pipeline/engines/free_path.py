@@ -12,8 +12,7 @@ than the full step (MuJoCo; Bullet has no coarse path, see Accuracy), one whiske
 mirror pair (the other's outputs are its reflection, :mod:`pipeline.engines.mirror`), and
 keeps the outputs of every whisker whose free node paths stay clear of
 the trial's obstacles by FreeMotion's padding (base radius, half the longest link, half the
-farthest a node moves between samples) plus :data:`FREE_PATH_MARGIN_M` (extrapolated:
-:data:`EXTRAPOLATED_MARGIN_M`); only the others are
+farthest a node moves between samples) plus :data:`FREE_PATH_MARGIN_M`; only the others are
 simulated at the full step, with the scene.
 
 Extrapolated (``free_whiskers: extrapolated``, MuJoCo's ``auto``). The coarse run's error is nearly
@@ -32,7 +31,7 @@ deflection is not bounded but computed; what is left is the difference between t
 and the full step's node positions, at most 0.16 mm for the single coarse run and 0.023 mm
 extrapolated (model rat, all 60 whiskers, 6, 9 and 12 Hz at the largest whisk of
 configs/simulate.yaml, 45°/20°; benchmarks/bench_free_whiskers.py), which
-:data:`FREE_PATH_MARGIN_M` (1 mm) covers 6× and :data:`EXTRAPOLATED_MARGIN_M` (0.25 mm) 10×.
+:data:`FREE_PATH_MARGIN_M` covers 6× and 40×.
 
 Accuracy (benchmarks/bench_free_whiskers.py): per whisker and component, the RMS difference
 from the full engine over the RMS magnitude of the whisker's force (for force components) or
@@ -66,10 +65,7 @@ from pipeline.scenes.obstacles import Scene
 FREE_DT_S = {"mujoco": 2.5e-4}
 # ``free_whiskers: extrapolated``: the longest steps (s) of its two coarse runs per engine (module docstring)
 EXTRAPOLATED_DT_S = {"mujoco": (1e-3, 5e-4)}
-# clearance (m) kept beyond FreeMotion's padding by one coarse run and by the extrapolated pair (module
-# docstring, Safety): ≥ 6× and 10× their largest node difference from the full engine
-FREE_PATH_MARGIN_M = 1e-3
-EXTRAPOLATED_MARGIN_M = 2.5e-4
+FREE_PATH_MARGIN_M = 1e-3    # clearance kept beyond FreeMotion's padding (module docstring, Safety)
 # ``free_whiskers: auto``: per engine the cheapest path within 1 % of its full step on every whisker
 # it takes (benchmarks/bench_free_whiskers.py; docs/scaling.md): for MuJoCo the extrapolated pair
 # (0.89× the single coarse run's CPU, a third of its error; a dataset trial cost 1.92 CPU-s with the
@@ -116,16 +112,14 @@ class FreePath:
     def __init__(self, make_engine, array: ArrayModel, configs: tuple[EngineConfig, ...], targets_s: np.ndarray):
         """``make_engine(array, config, levels)`` builds an engine of the caller's kind; one coarse
         run per config of ``configs`` (steps longest first), extrapolated to each whisker's full step
-        ``targets_s`` [W] (s) when there are two (:func:`extrapolation_weights`), with the margin
-        of one run or of the pair."""
+        ``targets_s`` [W] (s) when there are two (:func:`extrapolation_weights`)."""
         self.make_engine, self.array, self.configs = make_engine, array, configs
         self.config = configs[-1]
         self.engines: list = []
         self.source = twins(array.whiskers)        # the coarse engines run one whisker of each mirror pair
         self.sources = np.flatnonzero(self.source == np.arange(len(self.source)))
         self.weights = extrapolation_weights(tuple(c.dt_s for c in configs), np.asarray(targets_s)[self.sources])
-        margin = FREE_PATH_MARGIN_M if len(configs) == 1 else EXTRAPOLATED_MARGIN_M
-        self.motion = FreeMotion(array.whiskers, margin_m=CLEARANCE_MARGIN_M + margin)
+        self.motion = FreeMotion(array.whiskers, margin_m=CLEARANCE_MARGIN_M + FREE_PATH_MARGIN_M)
         self.joints: dict = {}   # whisker → its free joints' (angles rad, rates rad/s) [T, n] at the samples
                                  # (with ``engine.late_start`` only)
 
