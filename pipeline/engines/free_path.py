@@ -13,23 +13,26 @@ mirror pair (the other's outputs are its reflection, :mod:`pipeline.engines.mirr
 keeps the outputs of every whisker whose free node paths stay clear of
 the trial's obstacles by FreeMotion's padding (base radius, half the longest link, half the
 farthest a node moves between samples) plus :data:`FREE_PATH_MARGIN_M`; only the others are
-simulated at the full step, with the scene.
+simulated at the full step, with the scene. A kept whisker gets the coarse run's base wrench
+and node positions, no contact and no point of contact, as a whisker that touches nothing
+gets from the full engine. The coarse run sees the trial's pose and drive only: a trial whose
+head moves (a moving base) must pass that motion on to it or leave the cheap path out.
 
 Extrapolated (``free_whiskers: extrapolated``, MuJoCo's ``auto``). The coarse run's error is nearly
 proportional to its step h (docs/scaling.md, issue 26, session 17), so two coarse runs at the steps
 H > h of :data:`EXTRAPOLATED_DT_S` give, per whisker, the output the same scheme would give at the
 full engine's own step h₀ of that whisker (``engine.dt_s``/2ʲ, its refinement level j): linearly in
 the step, y = y_h + (h − h₀)/(H − h)·(y_h − y_H), applied to the base wrench, the node positions and
-the joint states alike. MuJoCo at (10⁻³, 5·10⁻⁴) s: 0.05, 0.11, 0.21 % at 6, 9, 12 Hz, nodes
-≤ 0.023 mm, for 0.89× the single run's CPU (docs/scaling.md, issue 26, session 18). A kept whisker gets the coarse run's base wrench
-and node positions, no contact and no point of contact, as a whisker that touches nothing
-gets from the full engine. The coarse runs see the trial's pose and drive only: a trial whose
-head moves (a moving base) must pass that motion on to it or leave the cheap path out.
+the joint states alike; the rest is as above. MuJoCo at (10⁻³, 5·10⁻⁴) s: 0.05, 0.11, 0.21 % at
+6, 9, 12 Hz, nodes ≤ 0.023 mm, for 0.89× the single run's CPU (docs/scaling.md, issue 26, session
+18). Not under Rayleigh damping (preset ``untrimmed_rayleigh``): with its weaker joint dampers the
+longest whiskers' error is not linear in the step between those two (1.20 % at 12 Hz, RA1's My;
+nodes 0.34 mm), while one coarse run stays within 0.46 %: take ``coarse`` there.
 
-Safety. The decision uses the coarse run's (or the extrapolated) bent shapes at every output sample, so the
-deflection is not bounded but computed; what is left is the difference between the cheap
-and the full step's node positions, at most 0.16 mm for the single coarse run and 0.023 mm
-extrapolated (model rat, all 60 whiskers, 6, 9 and 12 Hz at the largest whisk of
+Safety. The decision uses the coarse run's (or the extrapolated) bent shapes at every output
+sample, so the deflection is not bounded but computed; what is left is the difference between
+the cheap and the full step's node positions, at most 0.16 mm for the single coarse run and
+0.023 mm extrapolated (model rat, all 60 whiskers, 6, 9 and 12 Hz at the largest whisk of
 configs/simulate.yaml, 45°/20°; benchmarks/bench_free_whiskers.py), which
 :data:`FREE_PATH_MARGIN_M` covers 6× and 40×.
 
@@ -69,7 +72,8 @@ FREE_PATH_MARGIN_M = 1e-3    # clearance kept beyond FreeMotion's padding (modul
 # ``free_whiskers: auto``: per engine the cheapest path within 1 % of its full step on every whisker
 # it takes (benchmarks/bench_free_whiskers.py; docs/scaling.md): for MuJoCo the extrapolated pair
 # (0.89× the single coarse run's CPU, a third of its error; a dataset trial cost 1.92 CPU-s with the
-# coarse run, 2.06 with the linear chain in session 12); Bullet's full step ≈ 4× a dataset trial's linear path
+# coarse run, 2.06 with the linear chain in session 12; under Rayleigh damping ``coarse``: module docstring);
+# Bullet's full step ≈ 4× a dataset trial's linear path
 AUTO_PATH = {"mujoco": "extrapolated", "bullet": "linear"}
 
 
