@@ -1,8 +1,9 @@
 """Accuracy and cost of the cheap path for free whiskers (pipeline/engines/free_path.py).
 
-Run: .venv/bin/python benchmarks/bench_free_whiskers.py [--engine mujoco|bullet] [--cheap mujoco|bullet|linear]
-[--frequencies 6 9 12] [--worst 5] [--versus ENGINE]   (--cheap: the engine whose coarse path is compared, or the linear
-chain's path, pipeline/engines/linear/free.py; default --engine; --versus: another engine in full instead)
+Run: .venv/bin/python benchmarks/bench_free_whiskers.py [--engine mujoco|bullet] [--cheap mujoco|bullet|linear|extrapolated]
+[--frequencies 6 9 12] [--worst 5] [--versus ENGINE]   (--cheap: the engine whose coarse path is compared, the linear
+chain's path, pipeline/engines/linear/free.py, or the engine's extrapolated pair of coarse runs,
+pipeline/engines/free_path.py; default --engine; --versus: another engine in full instead)
 
 Every whisker of configs/simulate.yaml's array whisks freely (empty scene, 125 ms, the largest
 whisk of the dataset's range: 45° protraction, 20° retraction) at each frequency, once at the
@@ -77,8 +78,8 @@ def main() -> None:
     full_config = config.model
     if args.versus:
         coarse_engine = full_config.engine.model_copy(update={"name": args.versus})
-    elif args.cheap == "linear":
-        coarse_engine = full_config.engine.model_copy(update={"free_whiskers": "linear"})
+    elif args.cheap in ("linear", "extrapolated"):
+        coarse_engine = full_config.engine.model_copy(update={"free_whiskers": args.cheap})
     else:
         cheap_engine = full_config.engine.model_copy(update={"name": args.cheap or args.engine})
         coarse_engine = coarse_config(cheap_engine, args.dt)
@@ -86,8 +87,9 @@ def main() -> None:
             parser.error(f"{cheap_engine.name} has no coarse path at its step {cheap_engine.dt_s:g} s: give --dt")
     coarse = full_config.model_copy(update={"engine": coarse_engine})
     print(f"{args.engine}: {len(array.whiskers)} whiskers, full step {full_config.engine.dt_s:g} s, "
-          f"coarse path {coarse.engine.name} at {coarse.engine.dt_s:g} s")
-    cheap = (create_engine(coarse, array) if args.versus or args.cheap == "linear"
+          + (f"cheap path {args.cheap}" if args.cheap in ("linear", "extrapolated") else
+           f"coarse path {coarse.engine.name} at {coarse.engine.dt_s:g} s"))
+    cheap = (create_engine(coarse, array) if args.versus or args.cheap in ("linear", "extrapolated")
              else coarse_path_engine(engine_class(coarse.engine.name), array, coarse.engine))
     engines = {"full": create_engine(full_config, array), "coarse": cheap}
     for frequency in args.frequencies:

@@ -16,7 +16,7 @@ from pipeline.config.material import MaterialConfig, StrictModel
 from pipeline.config.model_file import LoadedModelFile, merge_model_file
 
 EngineName = Literal["bullet", "mujoco"]     # the physics engines (pipeline/engines)
-FreeWhiskers = Literal["engine", "coarse", "linear", "auto"]   # how an engine simulates whiskers that cannot touch
+FreeWhiskers = Literal["engine", "coarse", "extrapolated", "linear", "auto"]   # how an engine simulates whiskers that cannot touch
 
 
 class EngineConfig(StrictModel):
@@ -36,7 +36,8 @@ class EngineConfig(StrictModel):
     contact_friction: float = Field(0.5, ge=0, le=2.0, description="Coulomb μ whisker–object")
     solver_iterations: int = Field(50, ge=1, le=1000, description="Bullet: most Gauss–Seidel sweeps of a step's contact solve")
     free_whiskers: FreeWhiskers = Field("engine", description="whiskers that cannot touch anything in a trial: "
-                                        "'engine' (the full step), 'coarse' (pipeline/engines/free_path.py) or "
+                                        "'engine' (the full step), 'coarse' or 'extrapolated' (two coarse runs "
+                                        "extrapolated to the full step; pipeline/engines/free_path.py) or "
                                         "'linear' (pipeline/engines/linear/free.py) or 'auto' (the engine's: "
                                         "pipeline/engines/free_path.py AUTO_PATH)")
     late_start: bool = Field(False, description="with a free path: whiskers that can touch start on the full "

@@ -280,9 +280,10 @@ class SimulateConfig(StrictModel):
     seed: int = Field(0, ge=0, le=2**63 - 1, description="dataset seed; trial i draws from (seed, i)")
     model: ModelConfig = ModelConfig()
     free_whiskers: FreeWhiskers = Field("auto", description="whiskers that cannot touch anything in a trial: "
-                                        "'coarse' (cheap, pipeline/engines/free_path.py), 'linear' (the linear "
-                                        "chain, pipeline/engines/linear/free.py), 'engine' (the full step) or "
-                                        "'auto' (MuJoCo coarse, Bullet linear: free_path.AUTO_PATH); "
+                                        "'coarse' (cheap, pipeline/engines/free_path.py), 'extrapolated' (two "
+                                        "coarse runs extrapolated to the full step, same module), 'linear' (the "
+                                        "linear chain, pipeline/engines/linear/free.py), 'engine' (the full step) or "
+                                        "'auto' (MuJoCo extrapolated, Bullet linear: free_path.AUTO_PATH); "
                                         "overrides model.engine.free_whiskers")
     late_start: bool = Field(False, description="whiskers that can touch start late, from the free path's state "
                                                 "(pipeline/engines/late_start.py); overrides model.engine.late_start")

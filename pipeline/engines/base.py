@@ -168,7 +168,7 @@ class Engine(ABC):
             for members, dt_s in step_groups(self.levels, config.dt_s)]
         self.build_seconds = time.perf_counter() - start
         self.free = FreeMotion(array.whiskers)
-        self.free_path = FreePath.of(type(self), array, config)
+        self.free_path = FreePath.of(type(self), array, config, self.levels)
         self.inertia = [w.physics.base_inertia for w in array.whiskers]
 
     @classmethod

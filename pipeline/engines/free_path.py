@@ -1,4 +1,5 @@
-"""The cheap path for whiskers that cannot touch anything in a trial (``engine.free_whiskers: coarse``).
+"""The cheap path for whiskers that cannot touch anything in a trial (``engine.free_whiskers: coarse``
+or ``extrapolated``).
 
 A whisker that touches nothing moves relative to the head as it would in an empty scene, and
 without a load that depends on the head's pose (gravity, a world-frame tip force) that motion
@@ -17,11 +18,23 @@ and node positions, no contact and no point of contact, as a whisker that touche
 gets from the full engine. The coarse run sees the trial's pose and drive only: a trial whose
 head moves (a moving base) must pass that motion on to it or leave the cheap path out.
 
-Safety. The decision uses the coarse run's own bent shapes at every output sample, so the
-deflection is not bounded but computed; what is left is the difference between the coarse and
-the full step's node positions, at most 0.16 mm (model rat, all 60 whiskers, 6, 9 and 12 Hz at
-the largest whisk of configs/simulate.yaml, 45°/20°; benchmarks/bench_free_whiskers.py), which
-:data:`FREE_PATH_MARGIN_M` covers 6×.
+Extrapolated (``free_whiskers: extrapolated``, MuJoCo's ``auto``). The coarse run's error is nearly
+proportional to its step h (docs/scaling.md, issue 26, session 17), so two coarse runs at the steps
+H > h of :data:`EXTRAPOLATED_DT_S` give, per whisker, the output the same scheme would give at the
+full engine's own step h₀ of that whisker (``engine.dt_s``/2ʲ, its refinement level j): linearly in
+the step, y = y_h + (h − h₀)/(H − h)·(y_h − y_H), applied to the base wrench, the node positions and
+the joint states alike; the rest is as above. MuJoCo at (10⁻³, 5·10⁻⁴) s: 0.05, 0.11, 0.21 % at
+6, 9, 12 Hz, nodes ≤ 0.023 mm, for 0.89× the single run's CPU (docs/scaling.md, issue 26, session
+18). Not under Rayleigh damping (preset ``untrimmed_rayleigh``): with its weaker joint dampers the
+longest whiskers' error is not linear in the step between those two (1.20 % at 12 Hz, RA1's My;
+nodes 0.34 mm), while one coarse run stays within 0.46 %: take ``coarse`` there.
+
+Safety. The decision uses the coarse run's (or the extrapolated) bent shapes at every output
+sample, so the deflection is not bounded but computed; what is left is the difference between
+the cheap and the full step's node positions, at most 0.16 mm for the single coarse run and
+0.023 mm extrapolated (model rat, all 60 whiskers, 6, 9 and 12 Hz at the largest whisk of
+configs/simulate.yaml, 45°/20°; benchmarks/bench_free_whiskers.py), which
+:data:`FREE_PATH_MARGIN_M` covers 6× and 40×.
 
 Accuracy (benchmarks/bench_free_whiskers.py): per whisker and component, the RMS difference
 from the full engine over the RMS magnitude of the whisker's force (for force components) or
@@ -53,11 +66,15 @@ from pipeline.scenes.obstacles import Scene
 # its coarse runs missed 1 % (RA0's Mz: 1.40 % at 9 Hz with 2.5e-4 s, 1.60 % at 12 Hz with 2e-4 s)
 # for 1.6× less CPU (module docstring, Accuracy)
 FREE_DT_S = {"mujoco": 2.5e-4}
+# ``free_whiskers: extrapolated``: the longest steps (s) of its two coarse runs per engine (module docstring)
+EXTRAPOLATED_DT_S = {"mujoco": (1e-3, 5e-4)}
 FREE_PATH_MARGIN_M = 1e-3    # clearance kept beyond FreeMotion's padding (module docstring, Safety)
 # ``free_whiskers: auto``: per engine the cheapest path within 1 % of its full step on every whisker
-# it takes (benchmarks/bench_free_whiskers.py; docs/scaling.md): a MuJoCo dataset trial costs 1.92 CPU-s
-# with the coarse run, 2.06 with the linear chain; Bullet's full step ≈ 4× a dataset trial's linear path
-AUTO_PATH = {"mujoco": "coarse", "bullet": "linear"}
+# it takes (benchmarks/bench_free_whiskers.py; docs/scaling.md): for MuJoCo the extrapolated pair
+# (0.89× the single coarse run's CPU, a third of its error; a dataset trial cost 1.92 CPU-s with the
+# coarse run, 2.06 with the linear chain in session 12; under Rayleigh damping ``coarse``: module docstring);
+# Bullet's full step ≈ 4× a dataset trial's linear path
+AUTO_PATH = {"mujoco": "extrapolated", "bullet": "linear"}
 
 
 def coarse_config(config: EngineConfig, longest_s: float | None = None) -> EngineConfig | None:
@@ -81,65 +98,106 @@ def coarse_engine(make_engine, array: ArrayModel, config: EngineConfig):
     return make_engine(array, config, np.zeros(len(array.whiskers), np.int64))
 
 
+def extrapolation_weights(steps_s: tuple[float, ...], targets_s: np.ndarray) -> np.ndarray:
+    """[R, W] weights of R coarse runs at ``steps_s`` (s, longest first) whose weighted sum is each
+    whisker's output extrapolated linearly in the step to its ``targets_s`` [W] (s): one run, weight 1;
+    two (H, h), −(h − h₀)/(H − h) and 1 + (h − h₀)/(H − h) (module docstring, Extrapolated)."""
+    if len(steps_s) == 1:
+        return np.ones((1, len(targets_s)))
+    longer, shorter = steps_s
+    slope = (shorter - np.asarray(targets_s, float)) / (longer - shorter)
+    return np.stack([-slope, 1.0 + slope])
+
+
 class FreePath:
     """The coarse path of an engine (built on first use): which whiskers it covers in a trial,
     and their outputs."""
 
-    def __init__(self, make_engine, array: ArrayModel, config: EngineConfig):
-        """``make_engine(array, config, levels)`` builds an engine of the caller's kind."""
-        self.make_engine, self.array, self.config = make_engine, array, config
-        self.engine = None
+    def __init__(self, make_engine, array: ArrayModel, configs: tuple[EngineConfig, ...], targets_s: np.ndarray):
+        """``make_engine(array, config, levels)`` builds an engine of the caller's kind; one coarse
+        run per config of ``configs`` (steps longest first), extrapolated to each whisker's full step
+        ``targets_s`` [W] (s) when there are two (:func:`extrapolation_weights`)."""
+        self.make_engine, self.array, self.configs = make_engine, array, configs
+        self.config = configs[-1]
+        self.engines: list = []
+        self.source = twins(array.whiskers)        # the coarse engines run one whisker of each mirror pair
+        self.sources = np.flatnonzero(self.source == np.arange(len(self.source)))
+        self.weights = extrapolation_weights(tuple(c.dt_s for c in configs), np.asarray(targets_s)[self.sources])
         self.motion = FreeMotion(array.whiskers, margin_m=CLEARANCE_MARGIN_M + FREE_PATH_MARGIN_M)
         self.joints: dict = {}   # whisker → its free joints' (angles rad, rates rad/s) [T, n] at the samples
                                  # (with ``engine.late_start`` only)
-        self.source = twins(array.whiskers)        # the coarse engine runs one whisker of each mirror pair
 
     @classmethod
-    def of(cls, make_engine, array: ArrayModel, config: EngineConfig) -> "FreePath | LinearFreePath | None":
-        """The path ``config.free_whiskers`` asks for (``auto``: the engine's :data:`AUTO_PATH`):
-        the linear chain's, or the coarse one if a coarser step exists; else None."""
+    def of(cls, make_engine, array: ArrayModel, config: EngineConfig,
+           levels: np.ndarray) -> "FreePath | LinearFreePath | None":
+        """The path ``config.free_whiskers`` asks for (``auto``: the engine's :data:`AUTO_PATH`),
+        the full engine stepping whisker k at ``config.dt_s / 2**levels[k]``: the linear chain's,
+        or the coarse one if a coarser step exists (extrapolated: from each distinct coarser step
+        of :data:`EXTRAPOLATED_DT_S`, one run if only one is); else None."""
         choice = AUTO_PATH.get(config.name, "engine") if config.free_whiskers == "auto" else config.free_whiskers
         if choice == "linear":
             return LinearFreePath(array, config.output_rate_hz)
-        coarse = coarse_config(config) if choice == "coarse" else None
-        return cls(make_engine, array, coarse) if coarse is not None else None
+        longest = {"coarse": (FREE_DT_S.get(config.name),),
+                   "extrapolated": EXTRAPOLATED_DT_S.get(config.name, (None,))}.get(choice, (None,))
+        configs = {}
+        for step in longest:
+            coarse = coarse_config(config, step) if step is not None else None
+            if coarse is not None:
+                configs.setdefault(coarse.dt_s, coarse)
+        if not configs:
+            return None
+        targets = config.dt_s / 2.0 ** np.asarray(levels)
+        return cls(make_engine, array, tuple(configs[dt] for dt in sorted(configs, reverse=True)), targets)
 
     def clear(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float,
               times_s: np.ndarray) -> np.ndarray:
         """[W] whether each whisker's coarse free motion keeps clear of ``scene`` at ``pose``
-        (then :meth:`recall` gives its outputs); runs the coarse engine in an empty scene."""
-        sources = np.flatnonzero(self.source == np.arange(len(self.source)))      # the coarse engine's whiskers
-        if self.engine is None:
-            self.engine = coarse_engine(self.make_engine, replace(self.array, whiskers=tuple(
-                self.array.whiskers[k] for k in sources)), self.config)
-        for _, world in self.engine.worlds:                # the joint states only a late start needs
-            world.joint_log = {} if self.config.late_start else None
-        output = self.engine.run(empty(), pose, drive, duration_s)
-        joints = {}
-        for members, world in self.engine.worlds:
-            log, world.joint_log = world.joint_log or {}, None
-            if len(log) == len(times_s):                   # simulated, not reused
-                for j, i in enumerate(members[world.members]):
-                    joints[int(sources[i])] = tuple(np.array([log[s][j][part] for s in range(len(times_s))]) for part in (0, 1))
+        (then :meth:`recall` gives its outputs); runs the coarse engines in an empty scene."""
+        sources = self.sources
+        if not self.engines:
+            array = replace(self.array, whiskers=tuple(self.array.whiskers[k] for k in sources))
+            self.engines = [coarse_engine(self.make_engine, array, config) for config in self.configs]
+        wrenches, node_paths, logs = 0.0, 0.0, []
+        for engine, weight in zip(self.engines, self.weights):
+            output, logged = self._run(engine, pose, drive, duration_s, len(times_s))
+            wrenches = wrenches + weight[None, :, None] * output.base_wrench.astype(float)
+            node_paths = node_paths + weight[None, :, None, None] * output.node_positions_m.astype(float)
+            logs.append(logged)
+        joints = {i: tuple(sum(w[i] * log[i][part] for w, log in zip(self.weights, logs)) for part in (0, 1))
+                  for i in set.intersection(*(set(log) for log in logs))}      # logged by every run
         self.motion.select(drive, len(times_s), depends_on_pose=False)
         self.joints = {}
         for k, source in enumerate(self.source):
             i = int(np.searchsorted(sources, source))
-            wrench, nodes = output.base_wrench[:, i].astype(float), output.node_positions_m[:, i].astype(float)
+            wrench, nodes = wrenches[:, i], node_paths[:, i]
             if k != source:                                # a mirror twin's, reflected (pipeline/engines/mirror.py)
                 wrench, head = mirrored(wrench, (nodes - np.asarray(pose.position_m, float)) @ pose.rotation)
                 nodes = pose.apply(head)
             self.motion.remember(k, wrench, nodes, pose)
-            if source in joints:
+            if i in joints:
                 signs = 1.0 if k == source else joint_signs(self.array.whiskers[k].physics.layout)
-                self.joints[k] = tuple(signs * part for part in joints[source])
+                self.joints[k] = tuple(signs * part for part in joints[i])
         return self.motion.reusable(pose, scene, times_s)
+
+    def _run(self, engine, pose: Pose, drive: ProtractionDrive, duration_s: float, samples: int):
+        """One coarse engine's output in an empty scene and, with ``late_start``, the joint states
+        {its whisker index: (angles, rates) [T, n]} of the whiskers it simulated (not reused)."""
+        for _, world in engine.worlds:                     # the joint states only a late start needs
+            world.joint_log = {} if self.config.late_start else None
+        output = engine.run(empty(), pose, drive, duration_s)
+        joints = {}
+        for members, world in engine.worlds:
+            log, world.joint_log = world.joint_log or {}, None
+            if len(log) == samples:                        # simulated, not reused
+                for j, i in enumerate(members[world.members]):
+                    joints[int(i)] = tuple(np.array([log[s][j][part] for s in range(samples)]) for part in (0, 1))
+        return output, joints
 
     def recall(self, k: int, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
         """Whisker k's coarse wrench [T, 6] (N, N·m) and node positions [T, N+1, 3] (m, world)."""
         return self.motion.recall(k, pose)
 
     def close(self) -> None:
-        if self.engine is not None:
-            self.engine.close()
-            self.engine = None
+        for engine in self.engines:
+            engine.close()
+        self.engines = []

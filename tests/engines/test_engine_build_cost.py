@@ -46,15 +46,18 @@ def test_worlds_compile_on_first_use_and_once_per_set_up(compiles):
         assert max(compiles.values()) == 2              # a new obstacle set: a new model
 
 
-def test_a_world_no_whisker_needs_compiles_nothing(compiles):
+@pytest.mark.parametrize("path", ["coarse", "extrapolated"])
+def test_a_world_no_whisker_needs_compiles_nothing(compiles, path):
     """With the coarse path every whisker of an empty scene is free: the full worlds stay unbuilt."""
-    with _engine("RA0,RC5", free_whiskers="coarse") as engine:
+    with _engine("RA0,RC5", free_whiskers=path) as engine:
         engine.run(empty(), Pose(), sinusoidal_whisk(duration_s=0.003), 0.003)
         full = {id(world) for _, world in engine.worlds}
-        coarse = {id(world) for _, world in engine.free_path.engine.worlds}
+        coarse = {id(world) for cheap in engine.free_path.engines for _, world in cheap.worlds}
+        assert len(coarse) == len(engine.free_path.configs)
         assert not full & compiles.keys()
         assert coarse == compiles.keys() and set(compiles.values()) == {1}
-        assert all(mine is theirs for mine, theirs in zip(engine.inertia, engine.free_path.engine.inertia))
+        for cheap in engine.free_path.engines:
+            assert all(mine is theirs for mine, theirs in zip(engine.inertia, cheap.inertia))
 
 
 def test_quasi_steady_start_remembers_one_drive_by_identity():

@@ -31,7 +31,7 @@ def test_drive_shifted_is_the_same_motion_seen_later():
     np.testing.assert_allclose(drive.shifted(0.02)(times, 1), drive(times + 0.02, 1), rtol=1e-9, atol=1e-9)
 
 
-@pytest.mark.parametrize("free_whiskers", ["coarse", "linear"])
+@pytest.mark.parametrize("free_whiskers", ["coarse", "extrapolated", "linear"])
 def test_a_late_start_touches_at_the_same_sample_with_the_same_peak(free_whiskers):
     drive = sinusoidal_whisk(12.0, 45.0, 20.0, DURATION_S)
     with _engine(free_whiskers, False) as cheap:
