@@ -12,7 +12,8 @@ than the full step (MuJoCo; Bullet has no coarse path, see Accuracy), one whiske
 mirror pair (the other's outputs are its reflection, :mod:`pipeline.engines.mirror`), and
 keeps the outputs of every whisker whose free node paths stay clear of
 the trial's obstacles by FreeMotion's padding (base radius, half the longest link, half the
-farthest a node moves between samples) plus :data:`FREE_PATH_MARGIN_M`; only the others are
+farthest a node moves between samples) plus :data:`FREE_PATH_MARGIN_M` (extrapolated:
+:data:`EXTRAPOLATED_MARGIN_M`); only the others are
 simulated at the full step, with the scene. A kept whisker gets the coarse run's base wrench
 and node positions, no contact and no point of contact, as a whisker that touches nothing
 gets from the full engine. The coarse run sees the trial's pose and drive only: a trial whose
@@ -27,14 +28,16 @@ the joint states alike; the rest is as above. MuJoCo at (10⁻³, 5·10⁻⁴) s
 6, 9, 12 Hz, nodes ≤ 0.023 mm, for 0.89× the single run's CPU (docs/scaling.md, issue 26, session
 18). Not under Rayleigh damping (preset ``untrimmed_rayleigh``): with its weaker joint dampers the
 longest whiskers' error is not linear in the step between those two (1.20 % at 12 Hz, RA1's My;
-nodes 0.34 mm), while one coarse run stays within 0.46 %: take ``coarse`` there.
+nodes 0.34 mm), while one coarse run stays within 0.46 %; nor under the paper's eq. 3 (preset
+``trimmed``: 1.21 % at 9 Hz, 2.72 % at 12 Hz): ``auto`` takes ``coarse`` under both
+(:data:`EXTRAPOLATED_LAWS`).
 
 Safety. The decision uses the coarse run's (or the extrapolated) bent shapes at every output
 sample, so the deflection is not bounded but computed; what is left is the difference between
 the cheap and the full step's node positions, at most 0.16 mm for the single coarse run and
 0.023 mm extrapolated (model rat, all 60 whiskers, 6, 9 and 12 Hz at the largest whisk of
 configs/simulate.yaml, 45°/20°; benchmarks/bench_free_whiskers.py), which
-:data:`FREE_PATH_MARGIN_M` covers 6× and 40×.
+:data:`FREE_PATH_MARGIN_M` (1 mm) covers 6× and :data:`EXTRAPOLATED_MARGIN_M` (0.25 mm) 10×.
 
 Accuracy (benchmarks/bench_free_whiskers.py): per whisker and component, the RMS difference
 from the full engine over the RMS magnitude of the whisker's force (for force components) or
@@ -68,13 +71,20 @@ from pipeline.scenes.obstacles import Scene
 FREE_DT_S = {"mujoco": 2.5e-4}
 # ``free_whiskers: extrapolated``: the longest steps (s) of its two coarse runs per engine (module docstring)
 EXTRAPOLATED_DT_S = {"mujoco": (1e-3, 5e-4)}
-FREE_PATH_MARGIN_M = 1e-3    # clearance kept beyond FreeMotion's padding (module docstring, Safety)
+# clearance (m) kept beyond FreeMotion's padding by one coarse run and by the extrapolated pair (module
+# docstring, Safety): ≥ 6× and 10× their largest node difference from the full engine
+FREE_PATH_MARGIN_M = 1e-3
+EXTRAPOLATED_MARGIN_M = 2.5e-4
 # ``free_whiskers: auto``: per engine the cheapest path within 1 % of its full step on every whisker
 # it takes (benchmarks/bench_free_whiskers.py; docs/scaling.md): for MuJoCo the extrapolated pair
 # (0.89× the single coarse run's CPU, a third of its error; a dataset trial cost 1.92 CPU-s with the
 # coarse run, 2.06 with the linear chain in session 12; under Rayleigh damping ``coarse``: module docstring);
 # Bullet's full step ≈ 4× a dataset trial's linear path
 AUTO_PATH = {"mujoco": "extrapolated", "bullet": "linear"}
+# damping laws (``material.damping_model``) under which the extrapolated pair was measured within 1 %;
+# under the others (eq. 3 of the paper: 1.21 % at 9 Hz, 2.72 % at 12 Hz; Rayleigh: 1.20 % at 12 Hz)
+# ``auto`` takes the single coarse run (docs/scaling.md, issue 26, session 18)
+EXTRAPOLATED_LAWS = ("kelvin_voigt",)
 
 
 def coarse_config(config: EngineConfig, longest_s: float | None = None) -> EngineConfig | None:
@@ -116,25 +126,32 @@ class FreePath:
     def __init__(self, make_engine, array: ArrayModel, configs: tuple[EngineConfig, ...], targets_s: np.ndarray):
         """``make_engine(array, config, levels)`` builds an engine of the caller's kind; one coarse
         run per config of ``configs`` (steps longest first), extrapolated to each whisker's full step
-        ``targets_s`` [W] (s) when there are two (:func:`extrapolation_weights`)."""
+        ``targets_s`` [W] (s) when there are two (:func:`extrapolation_weights`), with the margin
+        of one run or of the pair."""
         self.make_engine, self.array, self.configs = make_engine, array, configs
         self.config = configs[-1]
         self.engines: list = []
         self.source = twins(array.whiskers)        # the coarse engines run one whisker of each mirror pair
         self.sources = np.flatnonzero(self.source == np.arange(len(self.source)))
         self.weights = extrapolation_weights(tuple(c.dt_s for c in configs), np.asarray(targets_s)[self.sources])
-        self.motion = FreeMotion(array.whiskers, margin_m=CLEARANCE_MARGIN_M + FREE_PATH_MARGIN_M)
+        margin = FREE_PATH_MARGIN_M if len(configs) == 1 else EXTRAPOLATED_MARGIN_M
+        self.motion = FreeMotion(array.whiskers, margin_m=CLEARANCE_MARGIN_M + margin)
         self.joints: dict = {}   # whisker → its free joints' (angles rad, rates rad/s) [T, n] at the samples
                                  # (with ``engine.late_start`` only)
 
     @classmethod
     def of(cls, make_engine, array: ArrayModel, config: EngineConfig,
            levels: np.ndarray) -> "FreePath | LinearFreePath | None":
-        """The path ``config.free_whiskers`` asks for (``auto``: the engine's :data:`AUTO_PATH`),
+        """The path ``config.free_whiskers`` asks for (``auto``: the engine's :data:`AUTO_PATH`, the
+        single coarse run instead of the pair under a damping law not in :data:`EXTRAPOLATED_LAWS`),
         the full engine stepping whisker k at ``config.dt_s / 2**levels[k]``: the linear chain's,
         or the coarse one if a coarser step exists (extrapolated: from each distinct coarser step
         of :data:`EXTRAPOLATED_DT_S`, one run if only one is); else None."""
-        choice = AUTO_PATH.get(config.name, "engine") if config.free_whiskers == "auto" else config.free_whiskers
+        choice = config.free_whiskers
+        if choice == "auto":
+            choice = AUTO_PATH.get(config.name, "engine")
+            if choice == "extrapolated" and array.material.damping_model not in EXTRAPOLATED_LAWS:
+                choice = "coarse"
         if choice == "linear":
             return LinearFreePath(array, config.output_rate_hz)
         longest = {"coarse": (FREE_DT_S.get(config.name),),
