@@ -10,10 +10,10 @@ import numpy as np
 
 from pipeline.config.physics import EngineConfig, ModelConfig
 from pipeline.engines.mujoco import world as engine
-from pipeline.engines.mujoco.face_kernels import contact_frame, fill_contacts, scan_contacts
+from pipeline.engines.mujoco.face_kernels import contact_frame
 from pipeline.engines.mujoco.faces import GRID_CELL_MM, ScanContacts, triangles_mm
 from pipeline.engines.triangle_grid import TriangleGrid, near_box, nearest_face, segment_triangle
-from pipeline.engines.one_sided import ONE_SIDED_DEPTH_MM, OneSidedMesh
+from pipeline.engines.one_sided import OneSidedMesh
 from pipeline.engines.one_sided_kernels import closest_on_triangle
 from pipeline.model.kinematics import Pose
 from pipeline.protocols.whisking import run_trial
@@ -40,10 +40,10 @@ def test_a_link_pressed_into_an_edge_of_a_folded_sheet_slides_out_at_any_step(mo
     opposed = []
     append = ScanContacts.append
 
-    def checked(self, m, d, links, middle, toward_link, gaps, through):
+    def checked(self, m, d, links, middle, toward_link, gaps):
         same = links[:, None] == links[None]
         opposed.append(bool((same & (toward_link @ toward_link.T < 0.0)).any()))
-        append(self, m, d, links, middle, toward_link, gaps, through)
+        append(self, m, d, links, middle, toward_link, gaps)
 
     monkeypatch.setattr(ScanContacts, "append", checked)
     default, half = _whisk(0.06), _whisk(0.06, dt_s=5e-5, f1_tolerance=0.005)
@@ -180,33 +180,3 @@ def test_a_segment_s_distance_to_a_triangle_is_the_least_over_its_points():
         assert np.sqrt(sampled.min()) - np.sqrt(squared) < 3e-4 * np.linalg.norm(b - a)
         point = a + s * (b - a)
         assert np.isclose(np.sum((point - closest_on_triangle(*point, corners, normal)) ** 2), squared, atol=1e-12)
-
-
-def _through_sheet(behind_mm: float):
-    """scan_contacts of a link of radius 0.01 mm crossing a flat sheet (z = 0, normal +z) from
-    0.3 mm in front to ``behind_mm`` behind it: its crossing point and its two nodes."""
-    corners = np.array([[[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0]],
-                        [[-10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]]])
-    normals = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]])
-    grid = TriangleGrid(corners, normals, GRID_CELL_MM)
-    a, b = np.array([0.0, 0.0, 0.3]), np.array([0.0, 0.4, -behind_mm])
-    crossing = a + 0.3 / (0.3 + behind_mm) * (b - a)
-    axis = np.array([crossing, a, b])
-    return scan_contacts(axis, np.zeros(3, np.int64), np.array([False, True, True]), np.array([1]),
-                         np.array([0.01]), 1e-3, ONE_SIDED_DEPTH_MM, *grid.arrays(), np.empty(2, np.int64))
-
-
-def test_a_link_through_the_sheet_is_read_frictionless_at_its_crossing():
-    """A link whose node behind the sheet is farther than the one-sided depth has gone through:
-    its crossing point (gap −radius however far through) is flagged and becomes a frictionless
-    MuJoCo contact (dim 1), so friction no longer hooks it there; a link whose node is just
-    behind keeps the node's deeper contact, with friction."""
-    links, middle, toward, gaps, through = _through_sheet(0.5)
-    assert len(links) == 1 and np.isclose(gaps[0], -0.01) and through.tolist() == [True]
-    links, middle, toward, gaps, through = _through_sheet(0.1)
-    assert np.isclose(gaps[0], -0.11) and not through.any()
-    geom, frame, pos, dist, dim = (np.zeros((2, 2), np.int64), np.zeros((2, 9)), np.zeros((2, 3)), np.zeros(2),
-                                   np.full(2, 3, np.int32))
-    fill_contacts(0, np.zeros(2, np.int64), np.zeros((2, 3)), np.tile([0.0, 0.0, 1.0], (2, 1)), np.array([-0.01, -0.02]),
-                  np.array([True, False]), np.array([5]), 9, geom, frame, pos, dist, dim)
-    assert dim.tolist() == [1, 3] and geom.tolist() == [[5, 9], [5, 9]]

@@ -92,14 +92,13 @@ def scan_contacts(axis: np.ndarray, link_of: np.ndarray, node: np.ndarray, slots
     surfaces [C, 3], unit normals toward the link [C, 3], gaps [C]), by link, deepest first."""
     count = len(axis)
     kept, points, found, gaps = np.empty(count, np.bool_), np.empty((count, 3)), np.empty((count, 3)), np.empty(count)
-    lost = np.zeros(count, np.bool_)
     for i in range(count):
         radius = link_radii[link_of[i]]
         px, py, pz = axis[i, 0], axis[i, 1], axis[i, 2]
         face = nearest_face(px, py, pz, max(radius, depth), corners, normals, low, cell, shape, starts, items,
                             stamp, tags, scratch)
         if face < 0:
-            kept[i], gaps[i], lost[i] = False, np.inf, True
+            kept[i], gaps[i] = False, np.inf
             continue
         qx, qy, qz = closest_on_triangle(px, py, pz, corners[face], normals[face])
         kept[i], nx, ny, nz, gaps[i] = one_sided_contact(px, py, pz, qx, qy, qz, normals[face], radius, 0.0, depth)
@@ -107,7 +106,6 @@ def scan_contacts(axis: np.ndarray, link_of: np.ndarray, node: np.ndarray, slots
             kept[i] = kept[i] and gaps[i] < -radius
         found[i, 0], found[i, 1], found[i, 2] = nx, ny, nz
         points[i, 0], points[i, 1], points[i, 2] = px - radius * nx, py - radius * ny, pz - radius * nz
-    through = _through_the_sheet(kept, axis, link_of, node, lost, found, gaps, link_radii)
     chosen = _distinct(np.flatnonzero(kept), link_of, points, found, gaps, duplicate)
     taken = np.zeros(len(slots), np.int64)
     keep = np.zeros(len(chosen), np.bool_)
@@ -121,27 +119,7 @@ def scan_contacts(axis: np.ndarray, link_of: np.ndarray, node: np.ndarray, slots
         i = chosen[c]
         for j in range(3):
             middle[c, j] = points[i, j] - 0.5 * gaps[i] * found[i, j]
-    return link_of[chosen], middle, found[chosen], gaps[chosen], through[chosen]
-
-
-@numba.njit(cache=True)
-def _through_the_sheet(kept: np.ndarray, axis: np.ndarray, link_of: np.ndarray, node: np.ndarray, lost: np.ndarray,
-                       normals: np.ndarray, gaps: np.ndarray, link_radii: np.ndarray) -> np.ndarray:
-    """[K] whether each kept point on or behind a face (gap ≤ −radius) belongs to a link one of
-    whose nodes lies behind that face's plane (``normals``: the faces' outward normals there) and
-    farther than the one-sided depth from every face (``lost``): a link through the surface, whose
-    crossing reads a gap of −radius however far through it is."""
-    through = np.zeros(len(kept), np.bool_)
-    for i in range(len(kept)):
-        if not kept[i] or node[i] or gaps[i] > -link_radii[link_of[i]]:
-            continue
-        for j in range(len(kept)):
-            if node[j] and lost[j] and link_of[j] == link_of[i] and (
-                    (axis[j, 0] - axis[i, 0]) * normals[i, 0] + (axis[j, 1] - axis[i, 1]) * normals[i, 1]
-                    + (axis[j, 2] - axis[i, 2]) * normals[i, 2] < 0.0):
-                through[i] = True
-                break
-    return through
+    return link_of[chosen], middle, found[chosen], gaps[chosen]
 
 
 @numba.njit(cache=True)
@@ -162,8 +140,8 @@ def _distinct(kept: np.ndarray, link_of: np.ndarray, points: np.ndarray, normals
 
 @numba.njit(cache=True)
 def fill_contacts(first: int, links: np.ndarray, middle: np.ndarray, toward_link: np.ndarray, gaps: np.ndarray,
-                  through: np.ndarray, link_geoms: np.ndarray, anchor: int, geom: np.ndarray, frame: np.ndarray,
-                  pos: np.ndarray, dist: np.ndarray, dim: np.ndarray) -> None:
+                  link_geoms: np.ndarray, anchor: int, geom: np.ndarray, frame: np.ndarray, pos: np.ndarray,
+                  dist: np.ndarray) -> None:
     """Write the contacts (:func:`scan_contacts`) into MuJoCo's rows ``first`` on: geom 0 the
     link's capsule (``link_geoms`` [L]), geom 1 the scan's ``anchor``, the frame's normal from
     the link to the scan (MuJoCo's: from geom 0 to geom 1), position and distance."""
@@ -173,8 +151,6 @@ def fill_contacts(first: int, links: np.ndarray, middle: np.ndarray, toward_link
         contact_frame(-toward_link[c, 0], -toward_link[c, 1], -toward_link[c, 2], frame[row])
         pos[row, 0], pos[row, 1], pos[row, 2] = middle[c, 0], middle[c, 1], middle[c, 2]
         dist[row] = gaps[c]
-        if through[c]:
-            dim[row] = 1
 
 
 @numba.njit(cache=True)

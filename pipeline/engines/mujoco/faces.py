@@ -103,8 +103,7 @@ class ScanContacts:
                                            ONE_SIDED_DEPTH_MM, *grid, self.scratch)
         return found if len(found[0]) else None
 
-    def append(self, m, d, links: np.ndarray, middle: np.ndarray, toward_link: np.ndarray, gaps: np.ndarray,
-               through: np.ndarray) -> None:
+    def append(self, m, d, links: np.ndarray, middle: np.ndarray, toward_link: np.ndarray, gaps: np.ndarray) -> None:
         """Append the contacts (:meth:`contacts`) to ``d``'s contact list, which must end the
         arena (right after ``mj_collision``)."""
         first = d.ncon
@@ -112,8 +111,8 @@ class ScanContacts:
             if mujoco.mj_addContact(m, d, self.template):
                 raise MemoryError("MuJoCo's contact buffer is full")
         contact = d.contact
-        self.kernels.fill_contacts(first, links, middle, toward_link, gaps, through, self.link_geoms, self.anchor,
-                                   contact.geom, contact.frame, contact.pos, contact.dist, contact.dim)
+        self.kernels.fill_contacts(first, links, middle, toward_link, gaps, self.link_geoms, self.anchor,
+                                   contact.geom, contact.frame, contact.pos, contact.dist)
 
 
 def position_stage_after_collision(m: mujoco.MjModel, d: mujoco.MjData, metric: int) -> None:
