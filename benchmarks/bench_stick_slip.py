@@ -21,7 +21,9 @@ along the peg's surface slower than :data:`STICK_SHARE` of the drive's speed the
 slips; the ratio |F_t|/|F_n| of the base force split at the peg's normal there (quasi-static:
 the peg's force; ≈ μ while slipping, < μ sticking), its median over the sticking and slipping
 samples; the number of stick → slip changes, the time of the last one (the final let-go) and of
-release (the last sample in contact), in ms from the first contact.
+release (the last sample in contact), in ms from the first contact; the share of the samples in
+contact where the whisker's centre line lies inside the peg (a link's axis through the surface:
+it sank deeper than its radius, 8–16 µm at 85–95 % of S) and the deepest point of it.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from pipeline.config.physics import ModelConfig
 from pipeline.model.rotations import rot_z
 from pipeline.reports.contact_statics import (bench_config, geometry_of, obstacle_circle,
                                               rod_of, run_engine)
+from pipeline.scenes.obstacles import points_along
 
 DATASET_RATE_HZ = 1000.0
 STICK_SHARE = 0.02          # sticking: sliding speed below 2 % of the drive's speed at the contact
@@ -58,6 +61,20 @@ def surface_normal(point_xy: np.ndarray, centre_xy: np.ndarray, facets: int) -> 
         side = np.floor(phi / (2 * np.pi / facets))
         phi = 2 * np.pi * (side + 0.5) / facets
     return np.stack([np.cos(phi), np.sin(phi)], axis=1)
+
+
+def axis_depth_m(nodes_m: np.ndarray, centre_xy: np.ndarray, radius_m: float, facets: int) -> np.ndarray:
+    """[T] how deep the whisker's centre line (nodes [T, N+1, 3], points along the links) lies
+    inside the vertical peg at each sample, m (< 0: outside by that much): the cylinder, or the
+    prism of ``facets`` flat sides whose vertices lie on the circle (sides ``radius·cos(π/n)``
+    from the axis). Depth > 0 means a link's axis has gone through the surface: the contact
+    sank by more than the link's radius."""
+    points = points_along(nodes_m.astype(float), 0.05 * radius_m)[..., :2] - centre_xy      # [T, P, 2]
+    if not facets:
+        return np.max(radius_m - np.linalg.norm(points, axis=-1), axis=1)
+    phi = 2 * np.pi * (np.arange(facets) + 0.5) / facets
+    outward = points @ np.stack([np.cos(phi), np.sin(phi)])                                 # [T, P, n]
+    return np.max(radius_m * np.cos(np.pi / facets) - outward.max(axis=-1), axis=1)
 
 
 def phases(angle_deg: np.ndarray, output, centre_xy: np.ndarray, facets: int, speed_deg_s: float) -> dict:
@@ -127,9 +144,13 @@ def run(config: ModelConfig, engine: str, whisker: str, facets: int, divisor: in
     cpu = time.process_time() - start
     every = int(round(args.rate / DATASET_RATE_HZ))
     fine, coarse = peaks(output, 1), peaks(output, every)
+    touching = output.contact[:, 0].any(axis=1)
+    depth = axis_depth_m(output.node_positions_m[touching, 0], np.asarray(peg.centre_m), peg.radius_m, facets)
     return {"engine": engine, "whisker": whisker, "facets": facets, "divisor": divisor, "cpu_s": cpu,
             "peak_moment_nm": fine[0], "peak_transverse_n": fine[1],
             "peak_moment_1khz_nm": coarse[0], "peak_transverse_1khz_n": coarse[1],
+            "axis_through_share": float(np.mean(depth > 0)) if depth.size else 0.0,
+            "axis_deepest_um": float(1e6 * depth.max()) if depth.size else float("nan"),
             **phases(angle, output, np.asarray(peg.centre_m), facets, args.speed)}
 
 
@@ -150,6 +171,8 @@ def report(rows: list[dict]) -> None:
                   f"{r.get('stick_to_slip', 0)} stick→slip, last at {r.get('last_let_go_ms', np.nan):5.2f} ms, "
                   f"release {r.get('release_ms', np.nan):5.2f} ms ({r.get('release_deg', np.nan):5.2f}°); "
                   f"|Ft|/|Fn| stick {r.get('ratio_stick', np.nan):.3f} slip {r.get('ratio_slip', np.nan):.3f}; "
+                  f"axis through the surface {100 * r['axis_through_share']:4.1f} % of contact samples "
+                  f"(deepest {r['axis_deepest_um']:+.1f} µm); "
                   f"CPU {r['cpu_s']:.1f} s", flush=True)
     for whisker in sorted({r["whisker"] for r in rows}):
         for facets in sorted({r["facets"] for r in rows}):
