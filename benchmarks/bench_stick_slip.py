@@ -65,7 +65,8 @@ def surface_normal(point_xy: np.ndarray, centre_xy: np.ndarray, facets: int) -> 
 
 def axis_depth_m(nodes_m: np.ndarray, centre_xy: np.ndarray, radius_m: float, facets: int) -> np.ndarray:
     """[T] how deep the whisker's centre line (nodes [T, N+1, 3], points along the links) lies
-    inside the vertical peg at each sample, m (< 0: outside by that much): the cylinder, or the
+    inside the vertical peg at each sample, m (< 0: outside; by that much from the cylinder, from the
+    nearest side's plane of the prism): the cylinder, or the
     prism of ``facets`` flat sides whose vertices lie on the circle (sides ``radius·cos(π/n)``
     from the axis). Depth > 0 means a link's axis has gone through the surface: the contact
     sank by more than the link's radius."""
@@ -121,14 +122,15 @@ def phases(angle_deg: np.ndarray, output, centre_xy: np.ndarray, facets: int, sp
 
 
 def peaks(output, every: int) -> tuple[float, float]:
-    """(peak |M| N·m, peak |F_t| N) over the samples in contact, taking every ``every``-th sample."""
-    wrench = output.base_wrench[::every, 0].astype(float)
-    touching = output.contact[:, 0].any(axis=1)
-    # a dataset sample's flag covers the steps of its interval: OR the flags over each block
-    blocks = touching[: len(touching) // every * every].reshape(-1, every).any(axis=1)
-    blocks = np.concatenate([blocks, touching[len(blocks) * every:].any(keepdims=True)])[:len(wrench)]
-    moment = np.where(blocks, np.linalg.norm(wrench[:, 3:], axis=1), 0.0)
-    transverse = np.where(blocks, np.hypot(wrench[:, 1], wrench[:, 2]), 0.0)
+    """(peak |M| N·m, peak |F_t| N) over the samples in contact, taking every ``every``-th sample;
+    a sample's flag covers the steps since the previous sample taken (as the engines OR their
+    flags over a sample interval), so the flags of the samples skipped are ORed into it."""
+    taken = np.arange(0, len(output.time_s), every)
+    wrench = output.base_wrench[taken, 0].astype(float)
+    counts = np.concatenate([[0], np.cumsum(output.contact[:, 0].any(axis=1))])
+    touching = counts[taken + 1] - counts[np.maximum(taken - every + 1, 0)] > 0
+    moment = np.where(touching, np.linalg.norm(wrench[:, 3:], axis=1), 0.0)
+    transverse = np.where(touching, np.hypot(wrench[:, 1], wrench[:, 2]), 0.0)
     return float(moment.max()), float(transverse.max())
 
 
