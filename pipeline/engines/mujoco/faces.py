@@ -20,7 +20,7 @@ surfaces. The arithmetic is compiled (:mod:`pipeline.engines.mujoco.face_kernels
 Internal units mm.
 
 A link thinner than :data:`SCAN_RADIUS_MIN_MM` is read against the scan with that radius (the
-scan's surface moves out by at most 30 µm for the distal links, whose radii are 1.5–30 µm; the
+scan's surface moves out by 30 µm less the radius for the distal links, whose radii are 1.5–30 µm; the
 scans' surface lies 0.42–0.58 mm from their data, median). MuJoCo's soft contact sinks a link
 pressed at whisking speed by up to ~22 µm at the default step (a tip on a faceted peg,
 benchmarks/bench_stick_slip.py), more than a tip's radius, so with its own radius the tip's axis
