@@ -7,7 +7,8 @@ Run: .venv/bin/python benchmarks/bench_statistics.py [--trials 0-11] [--variants
 The trials are those of configs/simulate.yaml (as `pipeline simulate` draws them: scene, head
 pose, whisk; run `pipeline build-meshes` first; ``--meshes`` another folder of built meshes). Variants: ``default`` (the config), ``half``
 (``engine.dt_s`` and ``engine.f1_tolerance`` halved: every whisker's step halved), ``bullet``
-(the same trials on the other engine), ``full-free`` (``free_whiskers: engine``: whiskers that
+(the same trials on the other engine), ``bullet-half`` (Bullet at every whisker's step halved: with
+``--base bullet``, Bullet's own convergence in the step), ``full-free`` (``free_whiskers: engine``: whiskers that
 cannot touch on the full step instead of the cheap path, pipeline/engines/free_path.py),
 ``quarter`` (every whisker's step a quarter: ``--base half --variants quarter`` gives the floor a
 statistic of ``half`` can reach, the part of it that no longer shrinks with the step),
@@ -57,7 +58,8 @@ BOOTSTRAP_DRAWS = 2000      # resamplings of the pairs for the P90's 90 % interv
 TIP_SEGMENT = {"tip_segment": {}}
 VARIANTS = {"default": {}, "half": {"model": {"engine": HALF_STEP}},
             "quarter": {"model": {"engine": QUARTER_STEP}},
-            "bullet": {"model": {"engine": {"name": "bullet"}}}, "full-free": {"free_whiskers": "engine"},
+            "bullet": {"model": {"engine": {"name": "bullet"}}},
+            "bullet-half": {"model": {"engine": {"name": "bullet"} | HALF_STEP}}, "full-free": {"free_whiskers": "engine"},
             "linear-free": {"free_whiskers": "linear"}, "early": {"late_start": False},
             "tip": {"model": {"extensions": TIP_SEGMENT}},
             "tip-half": {"model": {"extensions": TIP_SEGMENT, "engine": HALF_STEP}},

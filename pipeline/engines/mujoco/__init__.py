@@ -73,14 +73,12 @@ Under a growing load the soft contact still let a sticking whisker creep along a
 base force 15–25 % of |F| off a frictional elastica); MuJoCo's no-slip pass
 (:data:`NOSLIP_ITERATIONS`, a projected solve of the friction forces without regularisation
 after the main one) removes it: ≤ 4.1 % (benchmarks/bench_contact_statics.py), at no measured
-cost. The cone (benchmarks/bench_contact_friction.py) costs +9 % CPU per dataset trial. Not converged in
-the step: the peaks of whiskers sliding on scans (24 dataset trials, every step halved,
-benchmarks/bench_statistics.py): median change of peak |M| 1.2 %, of peak F_t 3.4 %,
-P90 36 % and 57 % (creeping pyramidal friction: 15 % and 34 %; P90 of 12-trial halves
-differ by up to 15 points): a whisker that sticks on a faceted surface lets go at a
-step-sensitive instant (the worst pairs are tips sticking at the default step, converged at
-half of it; μ = 0 removes it; a meshed peg at 500 °/s reproduces it:
-``bench_contact_statics.py --step-check``, docs/model.md §2). Projected Gauss–Seidel solver, up to
+cost. The cone (benchmarks/bench_contact_friction.py) costs +9 % CPU per dataset trial. In the
+step, on scans (24 dataset trials, every step halved, benchmarks/bench_statistics.py): peak |M|
+median / P90 change 0.5 / 4.1 %, peak F_t 1.4 / 9.4 %. A tip sticking and slipping on a faceted
+surface let go at a step-dependent instant where its axis went through the faces (read with a
+scan radius of at least 30 µm since session 18, Triangle meshes below;
+benchmarks/bench_stick_slip.py, docs/model.md §2). Projected Gauss–Seidel solver, up to
 :data:`SOLVER_ITERATIONS` sweeps per constraint island (the Newton solver of MuJoCo 4.0.0 has a
 sparse-factorisation bug, fixed in 4.0.1, and its island-wide convergence test made a
 whisker's result depend on its neighbours' contacts by 10⁻¹⁵). Whisker capsules have
@@ -99,7 +97,9 @@ a uniform grid (:mod:`pipeline.engines.triangle_grid`, built with the model); ea
 MuJoCo's own collision (pegs, boxes), every capsule of a link that may collide is tested against
 the triangles near it, and its contacts are read one-sided as Bullet reads them
 (:mod:`pipeline.engines.one_sided`: nearest face, edge or vertex; a crossed axis pushed back out
-along the face normal), so no link is squeezed between two faces. They are appended to MuJoCo's
+along the face normal), so no link is squeezed between two faces; a link is read with a radius of at least
+:data:`~pipeline.engines.mujoco.faces.SCAN_RADIUS_MIN_MM` (the soft contact sinks a tip at
+whisking speed deeper than its own radius). They are appended to MuJoCo's
 contact list (``mj_addContact``; geom 1 an anchor geom of the scan on the world body that
 collides with nothing) and the rest of the position stage is done again (constraints, islands,
 projections, the discrete integrator's effective metric: bit for bit what ``mj_step`` does

@@ -18,6 +18,15 @@ out), is dropped; a link keeps at most its slots. Each kept candidate becomes on
 the contact law of every geom: package docstring, Contacts) at the point midway between the
 surfaces. The arithmetic is compiled (:mod:`pipeline.engines.mujoco.face_kernels`).
 Internal units mm.
+
+A link thinner than :data:`SCAN_RADIUS_MIN_MM` is read against the scan with that radius (the
+scan's surface moves out by 30 µm less the radius for the distal links, whose radii are 1.5–30 µm; the
+scans' surface lies 0.42–0.58 mm from their data, median). MuJoCo's soft contact sinks a link
+pressed at whisking speed by up to ~22 µm at the default step (a tip on a faceted peg,
+benchmarks/bench_stick_slip.py), more than a tip's radius, so with its own radius the tip's axis
+went through the faces. The one-sided reading of a crossed axis jumps, in normal and depth,
+between the faces' normals and the edges' directions, and the peaks did not converge in the step
+(docs/model.md, "Issue 24, session 18"). With the wider radius the axis stays outside.
 """
 
 from __future__ import annotations
@@ -40,6 +49,7 @@ _EFFECTIVE_METRIC = ctypes.CDLL(mujoco._functions.__file__).mj_effBuild
 _EFFECTIVE_METRIC.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_int]
 _EFFECTIVE_METRIC.restype = None
 
+SCAN_RADIUS_MIN_MM = 0.03    # the least radius a link is read with against a scan (module docstring)
 DUPLICATE_MM = 1e-3         # a link's contacts this close are one (two faces read at their shared edge)
 GRID_CELL_MM = 1.0          # the scan grid's cell (about a face of a dataset scan across)
 
@@ -64,7 +74,8 @@ class ScanContacts:
         self.grid = TriangleGrid(corners, normals, GRID_CELL_MM)
         self.scratch = np.empty(len(corners), np.int64)
         self.anchor, self.link_geoms, self.link_bodies = anchor, link_geoms, link_bodies
-        self.link_lengths_mm, self.link_radii_mm = link_lengths_mm, link_radii_mm
+        self.link_lengths_mm = link_lengths_mm
+        self.link_radii_mm = np.maximum(link_radii_mm, SCAN_RADIUS_MIN_MM)     # read against the scan
         self.template = _template(model, anchor)
 
     def step(self, m, d) -> None:
