@@ -283,7 +283,8 @@ class SimulateConfig(StrictModel):
                                         "'coarse' (cheap, pipeline/engines/free_path.py), 'extrapolated' (two "
                                         "coarse runs extrapolated to the full step, same module), 'linear' (the "
                                         "linear chain, pipeline/engines/linear/free.py), 'engine' (the full step) or "
-                                        "'auto' (MuJoCo extrapolated, Bullet linear: free_path.AUTO_PATH); "
+                                        "'auto' (MuJoCo extrapolated where measured within 1 %, else coarse; Bullet "
+                                        "linear: free_path.auto_path); "
                                         "overrides model.engine.free_whiskers")
     late_start: bool = Field(False, description="whiskers that can touch start late, from the free path's state "
                                                 "(pipeline/engines/late_start.py); overrides model.engine.late_start")

@@ -30,7 +30,9 @@ the joint states alike; the rest is as above. MuJoCo at (10⁻³, 5·10⁻⁴) s
 longest whiskers' error is not linear in the step between those two (1.20 % at 12 Hz, RA1's My;
 nodes 0.34 mm), while one coarse run stays within 0.46 %; nor under the paper's eq. 3 (preset
 ``trimmed``: 1.21 % at 9 Hz, 2.72 % at 12 Hz): ``auto`` takes ``coarse`` under both
-(:data:`EXTRAPOLATED_LAWS`).
+(:data:`EXTRAPOLATED_LAWS`); nor for the mouse's fast whisks (20 Hz: 1.20 %, 26 Hz: 5.7 %, RA0;
+one coarse run 0.76 and 0.99 %): ``auto`` takes the pair only for whisks up to
+:data:`EXTRAPOLATED_MAX_WHISK_HZ` (:func:`auto_path`; ``pipeline simulate`` knows its whisks' range).
 
 Safety. The decision uses the coarse run's (or the extrapolated) bent shapes at every output
 sample, so the deflection is not bounded but computed; what is left is the difference between
@@ -81,10 +83,23 @@ EXTRAPOLATED_MARGIN_M = 2.5e-4
 # coarse run, 2.06 with the linear chain in session 12; under Rayleigh damping ``coarse``: module docstring);
 # Bullet's full step ≈ 4× a dataset trial's linear path
 AUTO_PATH = {"mujoco": "extrapolated", "bullet": "linear"}
-# damping laws (``material.damping_model``) under which the extrapolated pair was measured within 1 %;
-# under the others (eq. 3 of the paper: 1.21 % at 9 Hz, 2.72 % at 12 Hz; Rayleigh: 1.20 % at 12 Hz)
-# ``auto`` takes the single coarse run (docs/scaling.md, issue 26, session 18)
+# where the extrapolated pair was measured within 1 % (docs/scaling.md, issue 26, session 18): the damping
+# laws (``material.damping_model``; eq. 3 of the paper: 1.21 % at 9 Hz, Rayleigh: 1.20 % at 12 Hz) and
+# whisks up to this frequency (Hz; the mouse at 20 Hz: 1.20 %, at 26 Hz: 5.7 %); elsewhere ``auto`` takes
+# the single coarse run (mouse at 26 Hz: 0.99 %)
 EXTRAPOLATED_LAWS = ("kelvin_voigt",)
+EXTRAPOLATED_MAX_WHISK_HZ = 12.0
+
+
+def auto_path(engine: str, damping_model: str, fastest_whisk_hz: float | None = None) -> str:
+    """The free path ``free_whiskers: auto`` takes on ``engine``: its :data:`AUTO_PATH`, but the
+    single coarse run instead of the extrapolated pair outside the conditions the pair was
+    measured in (:data:`EXTRAPOLATED_LAWS`, whisks up to :data:`EXTRAPOLATED_MAX_WHISK_HZ`;
+    ``fastest_whisk_hz`` None: not known)."""
+    path = AUTO_PATH.get(engine, "engine")
+    measured = (damping_model in EXTRAPOLATED_LAWS and fastest_whisk_hz is not None
+                and fastest_whisk_hz <= EXTRAPOLATED_MAX_WHISK_HZ)
+    return "coarse" if path == "extrapolated" and not measured else path
 
 
 def coarse_config(config: EngineConfig, longest_s: float | None = None) -> EngineConfig | None:
@@ -142,16 +157,13 @@ class FreePath:
     @classmethod
     def of(cls, make_engine, array: ArrayModel, config: EngineConfig,
            levels: np.ndarray) -> "FreePath | LinearFreePath | None":
-        """The path ``config.free_whiskers`` asks for (``auto``: the engine's :data:`AUTO_PATH`, the
-        single coarse run instead of the pair under a damping law not in :data:`EXTRAPOLATED_LAWS`),
+        """The path ``config.free_whiskers`` asks for (``auto``: :func:`auto_path` of unknown drives),
         the full engine stepping whisker k at ``config.dt_s / 2**levels[k]``: the linear chain's,
         or the coarse one if a coarser step exists (extrapolated: from each distinct coarser step
         of :data:`EXTRAPOLATED_DT_S`, one run if only one is); else None."""
         choice = config.free_whiskers
-        if choice == "auto":
-            choice = AUTO_PATH.get(config.name, "engine")
-            if choice == "extrapolated" and array.material.damping_model not in EXTRAPOLATED_LAWS:
-                choice = "coarse"
+        if choice == "auto":                 # the drives are not known here (pipeline simulate resolves it)
+            choice = auto_path(config.name, array.material.damping_model)
         if choice == "linear":
             return LinearFreePath(array, config.output_rate_hz)
         longest = {"coarse": (FREE_DT_S.get(config.name),),

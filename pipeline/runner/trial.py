@@ -29,6 +29,7 @@ import numpy as np
 from pipeline.config.simulate import SimulateConfig, WhiskSamplingConfig
 from pipeline.datasets.schema import FAILED, OK, TrialRecord
 from pipeline.datasets.writer import Layout, trial_arrays
+from pipeline.engines.free_path import auto_path
 from pipeline.errors import RunAborted, UserError
 from pipeline.model.kinematics import Pose, ProtractionDrive, sinusoidal_whisk, still
 from pipeline.model.outputs import TrialOutput
@@ -97,7 +98,12 @@ class Simulator:
     def __init__(self, spec: RunSpec):
         self.spec = spec
         model = spec.config.model
-        engine = model.engine.model_copy(update={"free_whiskers": spec.config.free_whiskers,
+        free = spec.config.free_whiskers
+        if free == "auto":
+            whisk = spec.config.whisk
+            fastest = whisk.frequency_hz.high if whisk.kind == "sinusoid" else None
+            free = auto_path(model.engine.name, model.material.damping_model, fastest)
+        engine = model.engine.model_copy(update={"free_whiskers": free,
                                                       "late_start": spec.config.late_start})
         self.whisking = Whisking(model.model_copy(update={"engine": engine}))
         self._scenes: dict[str, object] = {}

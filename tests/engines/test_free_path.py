@@ -7,9 +7,9 @@ import pytest
 from pipeline.config.physics import EngineConfig, ModelConfig
 from pipeline.engines import create_engine
 from pipeline.engines.common import CLEARANCE_MARGIN_M, clearance_m, node_padding_m
-from pipeline.engines.free_path import (EXTRAPOLATED_DT_S, EXTRAPOLATED_LAWS, EXTRAPOLATED_MARGIN_M, FREE_DT_S,
+from pipeline.engines.free_path import (EXTRAPOLATED_DT_S, EXTRAPOLATED_MARGIN_M, FREE_DT_S,
                                         FREE_PATH_MARGIN_M,
-                                        coarse_config, extrapolation_weights)
+                                        auto_path, coarse_config, extrapolation_weights)
 from pipeline.model.array import build_array
 from pipeline.model.kinematics import Pose, sinusoidal_whisk
 from pipeline.model.morphology import model_rat
@@ -137,21 +137,36 @@ def test_auto_takes_each_engines_own_cheap_path(engine, path):
     with create_engine(ModelConfig(engine=EngineConfig(name=engine, free_whiskers="auto")),
                        build_array(model_rat().select("RC1"), ModelConfig().material)) as chosen:
         assert type(chosen.free_path).__name__ == path
-        if engine == "mujoco":                            # the extrapolated pair of coarse runs
-            assert tuple(c.dt_s for c in chosen.free_path.configs) == EXTRAPOLATED_DT_S["mujoco"]
 
 
-@pytest.mark.parametrize("preset", ["trimmed", "untrimmed_rayleigh"])
-def test_auto_takes_one_coarse_run_under_damping_laws_the_pair_misses(preset):
-    """The extrapolated pair missed 1 % under eq. 3 and Rayleigh damping (free_path.EXTRAPOLATED_LAWS):
-    there ``auto`` on MuJoCo takes the single coarse run and its wider margin."""
-    from pipeline.config.material import MaterialConfig
+@pytest.mark.parametrize(("damping_model", "fastest_hz", "path"), [
+    ("kelvin_voigt", 12.0, "extrapolated"), ("kelvin_voigt", 26.0, "coarse"), ("kelvin_voigt", None, "coarse"),
+    ("paper", 12.0, "coarse"), ("rayleigh", 9.0, "coarse")])
+def test_auto_takes_the_extrapolated_pair_only_where_it_was_measured(damping_model, fastest_hz, path):
+    """The pair missed 1 % under eq. 3 and Rayleigh damping and for the mouse's 20–26 Hz whisks."""
+    assert auto_path("mujoco", damping_model, fastest_hz) == path
+    assert auto_path("bullet", damping_model, fastest_hz) == "linear"
 
-    material = MaterialConfig(preset=preset)
-    assert material.damping_model not in EXTRAPOLATED_LAWS
-    config = ModelConfig(engine=EngineConfig(name="mujoco", free_whiskers="auto"), material=material)
-    array = build_array(model_rat().select("RC1"), material)
-    with create_engine(config, array) as chosen:
-        assert tuple(c.dt_s for c in chosen.free_path.configs) == (FREE_DT_S["mujoco"],)
-        wide = node_padding_m(array.whiskers, CLEARANCE_MARGIN_M + FREE_PATH_MARGIN_M)
-        np.testing.assert_allclose(chosen.free_path.motion.padding_m, wide)
+
+def test_simulate_resolves_auto_from_its_whisks():
+    from pipeline.config.simulate import SimulateConfig
+    from pipeline.runner.simulate import _layout
+    from pipeline.runner.trial import RunSpec, Simulator
+
+    for high, path in ((12.0, "extrapolated"), (20.0, "coarse")):
+        config = SimulateConfig.model_validate({"whisk": {"frequency_hz": [6.0, high]},
+                                                "model": {"engine": {"name": "mujoco"}}})
+        assert Simulator(RunSpec(config, (), _layout(config))).whisking.config.engine.free_whiskers == path
+
+
+@pytest.mark.parametrize(("choice", "steps", "margin_m"), [
+    ("auto", (FREE_DT_S["mujoco"],), FREE_PATH_MARGIN_M),
+    ("extrapolated", EXTRAPOLATED_DT_S["mujoco"], EXTRAPOLATED_MARGIN_M)])
+def test_each_coarse_path_keeps_its_own_margin(choice, steps, margin_m):
+    """An engine told ``auto`` without its drives takes the single coarse run and its 1 mm margin;
+    the extrapolated pair keeps 0.25 mm (10× its largest node difference from the full engine)."""
+    array = build_array(model_rat().select("RC1"), ModelConfig().material)
+    with create_engine(ModelConfig(engine=EngineConfig(name="mujoco", free_whiskers=choice)), array) as chosen:
+        assert tuple(c.dt_s for c in chosen.free_path.configs) == steps
+        np.testing.assert_allclose(chosen.free_path.motion.padding_m,
+                                   node_padding_m(array.whiskers, CLEARANCE_MARGIN_M + margin_m))
