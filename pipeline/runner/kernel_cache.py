@@ -21,12 +21,13 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from pipeline.runner.trial import RunSpec
 
+POSE_KERNEL_MODULES = ("pipeline.scenes.distance_bounds", "pipeline.scenes.sweeps")   # every trial's pose sampling
 KERNEL_MODULES = {   # per engine, the modules of the kernels every dataset trial calls (numba compiles the ones called)
     "mujoco": ("pipeline.engines.mujoco.face_kernels", "pipeline.engines.mujoco.contact_kernels",
-               "pipeline.engines.triangle_grid"),
+               "pipeline.engines.triangle_grid") + POSE_KERNEL_MODULES,
     "bullet": ("pipeline.engines.bullet.mass_matrix", "pipeline.engines.bullet.gauss_seidel",
                "pipeline.engines.bullet.contact_kernels", "pipeline.engines.bullet.wrench",
-               "pipeline.engines.bullet.step_kernels"),
+               "pipeline.engines.bullet.step_kernels") + POSE_KERNEL_MODULES,
 }
 WARM_FROM_TRIALS = 50    # shorter runs: an extra trial in a child costs more than the memory is worth
 WARM_TIMEOUT_S = 300.0   # a warm-up child still running then is stopped (a first trial compiles in ≈ 20 CPU-s)
