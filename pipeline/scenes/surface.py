@@ -4,10 +4,12 @@ RaycastingScene, one thread), and which faces lie near given points (a k-d tree 
 from __future__ import annotations
 
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pipeline.scenes.distance_bounds import DistanceBounds
+if TYPE_CHECKING:
+    from pipeline.scenes.distance_bounds import DistanceBounds
 
 BOUNDS_VOXEL_M = 1e-3    # voxel of the grid that tells segments too far from the mesh to reach it
 SEGMENT_PAD_M = 1e-4     # a segment is cast unless it is this much shorter than its start's bound
@@ -57,6 +59,9 @@ class SurfaceQueries:
     @cached_property
     def bounds(self) -> DistanceBounds:
         """Lower bounds of points' distances to the faces' bounding boxes (built on first use)."""
+        # imported here, not at the top: numba (and with it scipy) ≈0.3 CPU-s on a trial's start-up
+        from pipeline.scenes.distance_bounds import DistanceBounds
+
         return DistanceBounds(self._corners.min(axis=1), self._corners.max(axis=1), BOUNDS_VOXEL_M)
 
     def segment_hits(self, starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -120,6 +125,9 @@ class FaceIndex:
     @cached_property
     def bounds(self) -> DistanceBounds:
         """Lower bounds of points' distances to the faces' bounding boxes (built on first use)."""
+        # imported here, not at the top: numba (and with it scipy) ≈0.3 CPU-s on a trial's start-up
+        from pipeline.scenes.distance_bounds import DistanceBounds
+
         return DistanceBounds(self._lower, self._upper, BOUNDS_VOXEL_M)
 
     def lower_distance_m(self, points_m: np.ndarray, beyond_m: float = np.inf) -> np.ndarray:
