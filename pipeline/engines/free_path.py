@@ -80,7 +80,7 @@ EXTRAPOLATED_MARGIN_M = 2.5e-4
 # ``free_whiskers: auto``: per engine the cheapest path within 1 % of its full step on every whisker
 # it takes (benchmarks/bench_free_whiskers.py; docs/scaling.md): for MuJoCo the extrapolated pair
 # (0.89× the single coarse run's CPU, a third of its error; a dataset trial cost 1.92 CPU-s with the
-# coarse run, 2.06 with the linear chain in session 12; under Rayleigh damping ``coarse``: module docstring);
+# coarse run, 2.06 with the linear chain in session 12), where :func:`auto_path` allows it;
 # Bullet's full step ≈ 4× a dataset trial's linear path
 AUTO_PATH = {"mujoco": "extrapolated", "bullet": "linear"}
 # where the extrapolated pair was measured within 1 % (docs/scaling.md, issue 26, session 18): the damping
