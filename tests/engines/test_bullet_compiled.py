@@ -56,11 +56,9 @@ def python_solve(G, u0, gaps_mm, h, mu, iterations, start):
             bound = mu * f[r]
             if bound == 0.0 and f[r1] == 0.0 and f[r2] == 0.0:
                 continue
-            t1 = f[r1] - u[r1] / diagonal[r1]
-            t2 = f[r2] - u[r2] / diagonal[r2]
-            size = math.hypot(t1, t2)
-            if size > bound:
-                t1, t2 = (t1 * bound / size, t2 * bound / size) if size > 0 else (0.0, 0.0)
+            a12 = 0.5 * (columns[r2][r1] + columns[r1][r2])
+            t1, t2 = python_disc(diagonal[r1], a12, diagonal[r2], u[r1] - diagonal[r1] * f[r1] - a12 * f[r2],
+                                 u[r2] - a12 * f[r1] - diagonal[r2] * f[r2], bound)
             for j, value in ((r1, t1), (r2, t2)):
                 if value != f[j]:
                     change = value - f[j]
@@ -70,6 +68,27 @@ def python_solve(G, u0, gaps_mm, h, mu, iterations, start):
         if largest_change <= TOLERANCE * max(map(abs, f), default=0.0):
             break
     return np.array(f)
+
+
+def python_disc(a11, a12, a22, c1, c2, bound):
+    """The friction pair's block minimiser on the disc (gauss_seidel.friction_on_disc) in plain Python."""
+    if not bound > 0.0:
+        return 0.0, 0.0
+    trace = a11 + a22
+    lam = 0.0 if a11 * a22 - a12 * a12 > 1e-12 * trace * trace else 1e-12 * trace
+    x1 = x2 = 0.0
+    for step in range(50):
+        det = (a11 + lam) * (a22 + lam) - a12 * a12
+        x1, x2 = -((a22 + lam) * c1 - a12 * c2) / det, -((a11 + lam) * c2 - a12 * c1) / det
+        size = math.hypot(x1, x2)
+        if step == 0 and size <= bound:
+            return x1, x2
+        if not size > 0.0 or abs(size - bound) <= 1e-12 * bound:
+            break
+        xy = (x1 * ((a22 + lam) * x1 - a12 * x2) + x2 * ((a11 + lam) * x2 - a12 * x1)) / det
+        lam += (size / bound - 1.0) * size * size / xy
+    size = math.hypot(x1, x2)
+    return (x1 * bound / size, x2 * bound / size) if size > 0.0 else (0.0, 0.0)
 
 
 def recorded_problems():

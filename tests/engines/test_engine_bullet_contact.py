@@ -101,6 +101,30 @@ def test_friction_forces_stay_in_the_cone_and_unloaded_points_carry_none():
         assert (u[0::3] + bias >= -1e-4 * scale).all()
         sticking = (normal > 0) & (size < mu * normal * (1 - 1e-6))
         assert np.allclose(u.reshape(points, 3)[sticking, 1:], 0.0, atol=1e-4 * scale)
+        sliding = (normal > 0) & ~sticking
+        slip = u.reshape(points, 3)[sliding, 1:]
+        opposed = -np.einsum("ij,ij->i", slip, tangent[sliding]) / (np.linalg.norm(slip, axis=1) * size[sliding])
+        assert (opposed > 1 - 1e-6).all()          # Coulomb: friction opposes the sliding
+
+
+def test_sliding_friction_opposes_the_sliding_velocity_when_the_mobility_is_anisotropic():
+    """One point pressed on a face and driven obliquely across it, 100 times more mobile along one
+    tangent than the other (a whisker tip moves far more easily across the whisker than along it),
+    its tangent block coupled: it slides, and its friction is μ·f_n opposite its velocity after
+    the step. The rows' diagonal update projected onto the disc (before: friction toward
+    −diag(G_tt)⁻¹·u_t) pointed it 21° off the sliding direction here."""
+    rotation = np.array([[np.cos(0.5), -np.sin(0.5)], [np.sin(0.5), np.cos(0.5)]])
+    G = np.eye(3)
+    G[1:, 1:] = rotation @ np.diag([100.0, 1.0]) @ rotation.T
+    G[0, 1:] = G[1:, 0] = 0.3
+    h, mu = 1e-4, 0.5
+    u0 = np.array([-1.0, 40.0, 30.0])             # pushed in, driven across the face
+    f = solve_forces(G, u0, np.zeros(1), h, mu, iterations=500)
+    u = u0 + G @ f
+    friction, slip = f[1:], u[1:]
+    assert f[0] > 0 and u[0] == pytest.approx(0.0, abs=1e-6)
+    assert np.linalg.norm(friction) == pytest.approx(mu * f[0], rel=1e-9)
+    assert -friction @ slip / (np.linalg.norm(friction) * np.linalg.norm(slip)) > 1 - 1e-9
 
 
 def test_a_links_near_copies_and_opposed_points_are_dropped():
