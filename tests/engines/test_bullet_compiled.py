@@ -72,9 +72,9 @@ def python_solve(G, u0, gaps_mm, h, mu, iterations, start):
 
 def python_disc(a11, a12, a22, c1, c2, bound):
     """The friction pair's block minimiser on the disc (gauss_seidel.friction_on_disc) in plain Python."""
-    if not bound > 0.0:
-        return 0.0, 0.0
     trace = a11 + a22
+    if not (bound > 0.0 and trace > 0.0):            # unloaded, or no tangential mobility
+        return 0.0, 0.0
     lam = 0.0 if a11 * a22 - a12 * a12 > 1e-12 * trace * trace else 1e-12 * trace
     x1 = x2 = 0.0
     for step in range(50):

@@ -43,9 +43,9 @@ def friction_on_disc(a11: float, a12: float, a22: float, c1: float, c2: float, b
     linear, concave and increasing in λ, so the iterates rise monotonically to the root; Moré and
     Sorensen 1983), then put on the circle.
     (MuJoCo's elliptic cones solve the same block problem: ``mju_QCQP2``.)"""
-    if not bound > 0.0:
-        return 0.0, 0.0
     trace = a11 + a22
+    if not (bound > 0.0 and trace > 0.0):            # unloaded, or no tangential mobility
+        return 0.0, 0.0
     lam = 0.0 if a11 * a22 - a12 * a12 > 1e-12 * trace * trace else 1e-12 * trace    # A singular: a hair
     x1 = x2 = 0.0
     for step in range(50):
