@@ -88,10 +88,9 @@ def compile_model(whiskers: list[WhiskerModel], members: np.ndarray, parts: list
     if not any(isinstance(p.obstacle, TriangleMesh) for p in parts):
         option.enableflags |= mujoco.mjtEnableBit.mjENBL_SPECULATIVE
     chosen = [whiskers[k] for k in members]
-    head = (_add_jointed_head(spec, chosen) if jointed_head
-            else spec.worldbody.add_body(name="head", mocap=True))
+    head = _add_jointed_head(spec, chosen) if jointed_head else None
     for k, whisker in zip(members, chosen):
-        _add_whisker(spec, head, k, whisker, config)
+        _add_whisker(spec, head or spec.worldbody.add_body(name=f"w{k}/head", mocap=True), k, whisker, config)
     for part in parts:
         _add_obstacle(spec, part, config)
     return spec.compile()

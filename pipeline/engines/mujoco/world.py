@@ -181,8 +181,8 @@ class MujocoWorld(World):
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         if not self.jointed_head:
-            d.mocap_pos[0] = np.asarray(pose.position_m, float) * U.LENGTH
-            d.mocap_quat[0] = quat_wxyz(pose.rotation)
+            d.mocap_pos[:] = np.asarray(pose.position_m, float) * U.LENGTH
+            d.mocap_quat[:] = quat_wxyz(pose.rotation)
         whiskers = [self.whiskers[k] for k in self.members]
         rest = np.concatenate([w.rest_joint_angles for w in whiskers]).astype(float)
         rates = np.concatenate([w.joint_rates for w in whiskers]).astype(float)
