@@ -175,9 +175,9 @@ class MujocoWorld(World):
     # -- trial ---------------------------------------------------------------------------
     def _reset(self, pose: Pose, drive: ProtractionDrive, initial: list[np.ndarray],
                initial_rates: list[np.ndarray], head: HeadMotion | None) -> tuple[np.ndarray, np.ndarray]:
-        """Head at ``pose`` (a jointed head: as ``head`` at t = 0, moving), driven joints as the
-        drive at t = 0, free joints at ``initial`` (per member, rad) moving at ``initial_rates``
-        (rad/s); returns the kinematic targets' offsets and θ-rates."""
+        """Head at ``pose`` (every whisker's mocap head body; a jointed head: as ``head`` at t = 0,
+        moving), driven joints as the drive at t = 0, free joints at ``initial`` (per member, rad)
+        moving at ``initial_rates`` (rad/s); returns the kinematic targets' offsets and θ-rates."""
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         if not self.jointed_head:
