@@ -127,6 +127,29 @@ def test_whisker_against_a_mesh_is_independent_of_its_world(tmp_path):
     np.testing.assert_array_equal(group.contact[:, k], alone.contact[:, 0])
 
 
+def test_whisker_on_a_peg_is_independent_of_a_companion_on_a_scan(tmp_path):
+    """A scene with a scan and a peg: LC1 touches only the peg, RC1 only the scan. The world of
+    both reaches the scan; LC1's signals are still those it has alone (MuJoCo's speculative
+    contacts, decided by the parts a world reached, put them 0.17 of its peak apart)."""
+    from test_engine_mujoco import _wavy_wall
+
+    config = ModelConfig(engine=EngineConfig(name="mujoco"))
+    drive = sinusoidal_whisk(duration_s=0.06)
+    with create_engine(config, build_array(model_rat().select("LC1"), config.material)) as engine:
+        node = engine.run(Scene("empty", ()), Pose(), drive, 0.06).node_positions_m[:, 0, 12]
+    far = int(np.argmax(np.linalg.norm(node - node[0], axis=1)))        # the node's path, 60 % of S
+    peg = Cylinder(PEG_RADIUS_M, 0.01, tuple(map(float, node[far // 2 + 5])))
+    scene = Scene("scan and peg", (_wavy_wall(tmp_path).obstacles[0], peg))
+    outputs = {}
+    for selection in ("LC1", "LC1,RC1"):
+        with create_engine(config, build_array(model_rat().select(selection), config.material)) as engine:
+            outputs[selection] = engine.run(scene, Pose(), drive, 0.06)
+    alone, pair = outputs["LC1"], outputs["LC1,RC1"]
+    assert alone.contact.any() and pair.contact[:, pair.index("RC1")].any()
+    np.testing.assert_array_equal(pair.base_wrench[:, pair.index("LC1")], alone.base_wrench[:, 0])
+    np.testing.assert_array_equal(pair.contact[:, pair.index("LC1")], alone.contact[:, 0])
+
+
 DRAINPIPE = Path(__file__).resolve().parents[2] / "outputs" / "meshes" / "drainpipe.obj"
 
 

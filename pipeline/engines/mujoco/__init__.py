@@ -88,8 +88,9 @@ lets only the links that can reach an obstacle collide, and a world none of whos
 skips collision detection. A contact counts for its link when it penetrates (distance ≤ 0);
 flags are ORed over the steps that start in [t_{k−1}, t_k). Speculative contacts (MuJoCo's
 conservative advancement) stop thin, fast links from passing through pegs and edges within a
-step (at 540 °/s the collision protocol's Mz otherwise rebounds 7× too high); with mesh
-obstacles they made the step ~6× dearer and are off.
+step (at 540 °/s the collision protocol's Mz otherwise rebounds 7× too high); with meshes as
+MuJoCo geoms they made the step ~6× dearer, so a scene with a moving mesh (prisms below) has them
+off in every world (a static scan's contacts are the engine's own: they change nothing there).
 
 Triangle meshes. A static scan is not a MuJoCo geom: the engine finds its contacts itself
 (:mod:`pipeline.engines.mujoco.faces`). The faces some link can reach at the trial's pose sit in
@@ -148,10 +149,10 @@ was every whisker's centre of mass, so the companions changed each whisker's rou
 several percent (docs/model.md, "Issue 24, session 19"). The solve is per island in MuJoCo
 4.0.0, its PGS stop included (an island's scaled improvement is the same alone and in a
 world), but it decides two things for the whole world (the warm start, the no-slip pass's
-stop); :func:`~pipeline.engines.mujoco.spec.compile_model` turns both off. Still coupled: a
-moving head (one tree), a late start (a world starts at its earliest whisker's start,
-:mod:`pipeline.engines.late_start`), and, in a scene that mixes meshes with pegs or boxes, the
-speculative contacts (on only in a world that reaches no mesh).
+stop); :func:`~pipeline.engines.mujoco.spec.compile_model` turns both off. The speculative contacts
+are decided by the scene, not by the parts a world's whiskers reach. Still coupled: a moving
+head (one tree) and a late start (a world starts at its earliest whisker's start,
+:mod:`pipeline.engines.late_start`).
 
 Contact loss. A step on which a whisker's last contacts open and, carried with its links to
 the step's end, would lie inside the obstacle is taken again for that whisker in sub-steps

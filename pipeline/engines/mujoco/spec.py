@@ -57,10 +57,11 @@ def base_inertia_mg_mm2(chain: WhiskerChain) -> float:
 
 
 def compile_model(whiskers: list[WhiskerModel], members: np.ndarray, parts: list[Part], config: EngineConfig,
-                  dt_s: float, jointed_head: bool = False) -> mujoco.MjModel:
+                  dt_s: float, jointed_head: bool = False, speculative: bool = True) -> mujoco.MjModel:
     """The model of the whiskers ``members`` (indices into ``whiskers``) and the obstacle
     ``parts``, stepping at ``dt_s``; the head a mocap body per whisker, all at the trial's pose,
-    or with ``jointed_head`` one body on kinematic slides and hinges (package docstring, Moving head)."""
+    or with ``jointed_head`` one body on kinematic slides and hinges (package docstring, Moving
+    head); with ``speculative``, MuJoCo's speculative contacts (package docstring, Contacts)."""
     spec = mujoco.MjSpec()
     spec.modelname = "whiskers"
     spec.memory = ARENA_BYTES
@@ -86,7 +87,7 @@ def compile_model(whiskers: list[WhiskerModel], members: np.ndarray, parts: list
     option.gravity = [0.0, 0.0, 0.0]                 # gravity is a load (pipeline.model.effects.loads)
     option.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
     option.disableflags |= mujoco.mjtDisableBit.mjDSBL_MULTICCD     # one point per capsule–prism
-    if not any(isinstance(p.obstacle, TriangleMesh) for p in parts):
+    if speculative:
         option.enableflags |= mujoco.mjtEnableBit.mjENBL_SPECULATIVE
     chosen = [whiskers[k] for k in members]
     jointed = _add_jointed_head(spec, chosen) if jointed_head else None

@@ -57,10 +57,11 @@ class MujocoWorld(World):
         self._built_key: object = None
 
     # -- model ---------------------------------------------------------------------------
-    def _build(self, parts: list[Part], members: np.ndarray, jointed_head: bool = False) -> None:
+    def _build(self, parts: list[Part], members: np.ndarray, jointed_head: bool = False,
+               speculative: bool = True) -> None:
         """Compile the whiskers ``members`` (indices into this world's) and ``parts`` into a new
         model and data (:func:`~pipeline.engines.mujoco.spec.compile_model`)."""
-        self.model = compile_model(self.whiskers, members, parts, self.config, self.dt_s, jointed_head)
+        self.model = compile_model(self.whiskers, members, parts, self.config, self.dt_s, jointed_head, speculative)
         self.data = mujoco.MjData(self.model)
         self.jointed_head = jointed_head
         self.members = members
@@ -158,10 +159,12 @@ class MujocoWorld(World):
                  jointed_head: bool) -> None:
         """A model of the whiskers ``members`` and the obstacle ``parts`` (recompiled only when
         they changed), its head jointed or not, in which only the links that can reach a part
-        collide."""
+        collide; speculative contacts unless the scene has a moving mesh (decided by the scene,
+        not by the parts a world's members reach: package docstring, Independence)."""
         key = (scene.key if parts else None, tuple(p.key for p in parts), members.tobytes(), jointed_head)
         if key != self._built_key:
-            self._build(parts, members, jointed_head)
+            speculative = not any(isinstance(o, TriangleMesh) and np.any(o.velocity_m_s) for o in scene.obstacles)
+            self._build(parts, members, jointed_head, speculative)
             self._built_key = key
         m = self.model
         reach = self.link_reach_m[members] >= gaps[members, None]
