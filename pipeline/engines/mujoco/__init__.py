@@ -3,9 +3,9 @@
 Model. One MjModel per step size (the whiskers that share ``engine.dt_s / 2**j``, see
 :mod:`pipeline.engines.stepping`), built with ``mujoco.MjSpec`` in mm–mg–s
 (:mod:`pipeline.engines.units`: tip-link inertias are ~10⁻¹⁸ kg·m² in SI, and MuJoCo refuses
-anything below 10⁻¹⁵). The head is a mocap body at the trial's pose, or, when it moves (a head
-trajectory that moves, or a closed-loop session), a body on kinematic joints (Moving head
-below). Under it, per whisker,
+anything below 10⁻¹⁵). A still head is a mocap body per whisker, each at the trial's pose
+(Independence below), or, when it moves (a head trajectory that moves, or a closed-loop
+session), one body on kinematic joints (Moving head below). Under it, per whisker,
 a follicle body at the base point carries the three driven hinges Z, Y, X; link 1 hangs from
 it, rigidly or on the compliant follicle's hinges; every further link is a body with the
 hinges of its node (:mod:`pipeline.model.joints`: z, y and, with twist, x; MuJoCo composes a
@@ -47,7 +47,7 @@ sees the whiskers' world velocities (contact damping and friction act on the sli
 to the obstacle: a whisker at rest in a head passing a peg at 0.05 m/s and a peg passing the
 still head at −0.05 m/s differ by ≤ 8·10⁻⁵ of each base wrench component's peak; with the
 mocap head and a fictitious frame load, up to 2.7×) and the frame's inertial load on the
-chain is MuJoCo's own. A still head stays a mocap body: its trials are bit-identical to a
+chain is MuJoCo's own. A still head stays mocap bodies: its trials are bit-identical to a
 trial without a trajectory. The head joins every whisker into one kinematic tree and one
 constraint island, so with a moving head a whisker's contacts are solved together with the
 other whiskers' (Independence below does not hold; the free path is off for a moving head).
@@ -88,8 +88,9 @@ lets only the links that can reach an obstacle collide, and a world none of whos
 skips collision detection. A contact counts for its link when it penetrates (distance ≤ 0);
 flags are ORed over the steps that start in [t_{k−1}, t_k). Speculative contacts (MuJoCo's
 conservative advancement) stop thin, fast links from passing through pegs and edges within a
-step (at 540 °/s the collision protocol's Mz otherwise rebounds 7× too high); with mesh
-obstacles they made the step ~6× dearer and are off.
+step (at 540 °/s the collision protocol's Mz otherwise rebounds 7× too high); with meshes as
+MuJoCo geoms they made the step ~6× dearer, so a scene with a moving mesh (prisms below) has them
+off in every world (a static scan's contacts are the engine's own: they change nothing there).
 
 Triangle meshes. A static scan is not a MuJoCo geom: the engine finds its contacts itself
 (:mod:`pipeline.engines.mujoco.faces`). The faces some link can reach at the trial's pose sit in
@@ -134,12 +135,24 @@ midway between the surfaces) is projected onto its link's axis between the link'
 the step's start and turned into an arc length fraction of S; a sample keeps the most
 proximal one of its last step with contacts (:class:`~pipeline.engines.common.ContactFlags`).
 
-Independence. Each whisker is its own kinematic tree and, touching a static obstacle, its own
-constraint island: its result does not depend on which others are simulated with it (bit for
-bit, for pegs and edges; against a mesh ≤ 5·10⁻⁷ of its peak on a wavy wall,
-tests/engines/test_engine_mujoco_contact.py), which the template's reuse of free motion relies
-on. MuJoCo solves the islands one by one but decides two things for the whole world (the warm
-start, the no-slip pass's stop); :func:`~pipeline.engines.mujoco.spec.compile_model` turns both off.
+Independence. Each whisker hangs from a mocap head body of its own, so it is a kinematic tree
+rooted there and, touching a static obstacle, its own constraint island: its signals do not
+depend on which others are simulated with it, bit for bit (pegs, edges and scans,
+tests/engines/test_engine_mujoco_contact.py; on the 24 dataset trials of
+benchmarks/bench_statistics.py every touching pair's statistics are the same whether the
+whiskers that cannot touch run in the worlds or on the free path), which the template's reuse
+of free motion and the free path rely on. MuJoCo expresses a body's motion, inertia and
+forces (``cdof``, ``cinert``, ``cvel``, so the mass matrix, bias forces and base sensors) about
+the centre of mass of its tree's root subtree: under one head body shared by the world that
+was every whisker's centre of mass, so the companions changed each whisker's round-off (qacc
+10⁻¹³ apart at the first step), and stick–slip on scans amplified that to peak changes of
+several percent (docs/model.md, "Issue 24, session 19"). The solve is per island in MuJoCo
+4.0.0, its PGS stop included (an island's scaled improvement is the same alone and in a
+world), but it decides two things for the whole world (the warm start, the no-slip pass's
+stop); :func:`~pipeline.engines.mujoco.spec.compile_model` turns both off. The speculative contacts
+are decided by the scene, not by the parts a world's whiskers reach. Still coupled: a moving
+head (one tree) and a late start (a world starts at its earliest whisker's start,
+:mod:`pipeline.engines.late_start`).
 
 Contact loss. A step on which a whisker's last contacts open and, carried with its links to
 the step's end, would lie inside the obstacle is taken again for that whisker in sub-steps

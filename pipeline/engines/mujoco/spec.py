@@ -57,10 +57,11 @@ def base_inertia_mg_mm2(chain: WhiskerChain) -> float:
 
 
 def compile_model(whiskers: list[WhiskerModel], members: np.ndarray, parts: list[Part], config: EngineConfig,
-                  dt_s: float, jointed_head: bool = False) -> mujoco.MjModel:
+                  dt_s: float, jointed_head: bool = False, speculative: bool = True) -> mujoco.MjModel:
     """The model of the whiskers ``members`` (indices into ``whiskers``) and the obstacle
-    ``parts``, stepping at ``dt_s``; the head a mocap body, or with ``jointed_head`` a body on
-    kinematic slides and hinges (package docstring, Moving head)."""
+    ``parts``, stepping at ``dt_s``; the head a mocap body per whisker, all at the trial's pose,
+    or with ``jointed_head`` one body on kinematic slides and hinges (package docstring, Moving
+    head); with ``speculative``, MuJoCo's speculative contacts (package docstring, Contacts)."""
     spec = mujoco.MjSpec()
     spec.modelname = "whiskers"
     spec.memory = ARENA_BYTES
@@ -75,9 +76,10 @@ def compile_model(whiskers: list[WhiskerModel], members: np.ndarray, parts: list
     # Each whisker touching a static obstacle is its own constraint island, but two decisions of
     # the solve look at the whole world: keeping the warm start (the total cost over every
     # constraint) and stopping the no-slip pass (scaled by the world's mean inertia and dofs).
-    # Without the warm start and with every no-slip sweep made, a whisker alone and in a
-    # 5-whisker world against a wavy wall differ by ≤ 5·10⁻⁷ of its peak wrench (7.8·10⁻⁵ with
-    # both decisions world-wide; tests/engines/test_engine_mujoco_contact.py).
+    # Without the warm start, with every no-slip sweep made and a head body per whisker, a
+    # whisker alone and in a 5-whisker world against a wavy wall record the same wrench bit for
+    # bit (7.8·10⁻⁵ of its peak apart with both decisions world-wide;
+    # tests/engines/test_engine_mujoco_contact.py).
     option.disableflags |= mujoco.mjtDisableBit.mjDSBL_WARMSTART
     option.noslip_tolerance = 0.0
     option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
@@ -85,12 +87,14 @@ def compile_model(whiskers: list[WhiskerModel], members: np.ndarray, parts: list
     option.gravity = [0.0, 0.0, 0.0]                 # gravity is a load (pipeline.model.effects.loads)
     option.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
     option.disableflags |= mujoco.mjtDisableBit.mjDSBL_MULTICCD     # one point per capsule–prism
-    if not any(isinstance(p.obstacle, TriangleMesh) for p in parts):
+    if speculative:
         option.enableflags |= mujoco.mjtEnableBit.mjENBL_SPECULATIVE
     chosen = [whiskers[k] for k in members]
-    head = (_add_jointed_head(spec, chosen) if jointed_head
-            else spec.worldbody.add_body(name="head", mocap=True))
+    jointed = _add_jointed_head(spec, chosen) if jointed_head else None
     for k, whisker in zip(members, chosen):
+        # a still head is a mocap body per whisker: the root of its tree alone (package docstring,
+        # Independence), not one body whose subtree's centre of mass is every whisker's
+        head = jointed if jointed is not None else spec.worldbody.add_body(name=f"w{k}/head", mocap=True)
         _add_whisker(spec, head, k, whisker, config)
     for part in parts:
         _add_obstacle(spec, part, config)

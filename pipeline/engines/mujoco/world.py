@@ -57,10 +57,11 @@ class MujocoWorld(World):
         self._built_key: object = None
 
     # -- model ---------------------------------------------------------------------------
-    def _build(self, parts: list[Part], members: np.ndarray, jointed_head: bool = False) -> None:
+    def _build(self, parts: list[Part], members: np.ndarray, jointed_head: bool = False,
+               speculative: bool = True) -> None:
         """Compile the whiskers ``members`` (indices into this world's) and ``parts`` into a new
         model and data (:func:`~pipeline.engines.mujoco.spec.compile_model`)."""
-        self.model = compile_model(self.whiskers, members, parts, self.config, self.dt_s, jointed_head)
+        self.model = compile_model(self.whiskers, members, parts, self.config, self.dt_s, jointed_head, speculative)
         self.data = mujoco.MjData(self.model)
         self.jointed_head = jointed_head
         self.members = members
@@ -158,10 +159,12 @@ class MujocoWorld(World):
                  jointed_head: bool) -> None:
         """A model of the whiskers ``members`` and the obstacle ``parts`` (recompiled only when
         they changed), its head jointed or not, in which only the links that can reach a part
-        collide."""
+        collide; speculative contacts unless the scene has a moving mesh (decided by the scene,
+        not by the parts a world's members reach: package docstring, Independence)."""
         key = (scene.key if parts else None, tuple(p.key for p in parts), members.tobytes(), jointed_head)
         if key != self._built_key:
-            self._build(parts, members, jointed_head)
+            speculative = not any(isinstance(o, TriangleMesh) and np.any(o.velocity_m_s) for o in scene.obstacles)
+            self._build(parts, members, jointed_head, speculative)
             self._built_key = key
         m = self.model
         reach = self.link_reach_m[members] >= gaps[members, None]
@@ -175,14 +178,14 @@ class MujocoWorld(World):
     # -- trial ---------------------------------------------------------------------------
     def _reset(self, pose: Pose, drive: ProtractionDrive, initial: list[np.ndarray],
                initial_rates: list[np.ndarray], head: HeadMotion | None) -> tuple[np.ndarray, np.ndarray]:
-        """Head at ``pose`` (a jointed head: as ``head`` at t = 0, moving), driven joints as the
-        drive at t = 0, free joints at ``initial`` (per member, rad) moving at ``initial_rates``
-        (rad/s); returns the kinematic targets' offsets and θ-rates."""
+        """Head at ``pose`` (every whisker's mocap head body; a jointed head: as ``head`` at t = 0,
+        moving), driven joints as the drive at t = 0, free joints at ``initial`` (per member, rad)
+        moving at ``initial_rates`` (rad/s); returns the kinematic targets' offsets and θ-rates."""
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)
         if not self.jointed_head:
-            d.mocap_pos[0] = np.asarray(pose.position_m, float) * U.LENGTH
-            d.mocap_quat[0] = quat_wxyz(pose.rotation)
+            d.mocap_pos[:] = np.asarray(pose.position_m, float) * U.LENGTH
+            d.mocap_quat[:] = quat_wxyz(pose.rotation)
         whiskers = [self.whiskers[k] for k in self.members]
         rest = np.concatenate([w.rest_joint_angles for w in whiskers]).astype(float)
         rates = np.concatenate([w.joint_rates for w in whiskers]).astype(float)
