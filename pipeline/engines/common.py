@@ -254,9 +254,18 @@ def clearance_m(points_m: np.ndarray, times_s: np.ndarray, scene, beyond_m: floa
 
 
 def node_padding_m(whiskers, margin_m: float) -> np.ndarray:
-    """[W] how far (m) every point of a whisker's links lies at most from its nearest node, plus
-    ``margin_m``: the base radius plus half the longest link."""
-    return np.array([w.chain.node_radii_m[0] + 0.5 * w.chain.link_lengths_m.max() for w in whiskers]) + margin_m
+    """[W] how far (m) a whisker's surface lies at most from its axis, plus ``margin_m``: the base
+    radius plus ``margin_m``."""
+    return np.array([w.chain.node_radii_m[0] for w in whiskers]) + margin_m
+
+
+def node_clearance_m(pad_m, half_link_m):
+    """The clearance (m) every node of a link of half-length ``half_link_m`` must keep from the
+    obstacles so that every point of the link keeps ``pad_m``: sqrt(pad² + half²). The ball of
+    radius d around each of the link's two nodes holds no obstacle; the link's points lie within
+    their union, at least sqrt(d² − half²) from outside it (the least at the middle, on the circle
+    where the two spheres meet)."""
+    return np.hypot(pad_m, half_link_m)
 
 
 class FreeMotion:
@@ -266,13 +275,15 @@ class FreeMotion:
     head that motion does not depend on the pose (without gravity or a world-frame force). So
     a whisker whose remembered motion keeps clear of every obstacle of a later trial with the
     same drive and duration would not touch anything either: its outputs can be reused.
-    Clear means every node, at every output sample, farther from the obstacles than the
-    whisker's base radius plus half its longest link plus half the farthest a node or an
-    obstacle moves between two samples, plus ``margin_m`` (:data:`CLEARANCE_MARGIN_M`).
+    Clear means every point of its links, at every output sample, farther from the obstacles
+    than the whisker's base radius plus half the farthest a node or an obstacle moves between
+    two samples, plus ``margin_m`` (:data:`CLEARANCE_MARGIN_M`): checked on the nodes, which
+    keep that pad combined with half the longest link (:func:`node_clearance_m`).
     """
 
     def __init__(self, whiskers, margin_m: float = CLEARANCE_MARGIN_M):
         self.padding_m = node_padding_m(whiskers, margin_m)
+        self.half_link_m = np.array([0.5 * w.chain.link_lengths_m.max() for w in whiskers])
         self.key: object = None
         self.motions: dict[int, tuple[np.ndarray, np.ndarray, float]] = {}   # wrench, head nodes, pad
 
@@ -290,7 +301,11 @@ class FreeMotion:
             return
         head_nodes = (nodes_m.astype(float) - np.asarray(pose.position_m, float)) @ pose.rotation
         step = float(np.linalg.norm(np.diff(head_nodes, axis=0), axis=-1).max(initial=0.0))
-        self.motions[k] = (wrench.copy(), head_nodes, self.padding_m[k] + 0.5 * step)
+        self.motions[k] = (wrench.copy(), head_nodes, self.padding_m[k] + 0.5 * step)   # pad of its links' points
+
+    def node_clearance_m(self, k: int, pad_m: float) -> float:
+        """The clearance (m) whisker k's nodes keep so that its links' points keep ``pad_m``."""
+        return float(node_clearance_m(pad_m, self.half_link_m[k]))
 
     def reusable(self, pose, scene, times_s: np.ndarray) -> np.ndarray:
         """[W] whether each whisker's remembered motion keeps clear of ``scene`` at ``pose``."""
@@ -298,7 +313,7 @@ class FreeMotion:
         period = float(times_s[1] - times_s[0]) if len(times_s) > 1 else 0.0
         speed = max((float(np.linalg.norm(o.velocity_m_s)) for o in scene.obstacles), default=0.0)
         for k, (_, head_nodes, pad) in self.motions.items():
-            pad = pad + 0.5 * speed * period                            # obstacles move between samples
+            pad = self.node_clearance_m(k, pad + 0.5 * speed * period)   # obstacles move between samples
             path = pose.apply(head_nodes)                              # [T, N+1, 3]
             nodes = path.reshape(-1, 3)
             centre = nodes.mean(axis=0)                                # first the bounding sphere

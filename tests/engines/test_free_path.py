@@ -6,7 +6,7 @@ import pytest
 
 from pipeline.config.physics import EngineConfig, ModelConfig
 from pipeline.engines import create_engine
-from pipeline.engines.common import CLEARANCE_MARGIN_M, clearance_m, node_padding_m
+from pipeline.engines.common import CLEARANCE_MARGIN_M, clearance_m, node_clearance_m, node_padding_m
 from pipeline.engines.free_path import (EXTRAPOLATED_DT_S, EXTRAPOLATED_MARGIN_M, FREE_DT_S,
                                         FREE_PATH_MARGIN_M,
                                         auto_path, coarse_config, extrapolation_weights)
@@ -94,6 +94,32 @@ def _peg_at_clearance(nodes_m: np.ndarray, times_s: np.ndarray, clearance: float
     return scene(high)
 
 
+def test_nodes_at_the_node_clearance_keep_every_point_of_their_link_clear():
+    """A link whose two nodes keep node_clearance_m(pad, half) from an obstacle point keeps pad
+    at every point (random links and points), and the bound is reached: a point on the link's
+    perpendicular bisector at that distance from both nodes lies pad from its middle."""
+    rng = np.random.default_rng(3)
+    pad, half = 1.1e-3, 1.35e-3
+    needed = node_clearance_m(pad, half)
+    s = np.linspace(0.0, 1.0, 2001)[:, None]
+    checked = 0
+    for _ in range(2000):
+        a = rng.normal(size=3) * 3e-3
+        direction = rng.normal(size=3)
+        b = a + 2 * half * direction / np.linalg.norm(direction)
+        point = rng.normal(size=3) * 3e-3
+        if min(np.linalg.norm(point - a), np.linalg.norm(point - b)) < needed:
+            continue
+        checked += 1
+        assert np.linalg.norm(a + s * (b - a) - point, axis=1).min() >= pad * (1 - 1e-9)
+    assert checked > 500
+    a, b = np.zeros(3), np.array([2 * half, 0.0, 0.0])
+    point = np.array([half, pad, 0.0])                # on the bisector, `needed` from both nodes
+    np.testing.assert_allclose(np.linalg.norm(point - a), needed)
+    assert np.linalg.norm(a + s * (b - a) - point, axis=1).min() == pytest.approx(pad)
+    assert needed < pad + half                        # tighter than pad plus half the link
+
+
 @pytest.mark.parametrize("path", ["coarse", "extrapolated", "linear"])
 def test_a_whisker_within_the_margin_never_takes_the_cheap_path(path):
     """Pegs placed just inside and just outside the cheap path's clearance from RC1's free path,
@@ -102,10 +128,10 @@ def test_a_whisker_within_the_margin_never_takes_the_cheap_path(path):
     drive = sinusoidal_whisk(12.0, 45.0, 20.0, DURATION_S)
     with _engine("RC1", path) as cheap:
         free = cheap.run(empty(), POSE, drive, DURATION_S)
-        padding = cheap.free_path.motion.padding_m[0]
+        motion = cheap.free_path.motion
     nodes, times = free.node_positions_m.astype(float)[:, 0], free.time_s
     step = np.linalg.norm(np.diff(nodes, axis=0), axis=-1).max()
-    needed = padding + 0.5 * step                           # FreeMotion's clearance with the margin
+    needed = motion.node_clearance_m(0, motion.padding_m[0] + 0.5 * step)   # FreeMotion's with the margin
     for clearance, coarse_expected in ((needed - 5e-5, False), (needed + 5e-5, True), (-2 * PEG_RADIUS_M, False)):
         scene = _peg_at_clearance(nodes, times, clearance)
         # new engines: no free motion remembered from an earlier trial to reuse
