@@ -277,15 +277,17 @@ class FreeMotion:
     same drive and duration would not touch anything either: its outputs can be reused.
     Clear means every point of its links, at every output sample, farther from the obstacles
     than the whisker's base radius plus half the farthest a node or an obstacle moves between
-    two samples, plus ``margin_m`` (:data:`CLEARANCE_MARGIN_M`): checked on the nodes, which
-    keep that pad combined with half the longest link (:func:`node_clearance_m`).
+    that sample and the next or the one before, plus ``margin_m`` (:data:`CLEARANCE_MARGIN_M`):
+    checked on the nodes, which keep that pad combined with half the longest link
+    (:func:`node_clearance_m`). Between two samples every point of a link is taken to lie within
+    half the farther of its nodes' moves from where it is at the nearer sample.
     """
 
     def __init__(self, whiskers, margin_m: float = CLEARANCE_MARGIN_M):
         self.padding_m = node_padding_m(whiskers, margin_m)
         self.half_link_m = np.array([0.5 * w.chain.link_lengths_m.max() for w in whiskers])
         self.key: object = None
-        self.motions: dict[int, tuple[np.ndarray, np.ndarray, float]] = {}   # wrench, head nodes, pad
+        self.motions: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}   # wrench, head nodes, pads [T]
 
     def select(self, drive, samples: int, depends_on_pose: bool) -> None:
         """Trials from now on use ``drive`` for ``samples`` samples; forget other drives' motions."""
@@ -300,12 +302,13 @@ class FreeMotion:
         if self.key is None:
             return
         head_nodes = (nodes_m.astype(float) - np.asarray(pose.position_m, float)) @ pose.rotation
-        step = float(np.linalg.norm(np.diff(head_nodes, axis=0), axis=-1).max(initial=0.0))
-        self.motions[k] = (wrench.copy(), head_nodes, self.padding_m[k] + 0.5 * step)   # pad of its links' points
+        moves = np.linalg.norm(np.diff(head_nodes, axis=0), axis=-1).max(axis=-1, initial=0.0)   # [T-1]
+        around = np.maximum(np.append(moves, 0.0), np.insert(moves, 0, 0.0))     # [T] before or after each sample
+        self.motions[k] = (wrench.copy(), head_nodes, self.padding_m[k] + 0.5 * around)   # its links' points' pads
 
-    def node_clearance_m(self, k: int, pad_m: float) -> float:
+    def node_clearance_m(self, k: int, pad_m: np.ndarray) -> np.ndarray:
         """The clearance (m) whisker k's nodes keep so that its links' points keep ``pad_m``."""
-        return float(node_clearance_m(pad_m, self.half_link_m[k]))
+        return node_clearance_m(pad_m, self.half_link_m[k])
 
     def reusable(self, pose, scene, times_s: np.ndarray) -> np.ndarray:
         """[W] whether each whisker's remembered motion keeps clear of ``scene`` at ``pose``."""
@@ -319,11 +322,13 @@ class FreeMotion:
             centre = nodes.mean(axis=0)                                # first the bounding sphere
             radius = np.linalg.norm(nodes - centre, axis=1).max()
             span = np.array([times_s.min(), times_s.max()])
-            if np.all(clearance_m(np.stack([centre, centre]), span, scene) > radius + pad):
+            widest = float(pad.max())
+            if np.all(clearance_m(np.stack([centre, centre]), span, scene) > radius + widest):
                 result[k] = True
             else:                                 # then the tip's path (it reaches farthest), then every node's
-                result[k] = bool(np.all(clearance_m(path[:, -1], times_s, scene, beyond_m=pad) > pad)) and bool(
-                    np.all(clearance_m(nodes, np.repeat(times_s, head_nodes.shape[1]), scene, beyond_m=pad) > pad))
+                result[k] = bool(np.all(clearance_m(path[:, -1], times_s, scene, beyond_m=widest) > pad)) and bool(
+                    np.all(clearance_m(nodes, np.repeat(times_s, head_nodes.shape[1]), scene, beyond_m=widest)
+                           > np.repeat(pad, head_nodes.shape[1])))
         return result
 
     def recall(self, k: int, pose) -> tuple[np.ndarray, np.ndarray]:

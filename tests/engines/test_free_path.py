@@ -70,10 +70,10 @@ def test_free_whiskers_match_the_full_engine(frequency_hz, path):
     assert np.abs(coarse.node_positions_m - reference.node_positions_m).max() < nodes
 
 
-def _peg_at_clearance(nodes_m: np.ndarray, times_s: np.ndarray, clearance: float) -> Scene:
-    """A small peg beside the tip's path whose bounding sphere keeps ``clearance`` (m) from the
-    nearest node of ``nodes_m`` [T, N+1, 3] over the trial (found by bisection along the outward
-    normal of the whisk plane at the tip's middle sample)."""
+def _peg_at_clearance(nodes_m: np.ndarray, times_s: np.ndarray, clearance) -> Scene:
+    """A small peg beside the tip's path whose bounding sphere keeps ``clearance`` ([T] or one, m, per
+    sample) from the nodes of ``nodes_m`` [T, N+1, 3], touching that clearance at some sample
+    (found by bisection along the outward normal of the whisk plane at the tip's middle sample)."""
     tip = nodes_m[:, -1]
     middle = len(tip) // 2
     normal = np.cross(tip[middle + 1] - tip[middle - 1], tip[middle] - nodes_m[middle, 0])
@@ -87,7 +87,7 @@ def _peg_at_clearance(nodes_m: np.ndarray, times_s: np.ndarray, clearance: float
     low, high = 0.0, 0.02
     for _ in range(60):
         middle_offset = 0.5 * (low + high)
-        if clearance_m(points, times, scene(middle_offset)).min() < clearance:
+        if (clearance_m(points, times, scene(middle_offset)) - np.repeat(np.broadcast_to(clearance, len(tip)), nodes_m.shape[1])).min() < 0:
             low = middle_offset
         else:
             high = middle_offset
@@ -130,8 +130,9 @@ def test_a_whisker_within_the_margin_never_takes_the_cheap_path(path):
         free = cheap.run(empty(), POSE, drive, DURATION_S)
         motion = cheap.free_path.motion
     nodes, times = free.node_positions_m.astype(float)[:, 0], free.time_s
-    step = np.linalg.norm(np.diff(nodes, axis=0), axis=-1).max()
-    needed = motion.node_clearance_m(0, motion.padding_m[0] + 0.5 * step)   # FreeMotion's with the margin
+    moves = np.linalg.norm(np.diff(nodes, axis=0), axis=-1).max(axis=-1)
+    around = np.maximum(np.append(moves, 0.0), np.insert(moves, 0, 0.0))   # per sample, the move before or after
+    needed = motion.node_clearance_m(0, motion.padding_m[0] + 0.5 * around)   # FreeMotion's with the margin
     for clearance, coarse_expected in ((needed - 5e-5, False), (needed + 5e-5, True), (-2 * PEG_RADIUS_M, False)):
         scene = _peg_at_clearance(nodes, times, clearance)
         # new engines: no free motion remembered from an earlier trial to reuse
