@@ -253,6 +253,20 @@ def clearance_m(points_m: np.ndarray, times_s: np.ndarray, scene, beyond_m: floa
     return result
 
 
+def exact_clearance_m(points_m: np.ndarray, times_s: np.ndarray, scene, need_m: np.ndarray) -> np.ndarray:
+    """[P] :func:`clearance_m` with the exact distance (an obstacle's ``distance_m``, where it has
+    one) for the points whose lower bound is at most their ``need_m`` [P] (m)."""
+    result = np.full(len(points_m), np.inf)
+    for obstacle in scene.obstacles:
+        moved = points_m - np.asarray(obstacle.velocity_m_s, float) * times_s[:, None]
+        bound = obstacle.lower_distance_m(moved, float(need_m.max(initial=0.0)))
+        near = np.flatnonzero(~(bound > need_m))
+        if near.size and hasattr(obstacle, "distance_m"):
+            bound[near] = obstacle.distance_m(moved[near])
+        result = np.minimum(result, bound)
+    return result
+
+
 def node_padding_m(whiskers, margin_m: float) -> np.ndarray:
     """[W] how far (m) a whisker's surface lies at most from its axis, plus ``margin_m``: the base
     radius plus ``margin_m``."""
@@ -326,9 +340,9 @@ class FreeMotion:
             if np.all(clearance_m(np.stack([centre, centre]), span, scene) > radius + widest):
                 result[k] = True
             else:                                 # then the tip's path (it reaches farthest), then every node's
-                result[k] = bool(np.all(clearance_m(path[:, -1], times_s, scene, beyond_m=widest) > pad)) and bool(
-                    np.all(clearance_m(nodes, np.repeat(times_s, head_nodes.shape[1]), scene, beyond_m=widest)
-                           > np.repeat(pad, head_nodes.shape[1])))
+                every = np.repeat(pad, head_nodes.shape[1])
+                result[k] = bool(np.all(exact_clearance_m(path[:, -1], times_s, scene, pad) > pad)) and bool(
+                    np.all(exact_clearance_m(nodes, np.repeat(times_s, head_nodes.shape[1]), scene, every) > every))
         return result
 
     def recall(self, k: int, pose) -> tuple[np.ndarray, np.ndarray]:
