@@ -115,6 +115,18 @@ def _placed_at_clearance(nodes_m: np.ndarray, times_s: np.ndarray, clearance, ma
     return make(tip[middle] + high * normal, normal)
 
 
+def _free_nodes_and_clearance(path: str, drive) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """RC1's free node paths [T, N+1, 3] (m) and sample times (s) on ``path`` in an empty scene, and
+    the clearance [T] (m) FreeMotion has its nodes keep at each sample (with the path's margin)."""
+    with _engine("RC1", path) as cheap:
+        free = cheap.run(empty(), POSE, drive, DURATION_S)
+        motion = cheap.free_path.motion
+    nodes, times = free.node_positions_m.astype(float)[:, 0], free.time_s
+    moves = np.linalg.norm(np.diff(nodes, axis=0), axis=-1).max(axis=-1)
+    around = np.maximum(np.append(moves, 0.0), np.insert(moves, 0, 0.0))   # per sample, the move before or after
+    return nodes, times, motion.node_clearance_m(0, motion.padding_m[0] + 0.5 * around)
+
+
 def test_nodes_at_the_node_clearance_keep_every_point_of_their_link_clear():
     """A link whose two nodes keep node_clearance_m(pad, half) from an obstacle point keeps pad
     at every point (random links and points), and the bound is reached: a point on the link's
@@ -147,13 +159,7 @@ def test_a_whisker_within_the_margin_never_takes_the_cheap_path(path):
     and one across it: inside or across, RC1 runs on the full engine (across, it touches);
     outside, it takes the cheap path and the full engine confirms it touches nothing there."""
     drive = sinusoidal_whisk(12.0, 45.0, 20.0, DURATION_S)
-    with _engine("RC1", path) as cheap:
-        free = cheap.run(empty(), POSE, drive, DURATION_S)
-        motion = cheap.free_path.motion
-    nodes, times = free.node_positions_m.astype(float)[:, 0], free.time_s
-    moves = np.linalg.norm(np.diff(nodes, axis=0), axis=-1).max(axis=-1)
-    around = np.maximum(np.append(moves, 0.0), np.insert(moves, 0, 0.0))   # per sample, the move before or after
-    needed = motion.node_clearance_m(0, motion.padding_m[0] + 0.5 * around)   # FreeMotion's with the margin
+    nodes, times, needed = _free_nodes_and_clearance(path, drive)
     for clearance, coarse_expected in ((needed - 5e-5, False), (needed + 5e-5, True), (-2 * PEG_RADIUS_M, False)):
         scene = _placed_at_clearance(nodes, times, clearance)
         # new engines: no free motion remembered from an earlier trial to reuse
@@ -173,13 +179,7 @@ def test_a_whisker_near_a_scan_is_checked_on_its_exact_distance(path):
     RC1 on the full engine: the exact distance gives it the cheap path, and the full engine
     confirms it touches nothing there; just inside, RC1 runs on the full engine."""
     drive = sinusoidal_whisk(12.0, 45.0, 20.0, DURATION_S)
-    with _engine("RC1", path) as cheap:
-        free = cheap.run(empty(), POSE, drive, DURATION_S)
-        motion = cheap.free_path.motion
-    nodes, times = free.node_positions_m.astype(float)[:, 0], free.time_s
-    moves = np.linalg.norm(np.diff(nodes, axis=0), axis=-1).max(axis=-1)
-    around = np.maximum(np.append(moves, 0.0), np.insert(moves, 0, 0.0))
-    needed = motion.node_clearance_m(0, motion.padding_m[0] + 0.5 * around)
+    nodes, times, needed = _free_nodes_and_clearance(path, drive)
     for clearance, coarse_expected in ((needed - 5e-5, False), (needed + 5e-5, True)):
         scene = _placed_at_clearance(nodes, times, clearance, make=_tile)
         bounds = clearance_m(nodes.reshape(-1, 3), np.repeat(times, nodes.shape[1]), scene)
