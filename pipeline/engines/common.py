@@ -253,10 +253,33 @@ def clearance_m(points_m: np.ndarray, times_s: np.ndarray, scene, beyond_m: floa
     return result
 
 
+def exact_clearance_m(points_m: np.ndarray, times_s: np.ndarray, scene, need_m: np.ndarray) -> np.ndarray:
+    """[P] :func:`clearance_m` with the exact distance (an obstacle's ``distance_m``, where it has
+    one) for the points whose lower bound is at most their ``need_m`` [P] (m)."""
+    result = np.full(len(points_m), np.inf)
+    for obstacle in scene.obstacles:
+        moved = points_m - np.asarray(obstacle.velocity_m_s, float) * times_s[:, None]
+        bound = obstacle.lower_distance_m(moved, float(need_m.max(initial=0.0)))
+        near = np.flatnonzero(~(bound > need_m))
+        if near.size and hasattr(obstacle, "distance_m"):
+            bound[near] = obstacle.distance_m(moved[near])
+        result = np.minimum(result, bound)
+    return result
+
+
 def node_padding_m(whiskers, margin_m: float) -> np.ndarray:
-    """[W] how far (m) every point of a whisker's links lies at most from its nearest node, plus
-    ``margin_m``: the base radius plus half the longest link."""
-    return np.array([w.chain.node_radii_m[0] + 0.5 * w.chain.link_lengths_m.max() for w in whiskers]) + margin_m
+    """[W] how far (m) a whisker's surface lies at most from its axis, plus ``margin_m``: the base
+    radius plus ``margin_m``."""
+    return np.array([w.chain.node_radii_m[0] for w in whiskers]) + margin_m
+
+
+def node_clearance_m(pad_m, half_link_m):
+    """The clearance (m) every node of a link of half-length ``half_link_m`` must keep from the
+    obstacles so that every point of the link keeps ``pad_m``: sqrt(pad² + half²). The ball of
+    radius d around each of the link's two nodes holds no obstacle; the link's points lie within
+    their union, at least sqrt(d² − half²) from outside it (the least at the middle, on the circle
+    where the two spheres meet)."""
+    return np.hypot(pad_m, half_link_m)
 
 
 class FreeMotion:
@@ -266,15 +289,19 @@ class FreeMotion:
     head that motion does not depend on the pose (without gravity or a world-frame force). So
     a whisker whose remembered motion keeps clear of every obstacle of a later trial with the
     same drive and duration would not touch anything either: its outputs can be reused.
-    Clear means every node, at every output sample, farther from the obstacles than the
-    whisker's base radius plus half its longest link plus half the farthest a node or an
-    obstacle moves between two samples, plus ``margin_m`` (:data:`CLEARANCE_MARGIN_M`).
+    Clear means every point of its links, at every output sample, farther from the obstacles
+    than the whisker's base radius plus half the farthest a node or an obstacle moves between
+    that sample and the next or the one before, plus ``margin_m`` (:data:`CLEARANCE_MARGIN_M`):
+    checked on the nodes, which keep that pad combined with half the longest link
+    (:func:`node_clearance_m`). Between two samples every point of a link is taken to lie within
+    half the farther of its nodes' moves from where it is at the nearer sample.
     """
 
     def __init__(self, whiskers, margin_m: float = CLEARANCE_MARGIN_M):
         self.padding_m = node_padding_m(whiskers, margin_m)
+        self.half_link_m = np.array([0.5 * w.chain.link_lengths_m.max() for w in whiskers])
         self.key: object = None
-        self.motions: dict[int, tuple[np.ndarray, np.ndarray, float]] = {}   # wrench, head nodes, pad
+        self.motions: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}   # wrench, head nodes, pads [T]
 
     def select(self, drive, samples: int, depends_on_pose: bool) -> None:
         """Trials from now on use ``drive`` for ``samples`` samples; forget other drives' motions."""
@@ -289,8 +316,13 @@ class FreeMotion:
         if self.key is None:
             return
         head_nodes = (nodes_m.astype(float) - np.asarray(pose.position_m, float)) @ pose.rotation
-        step = float(np.linalg.norm(np.diff(head_nodes, axis=0), axis=-1).max(initial=0.0))
-        self.motions[k] = (wrench.copy(), head_nodes, self.padding_m[k] + 0.5 * step)
+        moves = np.linalg.norm(np.diff(head_nodes, axis=0), axis=-1).max(axis=-1, initial=0.0)   # [T-1]
+        around = np.maximum(np.append(moves, 0.0), np.insert(moves, 0, 0.0))     # [T] before or after each sample
+        self.motions[k] = (wrench.copy(), head_nodes, self.padding_m[k] + 0.5 * around)   # its links' points' pads
+
+    def node_clearance_m(self, k: int, pad_m: np.ndarray) -> np.ndarray:
+        """The clearance (m) whisker k's nodes keep so that its links' points keep ``pad_m``."""
+        return node_clearance_m(pad_m, self.half_link_m[k])
 
     def reusable(self, pose, scene, times_s: np.ndarray) -> np.ndarray:
         """[W] whether each whisker's remembered motion keeps clear of ``scene`` at ``pose``."""
@@ -298,17 +330,19 @@ class FreeMotion:
         period = float(times_s[1] - times_s[0]) if len(times_s) > 1 else 0.0
         speed = max((float(np.linalg.norm(o.velocity_m_s)) for o in scene.obstacles), default=0.0)
         for k, (_, head_nodes, pad) in self.motions.items():
-            pad = pad + 0.5 * speed * period                            # obstacles move between samples
+            pad = self.node_clearance_m(k, pad + 0.5 * speed * period)   # obstacles move between samples
             path = pose.apply(head_nodes)                              # [T, N+1, 3]
             nodes = path.reshape(-1, 3)
             centre = nodes.mean(axis=0)                                # first the bounding sphere
             radius = np.linalg.norm(nodes - centre, axis=1).max()
             span = np.array([times_s.min(), times_s.max()])
-            if np.all(clearance_m(np.stack([centre, centre]), span, scene) > radius + pad):
+            widest = float(pad.max())
+            if np.all(clearance_m(np.stack([centre, centre]), span, scene) > radius + widest):
                 result[k] = True
             else:                                 # then the tip's path (it reaches farthest), then every node's
-                result[k] = bool(np.all(clearance_m(path[:, -1], times_s, scene, beyond_m=pad) > pad)) and bool(
-                    np.all(clearance_m(nodes, np.repeat(times_s, head_nodes.shape[1]), scene, beyond_m=pad) > pad))
+                every = np.repeat(pad, head_nodes.shape[1])
+                result[k] = bool(np.all(exact_clearance_m(path[:, -1], times_s, scene, pad) > pad)) and bool(
+                    np.all(exact_clearance_m(nodes, np.repeat(times_s, head_nodes.shape[1]), scene, every) > every))
         return result
 
     def recall(self, k: int, pose) -> tuple[np.ndarray, np.ndarray]:

@@ -11,9 +11,9 @@ about 2.7× cheaper
 than the full step (MuJoCo; Bullet has no coarse path, see Accuracy), one whisker of each
 mirror pair (the other's outputs are its reflection, :mod:`pipeline.engines.mirror`), and
 keeps the outputs of every whisker whose free node paths stay clear of
-the trial's obstacles by FreeMotion's padding (base radius, half the longest link, half the
-farthest a node moves between samples) plus :data:`FREE_PATH_MARGIN_M` (extrapolated:
-:data:`EXTRAPOLATED_MARGIN_M`); only the others are
+the trial's obstacles by FreeMotion's padding (base radius, half the farthest a node moves
+between samples, plus :data:`FREE_PATH_MARGIN_M`, extrapolated :data:`EXTRAPOLATED_MARGIN_M`, kept
+by every point of the links: :func:`~pipeline.engines.common.node_clearance_m`); only the others are
 simulated at the full step, with the scene. A kept whisker gets the coarse run's base wrench
 and node positions, no contact and no point of contact, as a whisker that touches nothing
 gets from the full engine. The coarse run sees the trial's pose and drive only: a trial whose

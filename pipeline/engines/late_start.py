@@ -34,9 +34,11 @@ def first_reach(free_path, scene: Scene, pose: Pose, times_s: np.ndarray) -> np.
     after its ``clear``) comes within reach of ``scene`` at ``pose`` (``len(times_s)``: never)."""
     result = np.full(len(free_path.array.whiskers), len(times_s))
     for k, (_, head_nodes, pad) in free_path.motion.motions.items():
+        pad = free_path.motion.node_clearance_m(k, pad)
         nodes = pose.apply(head_nodes)                                       # [T, N+1, 3]
         times = np.repeat(times_s, nodes.shape[1])
-        near = ~(clearance_m(nodes.reshape(-1, 3), times, scene, beyond_m=pad) > pad)
+        near = ~(clearance_m(nodes.reshape(-1, 3), times, scene, beyond_m=float(pad.max()))
+                 > np.repeat(pad, nodes.shape[1]))
         hits = np.flatnonzero(near.reshape(nodes.shape[:2]).any(axis=1))
         result[k] = hits[0] if hits.size else len(times_s)
     return result

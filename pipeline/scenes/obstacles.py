@@ -19,6 +19,8 @@ import numpy as np
 from pipeline.model.rotations import z_onto
 from pipeline.scenes.surface import FaceIndex, SurfaceQueries
 
+SINGLE_PRECISION_M = 1e-6   # taken off a single-precision distance: float32 spaces 3·10⁻⁸ m apart at 0.3 m
+
 
 def points_along(nodes_m: np.ndarray, spacing_m: float) -> np.ndarray:
     """[W, P, 3] points along the links of chains ``nodes_m`` [W, N+1, 3], at most
@@ -168,6 +170,11 @@ class TriangleMesh:
         """[P] a lower bound of each point's distance (m) to the mesh at t = 0; one above
         ``beyond_m`` may be given as inf."""
         return self.face_index.lower_distance_m(points_m, beyond_m)
+
+    def distance_m(self, points_m: np.ndarray) -> np.ndarray:
+        """[P] each point's distance (m) to the mesh at t = 0, less :data:`SINGLE_PRECISION_M`
+        (Open3D computes it in single precision): a lower bound as tight as the mesh allows."""
+        return self.surface.distance(points_m) - SINGLE_PRECISION_M
 
     def chains_through(self, nodes_m: np.ndarray) -> np.ndarray:
         """[W] whether a link of chains with nodes [W, N+1, 3] (m, world) crosses the surface."""

@@ -13,7 +13,7 @@ from pipeline.model.array import build_array
 from pipeline.model.kinematics import sinusoidal_whisk
 from pipeline.model.morphology import model_rat
 from pipeline.scenes import empty
-from test_free_path import PEG_RADIUS_M, POSE, _peg_at_clearance
+from test_free_path import PEG_RADIUS_M, POSE, _placed_at_clearance
 
 DURATION_S = 0.06
 PEAK_TOLERANCE = 0.03     # relative; measured 1.4 % from the coarse run, 0.03 % from the linear chain (RC1, 12 Hz)
@@ -36,7 +36,7 @@ def test_a_late_start_touches_at_the_same_sample_with_the_same_peak(free_whisker
     drive = sinusoidal_whisk(12.0, 45.0, 20.0, DURATION_S)
     with _engine(free_whiskers, False) as cheap:
         free = cheap.run(empty(), POSE, drive, DURATION_S)
-    scene = _peg_at_clearance(free.node_positions_m.astype(float)[:, 0], free.time_s, -2 * PEG_RADIUS_M)
+    scene = _placed_at_clearance(free.node_positions_m.astype(float)[:, 0], free.time_s, -2 * PEG_RADIUS_M)
     with _engine(free_whiskers, False) as full, _engine(free_whiskers, True) as late:
         reference, started = (e.run(scene, POSE, drive, DURATION_S) for e in (full, late))
     start = started.metadata["late_start_samples"]["RC1"]
