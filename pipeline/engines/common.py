@@ -242,29 +242,27 @@ def path_distance_m(points_m: np.ndarray, start_m, velocity_m_s, duration_s: flo
     return np.linalg.norm(points_m - (start + s[:, None] * travel), axis=1)
 
 
-def clearance_m(points_m: np.ndarray, times_s: np.ndarray, scene, beyond_m: float = np.inf) -> np.ndarray:
+def clearance_m(points_m: np.ndarray, times_s: np.ndarray, scene, beyond_m: float = np.inf,
+                exact_within_m: np.ndarray | None = None) -> np.ndarray:
     """[P] lower bound of the distance (m) from each point, at its time, to the obstacles of
     ``scene``; a moving obstacle is where its velocity has taken it. A distance above
-    ``beyond_m`` may be given as inf."""
+    ``beyond_m`` may be given as inf. With ``exact_within_m`` [P] (m), a point whose bound is at
+    most its own value gets the exact distance (an obstacle's ``distance_m``, where it has one)."""
     result = np.full(len(points_m), np.inf)
     for obstacle in scene.obstacles:
-        travel = np.asarray(obstacle.velocity_m_s, float) * times_s[:, None]
-        result = np.minimum(result, obstacle.lower_distance_m(points_m - travel, beyond_m))
+        moved = points_m - np.asarray(obstacle.velocity_m_s, float) * times_s[:, None]
+        bound = obstacle.lower_distance_m(moved, beyond_m)
+        if exact_within_m is not None and hasattr(obstacle, "distance_m"):
+            near = np.flatnonzero(~(bound > exact_within_m))
+            if near.size:
+                bound[near] = obstacle.distance_m(moved[near])
+        result = np.minimum(result, bound)
     return result
 
 
 def exact_clearance_m(points_m: np.ndarray, times_s: np.ndarray, scene, need_m: np.ndarray) -> np.ndarray:
-    """[P] :func:`clearance_m` with the exact distance (an obstacle's ``distance_m``, where it has
-    one) for the points whose lower bound is at most their ``need_m`` [P] (m)."""
-    result = np.full(len(points_m), np.inf)
-    for obstacle in scene.obstacles:
-        moved = points_m - np.asarray(obstacle.velocity_m_s, float) * times_s[:, None]
-        bound = obstacle.lower_distance_m(moved, float(need_m.max(initial=0.0)))
-        near = np.flatnonzero(~(bound > need_m))
-        if near.size and hasattr(obstacle, "distance_m"):
-            bound[near] = obstacle.distance_m(moved[near])
-        result = np.minimum(result, bound)
-    return result
+    """[P] :func:`clearance_m`, exact for the points whose lower bound is at most their ``need_m`` [P] (m)."""
+    return clearance_m(points_m, times_s, scene, float(need_m.max(initial=0.0)), exact_within_m=need_m)
 
 
 def node_padding_m(whiskers, margin_m: float) -> np.ndarray:
