@@ -16,36 +16,53 @@ from pipeline.engines.triangle_grid import near_box, nearest_face, segment_point
 
 
 @numba.njit(cache=True)
-def scan_candidates(searched: np.ndarray, link_bodies: np.ndarray, link_lengths: np.ndarray, link_radii: np.ndarray,
-                    xpos: np.ndarray, xmat: np.ndarray, centres: np.ndarray, radii: np.ndarray,
-                    corners: np.ndarray, normals: np.ndarray, low: np.ndarray,
-                    cell: float, shape: np.ndarray, starts: np.ndarray, items: np.ndarray, stamp: np.ndarray,
-                    tags: np.ndarray, scratch: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The candidate axis points of the ``searched`` links [L] (flat; ``link_bodies``,
-    ``link_lengths``, ``link_radii`` per link; ``xpos`` [nbody, 3], ``xmat`` [nbody, 9] the
-    bodies' frames) against the grid's triangles (bounding spheres ``centres`` [F, 3], ``radii``
-    [F]): (candidates [K, 3], their links [K], whether
-    each is a node [K], slots [L]). Per triangle a link's capsule touches (its axis within the
-    radius), the axis point nearest the triangle, a slot of the link; then the proximal and the
-    distal node of each link with a slot. A link's triangles are taken in the order of their
-    indices, whatever the grid's cells (a world's grid spans the faces of all its whiskers)."""
+def scan_search(geom_contype: np.ndarray, link_geoms: np.ndarray, link_bodies: np.ndarray, link_lengths: np.ndarray,
+                link_radii: np.ndarray, xpos: np.ndarray, xmat: np.ndarray, centres: np.ndarray, radii: np.ndarray,
+                duplicate: float, depth: float, corners: np.ndarray, normals: np.ndarray, low: np.ndarray,
+                cell: float, shape: np.ndarray, starts: np.ndarray, items: np.ndarray, stamp: np.ndarray,
+                tags: np.ndarray, scratch: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The contacts of the links whose geom collides (``geom_contype`` of ``link_geoms`` [L] not
+    0) with the grid's triangles, in one call: :func:`scan_contacts` of :func:`scan_candidates`
+    (empty arrays if there are none)."""
+    axis, link_of, node, slots = scan_candidates(geom_contype, link_geoms, link_bodies, link_lengths, link_radii,
+                                                 xpos, xmat, centres, radii, corners, normals, low, cell, shape,
+                                                 starts, items, stamp, tags, scratch)
+    return scan_contacts(axis, link_of, node, slots, link_radii, duplicate, depth, corners, normals, low, cell,
+                         shape, starts, items, stamp, tags, scratch)
+
+
+@numba.njit(cache=True)
+def scan_candidates(geom_contype: np.ndarray, link_geoms: np.ndarray, link_bodies: np.ndarray,
+                    link_lengths: np.ndarray, link_radii: np.ndarray, xpos: np.ndarray, xmat: np.ndarray,
+                    centres: np.ndarray, radii: np.ndarray, corners: np.ndarray, normals: np.ndarray,
+                    low: np.ndarray, cell: float, shape: np.ndarray, starts: np.ndarray, items: np.ndarray,
+                    stamp: np.ndarray, tags: np.ndarray, scratch: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The candidate axis points of the links [L] (flat; ``link_geoms``, ``link_bodies``,
+    ``link_lengths``, ``link_radii`` per link) whose geom collides (``geom_contype`` not 0;
+    ``xpos`` [nbody, 3], ``xmat`` [nbody, 9] the bodies' frames) against the grid's triangles
+    (bounding spheres ``centres`` [F, 3], ``radii`` [F]): (candidates [K, 3], their links [K],
+    whether each is a node [K], slots [L]). Per triangle a link's capsule touches (its axis within
+    the radius), the axis point nearest the triangle, a slot of the link; then the proximal and
+    the distal node of each link with a slot. A link's triangles are taken in the order of their
+    indices, whatever the grid's cells (a world's grid spans the faces of all its whiskers).
+    Nothing is allocated per link (the step's search runs every step)."""
     size = 64
     axis, link_of, node = np.empty((size, 3)), np.empty(size, np.int64), np.empty(size, np.bool_)
-    slots = np.zeros(len(searched), np.int64)
-    lo, hi = np.empty(3), np.empty(3)
+    slots = np.zeros(len(link_geoms), np.int64)
+    lo, hi, a, b = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     count = 0
-    for link in range(len(searched)):
-        if not searched[link]:
+    for link in range(len(link_geoms)):
+        if geom_contype[link_geoms[link]] == 0:
             continue
         body, radius = link_bodies[link], link_radii[link]
-        a = xpos[body]
-        b = np.empty(3)
         for j in range(3):
+            a[j] = xpos[body, j]
             b[j] = a[j] + xmat[body, 3 * j] * link_lengths[link]
             lo[j], hi[j] = min(a[j], b[j]) - radius, max(a[j], b[j]) + radius
         found = near_box(lo, hi, low, cell, shape, starts, items, stamp, tags, scratch)
-        near = np.sort(scratch[:found])                        # by face: the same order in any grid
-        for f in near:
+        _sort_head(scratch, found)                             # by face: the same order in any grid
+        for n in range(found):
+            f = scratch[n]
             reach = radius + radii[f]
             if segment_point(a[0], a[1], a[2], b[0], b[1], b[2], centres[f]) > reach * reach * (1.0 + 1e-9):
                 continue                                       # its bounding sphere is out of reach
@@ -60,13 +77,25 @@ def scan_candidates(searched: np.ndarray, link_bodies: np.ndarray, link_lengths:
             slots[link] += 1
             count += 1
         if slots[link]:
-            for end in (a, b):
+            for end in range(2):
                 if count + 2 >= size:
                     axis, link_of, node, size = _grown(axis, link_of, node, count)
-                axis[count, 0], axis[count, 1], axis[count, 2] = end[0], end[1], end[2]
+                for j in range(3):
+                    axis[count, j] = a[j] if end == 0 else b[j]
                 link_of[count], node[count] = link, True
                 count += 1
     return axis[:count], link_of[:count], node[:count], slots
+
+
+@numba.njit(cache=True)
+def _sort_head(values: np.ndarray, count: int) -> None:
+    """Sort ``values[:count]`` in place, ascending (insertion sort: a link meets a few faces)."""
+    for i in range(1, count):
+        item, j = values[i], i - 1
+        while j >= 0 and values[j] > item:
+            values[j + 1] = values[j]
+            j -= 1
+        values[j + 1] = item
 
 
 @numba.njit(cache=True)

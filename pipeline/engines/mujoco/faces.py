@@ -99,19 +99,11 @@ class ScanContacts:
         m.opt.disableflags = flags
 
     def contacts(self, m, d) -> tuple[np.ndarray, ...] | None:
-        """The links' current contacts with the scan (:func:`~pipeline.engines.mujoco.face_kernels.scan_contacts`),
+        """The links' current contacts with the scan (:func:`~pipeline.engines.mujoco.face_kernels.scan_search`),
         or None if there are none."""
-        searched = m.geom_contype[self.link_geoms] != 0
-        if not searched.any():
-            return None
-        grid = self.grid.arrays()
-        axis, link_of, node, slots = self.kernels.scan_candidates(
-            searched, self.link_bodies, self.link_lengths_mm, self.link_radii_mm, d.xpos, d.xmat, self.grid.centres,
-            self.grid.radii, *grid, self.scratch)
-        if not len(axis):
-            return None
-        found = self.kernels.scan_contacts(axis, link_of, node, slots, self.link_radii_mm, DUPLICATE_MM,
-                                           ONE_SIDED_DEPTH_MM, *grid, self.scratch)
+        found = self.kernels.scan_search(m.geom_contype, self.link_geoms, self.link_bodies, self.link_lengths_mm,
+                                         self.link_radii_mm, d.xpos, d.xmat, self.grid.centres, self.grid.radii,
+                                         DUPLICATE_MM, ONE_SIDED_DEPTH_MM, *self.grid.arrays(), self.scratch)
         return found if len(found[0]) else None
 
     def append(self, m, d, links: np.ndarray, middle: np.ndarray, toward_link: np.ndarray, gaps: np.ndarray) -> None:
