@@ -1,6 +1,6 @@
 """Reading a MuJoCo step's penetrating contacts, compiled (numba): the contacts a world's flags
-take (:meth:`~pipeline.engines.mujoco.world.MujocoWorld._touched`) and those the contact-loss
-sub-steps carry to the step's end (:mod:`pipeline.engines.mujoco.substeps`). A contact counts
+take and those the contact-loss sub-steps carry to the step's end
+(:mod:`pipeline.engines.mujoco.substeps`), read in one call per step (:func:`step_contacts`). A contact counts
 when it penetrates (``dist`` ≤ 0), is not excluded and one of its geoms is a whisker link's
 (``link_of_geom`` / ``member_of_geom`` ≥ 0; their last entry stands for geom −1, a flex).
 Inputs are MuJoCo's arrays as the bindings give them (``contact.*``, ``xpos`` [nbody, 3],
@@ -76,3 +76,25 @@ def pressed_contacts(dist: np.ndarray, exclude: np.ndarray, geom: np.ndarray, fr
                             + xmat[body, 3 + a] * (points[i, 1] - xpos[body, 1]))
                            + xmat[body, 6 + a] * (points[i, 2] - xpos[body, 2]))
     return members, bodies, points, local, normals, gaps
+
+
+@numba.njit(cache=True)
+def step_contacts(dist: np.ndarray, exclude: np.ndarray, geom: np.ndarray, frame: np.ndarray, pos: np.ndarray,
+                  xpos: np.ndarray, xmat: np.ndarray, member_of_geom: np.ndarray, geom_bodyid: np.ndarray,
+                  link_of_geom: np.ndarray, link_bodies: np.ndarray, link_lengths: np.ndarray):
+    """A step's contacts read both ways in one call: (:func:`pressed_contacts`, :func:`touching_links`,
+    the members [K] one of whose links is in a contact that is not excluded, penetrating or not;
+    a member may repeat)."""
+    pressed = pressed_contacts(dist, exclude, geom, frame, pos, xpos, xmat, member_of_geom, geom_bodyid)
+    touching = touching_links(dist, exclude, geom, pos, xpos, xmat, link_of_geom, link_bodies, link_lengths)
+    hit = np.empty(2 * len(dist), np.int64)
+    count = 0
+    for c in range(len(dist)):
+        if exclude[c] != 0:
+            continue
+        for side in range(2):
+            member = member_of_geom[geom[c, side]]
+            if member >= 0:
+                hit[count] = member
+                count += 1
+    return pressed, touching, hit[:count]

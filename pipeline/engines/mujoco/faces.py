@@ -52,6 +52,8 @@ _EFFECTIVE_METRIC.restype = None
 SCAN_RADIUS_MIN_MM = 0.03    # the least radius a link is read with against a scan (module docstring)
 DUPLICATE_MM = 1e-3         # a link's contacts this close are one (two faces read at their shared edge)
 GRID_CELL_MM = 1.0          # the scan grid's cell (about a face of a dataset scan across)
+_POSITION_STAGE = mujoco.mjtStage.mjSTAGE_POS                   # looked up once: the step runs them every step
+_NO_EULER_DAMPING = int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
 
 
 class ScanContacts:
@@ -91,12 +93,13 @@ class ScanContacts:
             self.append(m, d, *found)
             position_stage_after_collision(m, d, metric)
         mujoco.mj_sensorPos(m, d)
-        mujoco.mj_forwardSkip(m, d, mujoco.mjtStage.mjSTAGE_POS, 0)
+        mujoco.mj_forwardSkip(m, d, _POSITION_STAGE, 0)
         mujoco.mj_checkAcc(m, d)
-        flags = m.opt.disableflags     # the discrete integrator's update: v += h·a, q += h·v (the
-        m.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP)   # metric has D)
+        option = m.opt
+        flags = option.disableflags    # the discrete integrator's update: v += h·a, q += h·v (the
+        option.disableflags = flags | _NO_EULER_DAMPING                              # metric has D)
         mujoco.mj_Euler(m, d)
-        m.opt.disableflags = flags
+        option.disableflags = flags
 
     def contacts(self, m, d) -> tuple[np.ndarray, ...] | None:
         """The links' current contacts with the scan (:func:`~pipeline.engines.mujoco.face_kernels.scan_search`),

@@ -12,7 +12,8 @@ from, on a second ``MjData``, in :data:`SUBSTEPS` sub-steps of h/n, each with it
 contacts' rewrite, :mod:`pipeline.engines.mujoco.faces`); the joints of the whiskers that
 lost their contact (free and driven) take the sub-steps' end state, every other whisker keeps
 the full step's, and the contacts the sub-steps found (read as the world reads a step's, at each
-sub-step's start) are kept in :attr:`ContactLossSubsteps.found` for the step's contact flags. Each whisker is its own kinematic tree and constraint island, so a whisker's
+sub-step's start) are kept in :attr:`ContactLossSubsteps.found` for the step's contact flags.
+The step's own contacts are read once for both (:attr:`ContactLossSubsteps.read`). Each whisker is its own kinematic tree and constraint island, so a whisker's
 result does not depend on another's sub-steps (Independence, :mod:`pipeline.engines.mujoco`).
 
 In a sub-step the driven joints land on the step's targets interpolated linearly from where
@@ -42,17 +43,24 @@ class ContactLossSubsteps:
     force); ``stiffness`` [nv] each dof's spring, ``folded`` [nv] whether its damping has h·K
     folded in (otherwise it receives h·K·v); ``dof_member`` [nv] and ``member_of_geom``
     [ngeom + 1] the member a dof or geom belongs to (−1: none); ``members`` how many;
-    ``read_contacts(data)`` the penetrating contacts of a step's start as the world's contact
-    flags take them (:meth:`~pipeline.engines.common.ContactFlags.add`'s arguments)."""
+    ``links``: (link of each geom [ngeom + 1] (−1: none), each link's body and length (mm)), with
+    which a step's penetrating contacts are read as the world's contact flags take them
+    (:meth:`~pipeline.engines.common.ContactFlags.add`'s arguments)."""
 
     found: list[tuple[np.ndarray, ...]]
-    """The contacts of the last step's sub-steps (``read_contacts`` of each; empty without sub-steps)."""
+    """The contacts of the last step's sub-steps (as the flags take them, each sub-step's; empty
+    without sub-steps)."""
+    read: tuple
+    """The last step's contacts as the flags take them and the members [K] one of whose links has
+    a contact (not excluded, penetrating or not; may repeat), read when it had any
+    (:func:`~pipeline.engines.mujoco.contact_kernels.step_contacts`)."""
 
     def __init__(self, model: mujoco.MjModel, step_function: Callable, kinematic: np.ndarray,
                  armature: np.ndarray, stiffness: np.ndarray, folded: np.ndarray, dof_member: np.ndarray,
-                 member_of_geom: np.ndarray, members: int, read_contacts: Callable):
-        self.model, self.step_function, self.read_contacts = model, step_function, read_contacts
+                 member_of_geom: np.ndarray, members: int, links: tuple[np.ndarray, np.ndarray, np.ndarray]):
+        self.model, self.step_function, self.links = model, step_function, links
         self.found = []
+        self.read = ()
         self.kinematic, self.armature = kinematic, armature
         self.dof_member, self.member_of_geom = dof_member, member_of_geom
         self.h = float(model.opt.timestep)
@@ -84,7 +92,7 @@ class ContactLossSubsteps:
         self.step_function(self.model, d)
         if not (had or d.ncon):
             return
-        self._last = self._contacts(d)
+        self._last, *self.read = self._contacts(d)
         now = np.zeros(len(self.touching), bool)
         now[self._last[0]] = True
         lost = self.touching & ~now
@@ -94,14 +102,14 @@ class ContactLossSubsteps:
                 now |= self._substeps(d, targets, lost, start_time) & lost
         self.touching = now
 
-    def _contacts(self, d: mujoco.MjData) -> tuple[np.ndarray, ...]:
-        """The penetrating contacts of ``d``'s step start: their members, link bodies, points
-        (mm, world), points in their link body's frame, unit normals toward the link and gaps (mm)
-        (:func:`~pipeline.engines.mujoco.contact_kernels.pressed_contacts`)."""
+    def _contacts(self, d: mujoco.MjData) -> tuple:
+        """``d``'s step start's contacts: the penetrating ones' members, link bodies, points (mm,
+        world), points in their link body's frame, unit normals toward the link and gaps (mm); the
+        same as the flags take them; the members whose links have a contact
+        (:func:`~pipeline.engines.mujoco.contact_kernels.step_contacts`)."""
         contact = d.contact
-        return self.kernels().pressed_contacts(contact.dist, contact.exclude, contact.geom, contact.frame,
-                                                contact.pos, d.xpos, d.xmat, self.member_of_geom,
-                                                self.model.geom_bodyid)
+        return self.kernels().step_contacts(contact.dist, contact.exclude, contact.geom, contact.frame, contact.pos,
+                                            d.xpos, d.xmat, self.member_of_geom, self.model.geom_bodyid, *self.links)
 
     def kernels(self):
         """:mod:`~pipeline.engines.mujoco.contact_kernels`, imported at a world's first contact."""
@@ -155,8 +163,9 @@ class ContactLossSubsteps:
                 np.multiply(self.spring_rate_sub, e.qvel, out=e.qfrc_applied)
                 e.qfrc_applied[kinematic] = self.armature * (((goal - e.qpos[kinematic]) / h - e.qvel[kinematic]) / h)
                 self.step_function(m, e)
-                touched[self._contacts(e)[0]] = True
-                self.found.append(self.read_contacts(e))
+                pressed, flagged, _ = self._contacts(e)
+                touched[pressed[0]] = True
+                self.found.append(flagged)
         finally:
             m.opt.timestep, m.opt.disableflags, m.dof_damping[:] = self.h, flags, damping
             m.geom_contype[:], m.body_contype[:] = geom_contype, body_contype

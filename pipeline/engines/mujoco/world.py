@@ -126,7 +126,8 @@ class MujocoWorld(World):
         self.substeps = ContactLossSubsteps(
             m, mujoco.mj_step if self.faces is None else self.faces.step, self.kinematic, self.armature, stiffness,
             (stiffness > 0) & (self.spring_rate == 0), self.dof_member,
-            np.where(self.link_of_geom >= 0, self.link_of_geom // self.links, -1), len(members), self._touched)
+            np.where(self.link_of_geom >= 0, self.link_of_geom // self.links, -1), len(members),
+            (self.link_of_geom, self.flat_link_bodies, self.flat_link_lengths_mm))
 
     def _face_contacts(self, parts: list[Part]) -> ScanContacts | None:
         """The contacts with the static meshes' faces within reach
@@ -293,10 +294,10 @@ class MujocoWorld(World):
             if records:
                 self._unless_parked(lambda: self._record(result, sample - 1, *flags.take(), time_s=step * h),
                                     park, result)
-            if d.ncon:
-                flags.add(*self._touched(d))
-                links = self.link_of_geom[d.contact.geom[d.contact.exclude == 0]]
-                result.touched[links[links >= 0] // self.links] = True
+            if d.ncon:                              # read by the sub-steps' step (ContactLossSubsteps.read)
+                touching, members_hit = substeps.read
+                flags.add(*touching)
+                result.touched[members_hit] = True
                 if setup.hold_on_contact:
                     newly = flags.touching.any(axis=1) & ~held
                     for k in np.flatnonzero(newly):
@@ -345,16 +346,6 @@ class MujocoWorld(World):
             raise SimulationError(f"non-finite acceleration outside the whiskers at t = {time_s:.4f} s")
         raise _Jam({int(self.members[j]): f"non-finite acceleration on {self.whiskers[self.members[j]].name} "
                     f"at t = {time_s:.4f} s" for j in members[members >= 0]})
-
-    def _touched(self, d: mujoco.MjData) -> tuple[np.ndarray, ...]:
-        """The penetrating contacts of ``d``'s last step: their links (flat indices whisker·N +
-        link), contact points (midway between the surfaces) and their links' proximal and
-        distal nodes (mm; MuJoCo's contacts and positions are both those at the step's start;
-        :func:`~pipeline.engines.mujoco.contact_kernels.touching_links`)."""
-        contact = d.contact
-        return self.substeps.kernels().touching_links(contact.dist, contact.exclude, contact.geom, contact.pos, d.xpos,
-                                                      d.xmat, self.link_of_geom, self.flat_link_bodies,
-                                                      self.flat_link_lengths_mm)
 
     def _record(self, result: WorldResult, sample: int, contact: np.ndarray, point_of_contact: np.ndarray,
                 time_s: float) -> None:
