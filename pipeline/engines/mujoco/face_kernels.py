@@ -14,6 +14,10 @@ import numpy as np
 from pipeline.engines.one_sided_kernels import closest_on_triangle, distinct_points, one_sided_contact
 from pipeline.engines.triangle_grid import near_box, nearest_face, segment_point, segment_triangle
 
+# a link's axis this much (mm) beyond its radius from a face's plane is not tested against the face: the
+# exact test's rounding (≈ 1e-13 mm at the scans' coordinates) lies far below it, so the candidates are the same
+PLANE_SLACK_MM = 1e-9
+
 
 @numba.njit(cache=True)
 def scan_search(geom_contype: np.ndarray, link_geoms: np.ndarray, link_bodies: np.ndarray, link_lengths: np.ndarray,
@@ -66,6 +70,8 @@ def scan_candidates(geom_contype: np.ndarray, link_geoms: np.ndarray, link_bodie
             reach = radius + radii[f]
             if segment_point(a[0], a[1], a[2], b[0], b[1], b[2], centres[f]) > reach * reach * (1.0 + 1e-9):
                 continue                                       # its bounding sphere is out of reach
+            if _beside_plane(a, b, corners[f, 0], normals[f], radius + PLANE_SLACK_MM):
+                continue                                       # so is its plane (the exact test would say so)
             squared, s = segment_triangle(a[0], a[1], a[2], b[0], b[1], b[2], corners[f], normals[f])
             if squared > radius * radius:
                 continue
@@ -85,6 +91,15 @@ def scan_candidates(geom_contype: np.ndarray, link_geoms: np.ndarray, link_bodie
                 link_of[count], node[count] = link, True
                 count += 1
     return axis[:count], link_of[:count], node[:count], slots
+
+
+@numba.njit(cache=True)
+def _beside_plane(a: np.ndarray, b: np.ndarray, origin: np.ndarray, normal: np.ndarray, distance: float) -> bool:
+    """Whether the segment a–b lies wholly farther than ``distance`` on one side of the plane
+    through ``origin`` with unit ``normal`` (then farther than that from any triangle in it)."""
+    da = (a[0] - origin[0]) * normal[0] + (a[1] - origin[1]) * normal[1] + (a[2] - origin[2]) * normal[2]
+    db = (b[0] - origin[0]) * normal[0] + (b[1] - origin[1]) * normal[1] + (b[2] - origin[2]) * normal[2]
+    return (da > distance and db > distance) or (da < -distance and db < -distance)
 
 
 @numba.njit(cache=True)
