@@ -10,12 +10,14 @@ import numpy as np
 
 from pipeline.config.physics import EngineConfig, ModelConfig
 from pipeline.engines.mujoco import world as engine
+from pipeline.engines.mujoco import face_kernels
 from pipeline.engines.mujoco.face_kernels import contact_frame
 from pipeline.engines.mujoco.faces import GRID_CELL_MM, ScanContacts, triangles_mm
 from pipeline.engines.triangle_grid import TriangleGrid, near_box, nearest_face, segment_triangle
 from pipeline.engines.one_sided import OneSidedMesh
 from pipeline.engines.one_sided_kernels import closest_on_triangle
 from pipeline.model.kinematics import Pose
+from pipeline.model.rotations import rotation_zyx
 from pipeline.protocols.whisking import run_trial
 from pipeline.scenes.library import beside_right_array
 from pipeline.scenes.obstacles import Scene
@@ -180,3 +182,38 @@ def test_a_segment_s_distance_to_a_triangle_is_the_least_over_its_points():
         assert np.sqrt(sampled.min()) - np.sqrt(squared) < 3e-4 * np.linalg.norm(b - a)
         point = a + s * (b - a)
         assert np.isclose(np.sum((point - closest_on_triangle(*point, corners, normal)) ** 2), squared, atol=1e-12)
+
+
+def test_the_scan_search_s_candidates_are_those_of_every_triangle():
+    """scan_candidates (its faces skipped by their planes, sorted in place) against a search of
+    every triangle of the folded sheet: per colliding link, in order of face index, the axis point
+    nearest each triangle its capsule touches, then its two nodes; links that do not collide
+    (contype 0) give none."""
+    grid = _sheet_grid()
+    corners, normals = grid.corners, grid.normals
+    rng = np.random.default_rng(7)
+    links = 60
+    xpos = np.column_stack([rng.uniform(-1.0, 2.5, links), rng.uniform(-25, 25, links), rng.uniform(-25, 25, links)])
+    xmat = np.array([rotation_zyx(*angles).ravel() for angles in rng.uniform(-3, 3, (links, 3))])
+    lengths, radii = rng.uniform(0.5, 3.0, links), rng.uniform(0.01, 0.8, links)
+    geoms = np.arange(links) + 5
+    contype = np.where(rng.random(links + 5) < 0.8, 1, 0).astype(np.int32)
+    axis, link_of, node, slots = face_kernels.scan_candidates(
+        contype, geoms, np.arange(links), lengths, radii, xpos, xmat, grid.centres, grid.radii, *grid.arrays(),
+        np.empty(len(corners), np.int64))
+    expected_axis, expected_link, expected_node = [], [], []
+    for link in np.flatnonzero(contype[geoms]):
+        a, b = xpos[link], xpos[link] + xmat[link, 0::3] * lengths[link]
+        touched = [segment_triangle(*a, *b, corners[f], normals[f]) for f in range(len(corners))]
+        for squared, s in touched:
+            if squared <= radii[link] ** 2:
+                expected_axis.append(a + s * (b - a)), expected_link.append(link), expected_node.append(False)
+        assert slots[link] == sum(squared <= radii[link] ** 2 for squared, _ in touched)
+        if slots[link]:
+            expected_axis += [a, b]
+            expected_link += [link, link]
+            expected_node += [True, True]
+    assert not slots[contype[geoms] == 0].any() and sum(expected_node) >= 20
+    np.testing.assert_array_equal(link_of, expected_link)
+    np.testing.assert_array_equal(node, expected_node)
+    np.testing.assert_allclose(axis, np.reshape(expected_axis, (-1, 3)), rtol=0, atol=1e-12)

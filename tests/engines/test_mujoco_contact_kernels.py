@@ -69,3 +69,24 @@ def test_no_contacts_give_empty_readings():
                                                                    of_geom, geom_bodyid))
     assert all(len(part) == 0 for part in kernels.touching_links(dist, exclude, geom, pos, xpos, xmat, of_geom,
                                                                  np.zeros(20, np.int64), np.ones(20)))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_step_s_contacts_read_in_one_call_are_both_readings_and_the_members_in_contact(seed):
+    """step_contacts: pressed_contacts and touching_links of the same list, and the members of
+    every contact that is not excluded (penetrating or not), as the world's numpy reading took
+    them (both geoms of each contact, in order)."""
+    dist, exclude, geom, frame, pos, xpos, xmat, geom_bodyid, link_of_geom = contact_list(seed)
+    member_of_geom = np.where(link_of_geom >= 0, link_of_geom // 4, -1)
+    link_bodies = np.random.default_rng(seed).integers(0, len(xpos), link_of_geom.max() + 1)
+    lengths = np.random.default_rng(seed + 1).uniform(0.5, 2.0, len(link_bodies))
+    pressed, touching, members = kernels.step_contacts(dist, exclude, geom, frame, pos, xpos, xmat, member_of_geom,
+                                                       geom_bodyid, link_of_geom, link_bodies, lengths)
+    expected = (kernels.pressed_contacts(dist, exclude, geom, frame, pos, xpos, xmat, member_of_geom, geom_bodyid),
+                kernels.touching_links(dist, exclude, geom, pos, xpos, xmat, link_of_geom, link_bodies, lengths))
+    for found, reading in zip((pressed, touching), expected):
+        for a, b in zip(found, reading):
+            np.testing.assert_array_equal(a, b)
+    links = link_of_geom[geom[exclude == 0]].ravel()
+    np.testing.assert_array_equal(members, links[links >= 0] // 4)
+    assert (dist[exclude == 0] > 0).any() and len(members) > len(pressed[0])    # separated contacts count too
