@@ -12,9 +12,10 @@ from, on a second ``MjData``, in :data:`SUBSTEPS` sub-steps of h/n, each with it
 contacts' rewrite, :mod:`pipeline.engines.mujoco.faces`); the joints of the whiskers that
 lost their contact (free and driven) take the sub-steps' end state, every other whisker keeps
 the full step's, and the contacts the sub-steps found (read as the world reads a step's, at each
-sub-step's start) are kept in :attr:`ContactLossSubsteps.found` for the step's contact flags.
-The step's own contacts are read once for both (:attr:`ContactLossSubsteps.read`). Each whisker is its own kinematic tree and constraint island, so a whisker's
-result does not depend on another's sub-steps (Independence, :mod:`pipeline.engines.mujoco`).
+sub-step's start) are kept in :attr:`ContactLossSubsteps.found` for the step's contact flags;
+the step's own contacts are read once for both (:attr:`ContactLossSubsteps.read`). Each whisker
+is its own kinematic tree and constraint island, so a whisker's result does not depend on
+another's sub-steps (Independence, :mod:`pipeline.engines.mujoco`).
 
 In a sub-step the driven joints land on the step's targets interpolated linearly from where
 the step started, the springs are treated as in a step of h/n (the damping fold D − (h/n)·K,
