@@ -107,9 +107,9 @@ along the face normal), so no link is squeezed between two faces; a link is read
 :data:`~pipeline.engines.mujoco.faces.SCAN_RADIUS_MIN_MM` (the soft contact sinks a tip at
 whisking speed deeper than its own radius). They are appended to MuJoCo's
 contact list (``mj_addContact``; geom 1 an anchor geom of the scan on the world body that
-collides with nothing) and the rest of the position stage is done again (constraints, islands,
-projections, the discrete integrator's effective metric: bit for bit what ``mj_step`` does
-without them). A world takes the faces within the reach of the whiskers it simulates in the
+collides with nothing); with every contact's time constant set (Contacts), the rest of the
+position stage is done again (constraints, islands, projections, the discrete integrator's
+effective metric: bit for bit what ``mj_step`` does with the same contacts). A world takes the faces within the reach of the whiskers it simulates in the
 trial (the others take the free path, :mod:`pipeline.engines.free_path`). A moving mesh is still
 one convex prism per face (:mod:`pipeline.engines.mujoco.prisms`: MuJoCo collides a mesh geom as
 its convex hull), one contact point per capsule–prism pair, and the prisms of the last
