@@ -1,6 +1,6 @@
 """MuJoCo's scan contacts found and read by the engine (pipeline.engines.mujoco.faces, issues 24
 and 26): no wedge at the scan's edges, the split step is mj_step's without a scan contact and
-MuJoCo's position stage when done again (with the contacts as its collision made them), and the grid finds what a search of every triangle
+MuJoCo's position stage when done again, and the grid finds what a search of every triangle
 finds (pipeline.engines.triangle_grid)."""
 
 import copy
@@ -9,8 +9,7 @@ import mujoco
 import numpy as np
 
 from pipeline.config.physics import EngineConfig, ModelConfig
-from pipeline.engines.mujoco import contact_law, world as engine
-from pipeline.engines.mujoco.contact_law import ContactLaw
+from pipeline.engines.mujoco import world as engine
 from pipeline.engines.mujoco.face_kernels import contact_frame
 from pipeline.engines.mujoco.faces import GRID_CELL_MM, ScanContacts, triangles_mm
 from pipeline.engines.triangle_grid import TriangleGrid, near_box, nearest_face, segment_triangle
@@ -103,22 +102,30 @@ def test_the_nearest_point_in_double_precision_is_open3d_s_and_smooth():
 
 
 def test_the_position_stage_done_again_after_the_collision_is_mujoco_s(monkeypatch):
-    """RC1 pressed into a peg (MuJoCo's own contacts), their time constants left as MuJoCo's
-    collision set them: every step taken as the contact law takes it (the constraints, islands,
-    projections, transmissions and the effective metric done again after the collision) equals
-    mj_step's, bit for bit."""
-    step, compared = ContactLaw.step, []
-    monkeypatch.setattr(contact_law, "time_constants", lambda *arrays: None)
+    """RC1 pressed into a peg (MuJoCo's own contacts): every step taken as the scan's step takes
+    it when it appends contacts (the collision again, then the constraints, islands,
+    projections, transmissions and the effective metric) equals mj_step's, bit for bit."""
+    step, compared = mujoco.mj_step, []
 
-    def both(self, m, d, add_contacts=None):
+    class Again(ScanContacts):
+        def __init__(self):
+            pass
+
+        def contacts(self, m, d):
+            return ()
+
+        def append(self, m, d):
+            pass
+
+    def both(m, d):
         e = copy.copy(d)
-        mujoco.mj_step(m, e)
-        step(self, m, d, add_contacts)
-        compared.append(d.ncon)
+        step(m, d)
+        Again().step(m, e)
+        compared.append(e.ncon)
         for field in ("qpos", "qvel", "qacc", "sensordata"):
             assert np.array_equal(getattr(d, field), getattr(e, field)), field
 
-    monkeypatch.setattr(ContactLaw, "step", both)
+    monkeypatch.setattr(mujoco, "mj_step", both)
     from test_engine_mujoco_contact import _peg_sweep
 
     out, _, _ = _peg_sweep(0.5, duration_s=0.08)

@@ -63,13 +63,12 @@ that starts at t_k (one extra step at the end of a trial).
 Contacts. Soft constraints, critically damped (inelastic), with a time constant fixed in
 seconds (:data:`CONTACT_TIME_CONSTANT_S`, two of the default coarsest steps; never below two
 of the configured ``dt_s``, MuJoCo's stability limit), so the contact law is the same for every
-whisker and every step (it sank 3× less when the time constant was two steps). A distal link's
-damping outweighs its mass, and the discrete integrator sizes a contact's regulariser from the
-step's metric M + h·D, so with MuJoCo's law a stuck tip sank deeper per unit force at a smaller
-step (0.41 / 0.67 / 1.34 µm/µN at h, h/2, h/4; docs/model.md, "Issue 24, session 19: MuJoCo's
-contact depth in the step"). Each contact therefore gets its own time constant, scaled so that it
-sinks per unit force what MuJoCo's law gives it at the reference step τ/2, at any step
-(:mod:`pipeline.engines.mujoco.contact_law`; docs/model.md, "Issue 24, session 20"). Coulomb friction μ on an
+whisker and every step: a whisker pressed quasi-statically into a peg sinks as deep at half
+the step (it sank 3× less when the time constant was two steps). Not so a stuck tip: its links'
+damping outweighs their mass, and the discrete integrator sizes the contact's regulariser from
+the step's metric M + h·D, so the tip sinks deeper per unit force at a smaller step (0.41 / 0.67 /
+1.34 µm/µN at h, h/2, h/4; docs/model.md, "Issue 24, session 19: MuJoCo's contact depth in the
+step"). Coulomb friction μ on an
 elliptic cone with ``impratio`` 10: a pyramidal cone with soft constraints let contacts creep,
 tangential/normal 0.1–0.29 instead of 0.5 while sliding in a slow peg sweep (RC1, μ = 0.5),
 and the follicle's axial force barely felt μ (Fx/|F| at the peak moment 0.64 with μ = 0,
@@ -107,9 +106,9 @@ along the face normal), so no link is squeezed between two faces; a link is read
 :data:`~pipeline.engines.mujoco.faces.SCAN_RADIUS_MIN_MM` (the soft contact sinks a tip at
 whisking speed deeper than its own radius). They are appended to MuJoCo's
 contact list (``mj_addContact``; geom 1 an anchor geom of the scan on the world body that
-collides with nothing); with every contact's time constant set (Contacts), the rest of the
-position stage is done again (constraints, islands, projections, the discrete integrator's
-effective metric: bit for bit what ``mj_step`` does with the same contacts). A world takes the faces within the reach of the whiskers it simulates in the
+collides with nothing) and the rest of the position stage is done again (constraints, islands,
+projections, the discrete integrator's effective metric: bit for bit what ``mj_step`` does
+without them). A world takes the faces within the reach of the whiskers it simulates in the
 trial (the others take the free path, :mod:`pipeline.engines.free_path`). A moving mesh is still
 one convex prism per face (:mod:`pipeline.engines.mujoco.prisms`: MuJoCo collides a mesh geom as
 its convex hull), one contact point per capsule–prism pair, and the prisms of the last

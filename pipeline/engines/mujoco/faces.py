@@ -31,12 +31,23 @@ between the faces' normals and the edges' directions, and the peaks did not conv
 
 from __future__ import annotations
 
+import ctypes
+
 import mujoco
 import numpy as np
 
 from pipeline.engines import units as U
 from pipeline.engines.one_sided import ONE_SIDED_DEPTH_MM
 from pipeline.scenes.obstacles import TriangleMesh
+
+# MuJoCo's effective metric M + h·D + h²·K of the discrete integrator, built at the end of its
+# position stage on the arena after the contacts and constraints (so built again once contacts are
+# added); not in the Python bindings (MuJoCo 4.0: ``mj_effBuild(m, d, active, flg_factor)``), so
+# looked up through the bindings' own extension module, which links MuJoCo's library (whatever its
+# file is called on the platform).
+_EFFECTIVE_METRIC = ctypes.CDLL(mujoco._functions.__file__).mj_effBuild
+_EFFECTIVE_METRIC.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_int]
+_EFFECTIVE_METRIC.restype = None
 
 SCAN_RADIUS_MIN_MM = 0.03    # the least radius a link is read with against a scan (module docstring)
 DUPLICATE_MM = 1e-3         # a link's contacts this close are one (two faces read at their shared edge)
@@ -50,11 +61,11 @@ class ScanContacts:
     ``corners`` [F, 3, 3] and unit outward ``normals`` [F, 3]: the faces (mm, world);
     ``anchor`` the geom contacts with them name; ``link_geoms``, ``link_bodies``,
     ``link_lengths_mm``, ``link_radii_mm`` [flat links] each link's capsule geom, body, length
-    and radius; ``law`` the world's :class:`~pipeline.engines.mujoco.contact_law.ContactLaw`."""
+    and radius."""
 
     def __init__(self, model: mujoco.MjModel, corners: np.ndarray, normals: np.ndarray, anchor: int,
                  link_geoms: np.ndarray, link_bodies: np.ndarray, link_lengths_mm: np.ndarray,
-                 link_radii_mm: np.ndarray, law):
+                 link_radii_mm: np.ndarray):
         # imported here, not at the top: numba ≈0.17 CPU-s and the cached kernels, only scans need them
         from pipeline.engines.mujoco import face_kernels
         from pipeline.engines.triangle_grid import TriangleGrid
@@ -66,20 +77,26 @@ class ScanContacts:
         self.link_lengths_mm = link_lengths_mm
         self.link_radii_mm = np.maximum(link_radii_mm, SCAN_RADIUS_MIN_MM)     # read against the scan
         self.template = _template(model, anchor)
-        self.law = law
 
     def step(self, m, d) -> None:
-        """One step of the world's contact law (:class:`~pipeline.engines.mujoco.contact_law.ContactLaw`)
-        with the scan's contacts added."""
-        self.law.step(m, d, self.add)
-
-    def add(self, m, d) -> None:
-        """Append the scan's contacts to a step's, after MuJoCo's position stage (its collision
-        done again: its contacts end the arena, those added follow them)."""
+        """One ``mj_step`` of the discrete integrator with the scan's contacts added
+        (bit-identical to ``mj_step`` on a step without any)."""
+        mujoco.mj_checkPos(m, d)
+        mujoco.mj_checkVel(m, d)
+        mujoco.mj_fwdPosition(m, d)
         found = self.contacts(m, d)
         if found is not None:
-            mujoco.mj_collision(m, d)
+            metric = d.efm_active
+            mujoco.mj_collision(m, d)      # again: its contacts end the arena, those added follow them
             self.append(m, d, *found)
+            position_stage_after_collision(m, d, metric)
+        mujoco.mj_sensorPos(m, d)
+        mujoco.mj_forwardSkip(m, d, mujoco.mjtStage.mjSTAGE_POS, 0)
+        mujoco.mj_checkAcc(m, d)
+        flags = m.opt.disableflags     # the discrete integrator's update: v += h·a, q += h·v (the
+        m.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP)   # metric has D)
+        mujoco.mj_Euler(m, d)
+        m.opt.disableflags = flags
 
     def contacts(self, m, d) -> tuple[np.ndarray, ...] | None:
         """The links' current contacts with the scan (:func:`~pipeline.engines.mujoco.face_kernels.scan_contacts`),
@@ -107,6 +124,17 @@ class ScanContacts:
         contact = d.contact
         self.kernels.fill_contacts(first, links, middle, toward_link, gaps, self.link_geoms, self.anchor,
                                    contact.geom, contact.frame, contact.pos, contact.dist)
+
+
+def position_stage_after_collision(m: mujoco.MjModel, d: mujoco.MjData, metric: int) -> None:
+    """MuJoCo's position stage (``mj_fwdPosition``) from its collision on: the constraints,
+    islands and projections, transmissions and the effective metric (``metric``: the
+    ``efm_active`` the stage had set)."""
+    mujoco.mj_makeConstraint(m, d)
+    mujoco.mj_island(m, d)
+    mujoco.mj_projectConstraint(m, d)
+    mujoco.mj_transmission(m, d)
+    _EFFECTIVE_METRIC(m._address, d._address, int(metric != 0), 1)
 
 
 def triangles_mm(mesh: TriangleMesh, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -101,17 +101,11 @@ def compile_model(whiskers: list[WhiskerModel], members: np.ndarray, parts: list
     return spec.compile()
 
 
-def contact_time_constant_s(config: EngineConfig) -> float:
-    """The contacts' time constant τ (s): :data:`CONTACT_TIME_CONSTANT_S`, at least two of the
-    configured step (package docstring, Contacts)."""
-    return max(CONTACT_TIME_CONSTANT_S, 2.0 * config.dt_s)
-
-
 def _contact_options(element, config: EngineConfig) -> None:
     """The contact law (package docstring, Contacts) on ``element`` (a geom or a default)."""
     element.condim = 3
     element.friction = [config.contact_friction, 0.0, 0.0]
-    element.solref = [contact_time_constant_s(config), 1.0]
+    element.solref = [max(CONTACT_TIME_CONSTANT_S, 2.0 * config.dt_s), 1.0]
     element.solimp = [*CONTACT_IMPEDANCE, 0.5, 2.0]
 
 

@@ -12,13 +12,12 @@ from pipeline.engines import units as U
 from pipeline.engines.base import TrialSetup, World, WorldResult
 from pipeline.engines.common import (ContactFlags, implausible, jam_message, link_reach_m, node_arc_fractions,
                                      start_rate)
-from pipeline.engines.mujoco.contact_law import ContactLaw, reference_metric
 from pipeline.engines.mujoco.faces import ScanContacts, triangles_mm
 from pipeline.engines.mujoco.loads import LinkLoads
 from pipeline.engines.mujoco.plan import MujocoPlan, head_coordinates
 from pipeline.engines.mujoco.prisms import MeshPrisms, cached_prisms
 from pipeline.engines.mujoco.reach import reachable_parts
-from pipeline.engines.mujoco.spec import WHISKER_CONTYPE, Part, compile_model, contact_time_constant_s
+from pipeline.engines.mujoco.spec import WHISKER_CONTYPE, Part, compile_model
 from pipeline.engines.mujoco.substeps import ContactLossSubsteps
 from pipeline.engines.stepping import damping_folds
 from pipeline.errors import SimulationError
@@ -115,6 +114,7 @@ class MujocoWorld(World):
             self.dof_member[np.concatenate([self.kinematic[3 * j:3 * j + 3], qpos])] = j
         self.link_of_geom = np.full(m.ngeom + 1, -1, np.int64)    # last entry: geom −1 (a flex)
         self.link_of_geom[self.whisker_geoms] = np.arange(len(self.whisker_geoms))
+        self.faces = self._face_contacts(parts)
         stiffness = np.zeros(m.nv)
         springs = m.jnt_stiffness > 0
         stiffness[m.jnt_dofadr[springs]] = m.jnt_stiffness[springs]
@@ -123,13 +123,9 @@ class MujocoWorld(World):
             if damping_folds(self.whiskers[k], self.dt_s):
                 m.dof_damping[qpos] -= self.spring_rate[qpos]
                 self.spring_rate[qpos] = 0.0
-        folded = (stiffness > 0) & (self.spring_rate == 0)
-        self.law = ContactLaw(reference_metric(m, contact_time_constant_s(self.config), np.where(
-            folded, self.dt_s * stiffness, 0.0)))
-        self.faces = self._face_contacts(parts)
         self.substeps = ContactLossSubsteps(
-            m, self.law.step if self.faces is None else self.faces.step, self.kinematic, self.armature, stiffness,
-            folded, self.dof_member,
+            m, mujoco.mj_step if self.faces is None else self.faces.step, self.kinematic, self.armature, stiffness,
+            (stiffness > 0) & (self.spring_rate == 0), self.dof_member,
             np.where(self.link_of_geom >= 0, self.link_of_geom // self.links, -1), len(members), self._touched)
 
     def _face_contacts(self, parts: list[Part]) -> ScanContacts | None:
@@ -142,7 +138,7 @@ class MujocoWorld(World):
         corners, normals = map(np.concatenate, zip(*(triangles_mm(p.obstacle, p.faces) for p in static)))
         anchor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"obstacle{static[0].index}/anchor")
         return ScanContacts(m, corners, normals, anchor, self.whisker_geoms, self.link_bodies.ravel(),
-                            self.link_lengths_mm.ravel(), m.geom_size[self.whisker_geoms, 0].copy(), self.law)
+                            self.link_lengths_mm.ravel(), m.geom_size[self.whisker_geoms, 0].copy())
 
     # -- scene ---------------------------------------------------------------------------
     def _reachable(self, scene: Scene, pose: Pose, duration_s: float, members: np.ndarray,
