@@ -128,7 +128,8 @@ CANDIDATES: tuple[Candidate, ...] = (
     Candidate("eq3", (), lambda s: [{}], 0.0001, law="paper"),
     Candidate("kelvin_voigt", (), lambda s: [{}], 0.0064, law="kelvin_voigt"),
 )
-DAMPING_MODEL_NAMES = {"paper": "eq3", "kelvin_voigt": "kelvin_voigt"}   # material damping model → candidate
+DAMPING_MODEL_NAMES = {"paper": "eq3", "kelvin_voigt": "kelvin_voigt",   # material damping model → candidate
+                       "rayleigh": "rayleigh"}
 DAMPING_LAWS = tuple(c.name for c in CANDIDATES if c.law is not None)
 ABSORBS = {c.name: c.absorbs for c in CANDIDATES}
 CANDIDATE_NAMES = tuple(c.name for c in CANDIDATES)
