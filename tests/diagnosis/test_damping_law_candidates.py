@@ -85,3 +85,15 @@ def test_synth_eq3_draw_is_not_named_rayleigh():
     result = diagnose(synthesise(scenario.config), candidates=LAWS)
     assert "rayleigh" not in result.causes
     assert result.causes in ([], ["eq3"])
+
+
+def test_a_law_candidate_is_not_tried_on_a_model_that_already_has_that_law():
+    """The rayleigh candidate contains Kelvin–Voigt (α → 0), so on a Rayleigh model it could only
+    rename the model's own law; each law candidate stands aside on a model of its law."""
+    from pipeline.diagnosis.candidates import CANDIDATES
+    by_name = {c.name: c for c in CANDIDATES}
+    for law, name in (("rayleigh", "rayleigh"), ("kelvin_voigt", "kelvin_voigt"), ("paper", "eq3")):
+        material = MaterialConfig(damping_model=law)
+        assert not by_name[name].applies_to(material)
+        assert by_name["follicle"].applies_to(material)
+    assert by_name["rayleigh"].applies_to(MaterialConfig(damping_model="kelvin_voigt"))
