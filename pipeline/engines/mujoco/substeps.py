@@ -100,7 +100,9 @@ class ContactLossSubsteps:
         if lost.any():
             lost &= self._sinking(d, last, lost)
             if lost.any():
-                now |= self._substeps(d, targets, lost, start_time) & lost
+                touched, latest = self._substeps(d, targets, lost, start_time)
+                now |= touched & lost
+                self._last = _replaced(self._last, latest, lost)
         self.touching = now
 
     def _contacts(self, d: mujoco.MjData) -> tuple:
@@ -141,7 +143,8 @@ class ContactLossSubsteps:
 
     def _substeps(self, d: mujoco.MjData, targets: np.ndarray, lost: np.ndarray, start_time: float) -> np.ndarray:
         """The step taken again from its start in sub-steps, the ``lost`` whiskers' joints set to
-        their end state in ``d``; [members] whether each touched in a sub-step."""
+        their end state in ``d``: ([members] whether each touched in a sub-step, the penetrating
+        contacts of each whisker's last sub-step that had any, read as :meth:`_contacts` reads them)."""
         m = self.model
         e = self._scratch_data()
         e.time = start_time
@@ -158,6 +161,7 @@ class ContactLossSubsteps:
         m.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
         m.dof_damping[:] = damping + self.damping_change
         touched = np.zeros(len(self.touching), bool)
+        latest = None
         try:
             for i in range(1, SUBSTEPS + 1):
                 goal = start + (targets - start) * (i / SUBSTEPS)
@@ -165,7 +169,10 @@ class ContactLossSubsteps:
                 e.qfrc_applied[kinematic] = self.armature * (((goal - e.qpos[kinematic]) / h - e.qvel[kinematic]) / h)
                 self.step_function(m, e)
                 pressed, flagged, _ = self._contacts(e)
-                touched[pressed[0]] = True
+                has = np.zeros(len(touched), bool)
+                has[pressed[0]] = True
+                latest = pressed if latest is None else _replaced(latest, pressed, has)
+                touched |= has
                 self.found.append(flagged)
         finally:
             m.opt.timestep, m.opt.disableflags, m.dof_damping[:] = self.h, flags, damping
@@ -173,4 +180,11 @@ class ContactLossSubsteps:
         dofs = np.isin(self.dof_member, np.flatnonzero(lost))     # hinges and slides: qpos = dof address
         for into, state in ((d.qpos, e.qpos), (d.qvel, e.qvel), (d.qacc_warmstart, e.qacc_warmstart)):
             into[dofs] = state[dofs]
-        return touched
+        return touched, latest
+
+
+def _replaced(contacts: tuple[np.ndarray, ...], newer: tuple[np.ndarray, ...], members: np.ndarray) -> tuple:
+    """``contacts`` (:meth:`ContactLossSubsteps._contacts`' first part, member first) with those of
+    the ``members`` [members] (bool) taken from ``newer``."""
+    keep, take = ~members[contacts[0]], members[newer[0]]
+    return tuple(np.concatenate((old[keep], new[take])) for old, new in zip(contacts, newer))
