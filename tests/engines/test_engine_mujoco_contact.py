@@ -14,7 +14,8 @@ from pipeline.model.kinematics import Pose, ProtractionDrive, sinusoidal_whisk
 from pipeline.model.morphology import model_rat
 from pipeline.model.rotations import rot_z
 from pipeline.model.whisker import WhiskerGeometry, rest_nodes
-from pipeline.reports.contact_statics import bench_config, geometry_of, obstacle_circle, rod_of, run_engine
+from pipeline.reports.contact_statics import (bench_config, deepest_m, geometry_of, obstacle_circle, rod_of,
+                                              run_engine)
 from pipeline.scenes import Scene
 from pipeline.scenes.obstacles import Cylinder
 
@@ -222,3 +223,25 @@ def test_contacts_found_in_sub_steps_enter_the_sample_flags(monkeypatch):
     for start, links in found:
         sample = int(np.floor(start / period + 1e-9))             # the steps starting in [t_k, t_k+1)
         assert out.contact[sample, 0, links].all()
+
+
+def test_a_whisker_touching_only_in_sub_steps_is_checked_at_the_next_step(monkeypatch):
+    """RC5 sliding off a peg at 85 % of S (μ = 0, the contact law's step h/2): a step taken again
+    in sub-steps whose whisker touched there keeps the last sub-step's contacts for the next
+    step's loss check, so that step is sub-stepped too if the whisker would sink (taken whole,
+    the whisker's centre line ended 0.156 mm inside the peg)."""
+    kept: list[bool] = []
+    substeps = ContactLossSubsteps._substeps
+
+    def recording(self, d, targets, lost, start_time):
+        touched, latest = substeps(self, d, targets, lost, start_time)
+        kept.append(bool(np.isin(np.flatnonzero(touched & lost), latest[0]).all()))
+        return touched, latest
+
+    monkeypatch.setattr(ContactLossSubsteps, "_substeps", recording)
+    config = bench_config(ModelConfig(), "mujoco", 0.0)
+    geometry = geometry_of(config, "RC5")
+    peg = obstacle_circle(rod_of(geometry, config.material.youngs_modulus_gpa * 1e9), 0.85, False)
+    _, out = run_engine(config, geometry, peg)
+    assert kept and all(kept)
+    assert deepest_m(out, peg) < 0.05e-3
