@@ -226,10 +226,10 @@ def test_contacts_found_in_sub_steps_enter_the_sample_flags(monkeypatch):
 
 
 def test_a_whisker_touching_only_in_sub_steps_is_checked_at_the_next_step(monkeypatch):
-    """RC5 sliding off a peg at 85 % of S (μ = 0, the contact law's step h/2): a step taken again
-    in sub-steps whose whisker touched there keeps the last sub-step's contacts for the next
-    step's loss check, so that step is sub-stepped too if the whisker would sink (taken whole,
-    the whisker's centre line ended 0.156 mm inside the peg)."""
+    """RC5 sliding off a peg at 85 % of S (μ = 0): a step taken again in sub-steps whose whisker
+    touched there keeps the last sub-step's contacts for the next step's loss check, so that step
+    is sub-stepped too if the whisker would sink (taken whole, with the per-contact time constants
+    tried in session 20, the whisker's centre line ended 0.156 mm inside the peg)."""
     kept: list[bool] = []
     substeps = ContactLossSubsteps._substeps
 
