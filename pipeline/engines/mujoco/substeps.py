@@ -17,7 +17,7 @@ the step's own contacts are read once for both (:attr:`ContactLossSubsteps.read`
 sub-stepped carries, into the next step's loss check, the contacts of its last sub-step that
 had any, not the full step's it no longer follows: a whisker that touched again only in the
 sub-steps and had none at the next step's start was otherwise released on that step unchecked
-(RC3 and RC5 at 85 % of S with the per-contact time constants: 0.18 and 0.16 mm inside the peg). Each whisker
+(docs/model.md, issue 24, session 20). Each whisker
 is its own kinematic tree and constraint island, so a whisker's result does not depend on
 another's sub-steps (Independence, :mod:`pipeline.engines.mujoco`).
 
@@ -145,7 +145,7 @@ class ContactLossSubsteps:
             self._scratch = mujoco.MjData(self.model)
         return self._scratch
 
-    def _substeps(self, d: mujoco.MjData, targets: np.ndarray, lost: np.ndarray, start_time: float) -> np.ndarray:
+    def _substeps(self, d: mujoco.MjData, targets: np.ndarray, lost: np.ndarray, start_time: float) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
         """The step taken again from its start in sub-steps, the ``lost`` whiskers' joints set to
         their end state in ``d``: ([members] whether each touched in a sub-step, the penetrating
         contacts of each whisker's last sub-step that had any, read as :meth:`_contacts` reads them)."""
