@@ -31,29 +31,17 @@ between the faces' normals and the edges' directions, and the peaks did not conv
 
 from __future__ import annotations
 
-import ctypes
-
 import mujoco
 import numpy as np
 
 from pipeline.engines import units as U
+from pipeline.engines.mujoco.native import RawData, contact_address, function_addresses
 from pipeline.engines.one_sided import ONE_SIDED_DEPTH_MM
 from pipeline.scenes.obstacles import TriangleMesh
-
-# MuJoCo's effective metric M + h·D + h²·K of the discrete integrator, built at the end of its
-# position stage on the arena after the contacts and constraints (so built again once contacts are
-# added); not in the Python bindings (MuJoCo 4.0: ``mj_effBuild(m, d, active, flg_factor)``), so
-# looked up through the bindings' own extension module, which links MuJoCo's library (whatever its
-# file is called on the platform).
-_EFFECTIVE_METRIC = ctypes.CDLL(mujoco._functions.__file__).mj_effBuild
-_EFFECTIVE_METRIC.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_int]
-_EFFECTIVE_METRIC.restype = None
 
 SCAN_RADIUS_MIN_MM = 0.03    # the least radius a link is read with against a scan (module docstring)
 DUPLICATE_MM = 1e-3         # a link's contacts this close are one (two faces read at their shared edge)
 GRID_CELL_MM = 1.0          # the scan grid's cell (about a face of a dataset scan across)
-_POSITION_STAGE = mujoco.mjtStage.mjSTAGE_POS                   # looked up once: the step runs them every step
-_NO_EULER_DAMPING = int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
 
 
 class ScanContacts:
@@ -69,67 +57,44 @@ class ScanContacts:
                  link_geoms: np.ndarray, link_bodies: np.ndarray, link_lengths_mm: np.ndarray,
                  link_radii_mm: np.ndarray):
         # imported here, not at the top: numba ≈0.17 CPU-s and the cached kernels, only scans need them
-        from pipeline.engines.mujoco import face_kernels
+        from pipeline.engines.mujoco import step_kernels
         from pipeline.engines.triangle_grid import TriangleGrid
 
-        self.kernels = face_kernels
+        self.kernels = step_kernels
         self.grid = TriangleGrid(corners, normals, GRID_CELL_MM)
         self.scratch = np.empty(len(corners), np.int64)
         self.anchor, self.link_geoms, self.link_bodies = anchor, link_geoms, link_bodies
         self.link_lengths_mm = link_lengths_mm
         self.link_radii_mm = np.maximum(link_radii_mm, SCAN_RADIUS_MIN_MM)     # read against the scan
         self.template = _template(model, anchor)
+        self.template_address = contact_address(self.template)
+        self._arguments: dict[int, tuple] = {}      # per MjData's address: the compiled step's arguments
 
     def step(self, m, d) -> None:
-        """One ``mj_step`` of the discrete integrator with the scan's contacts added
-        (bit-identical to ``mj_step`` on a step without any)."""
-        mujoco.mj_checkPos(m, d)
-        mujoco.mj_checkVel(m, d)
-        mujoco.mj_fwdPosition(m, d)
-        found = self.contacts(m, d)
-        if found is not None:
-            metric = d.efm_active
-            mujoco.mj_collision(m, d)      # again: its contacts end the arena, those added follow them
-            self.append(m, d, *found)
-            position_stage_after_collision(m, d, metric)
-        mujoco.mj_sensorPos(m, d)
-        mujoco.mj_forwardSkip(m, d, _POSITION_STAGE, 0)
-        mujoco.mj_checkAcc(m, d)
-        option = m.opt
-        flags = option.disableflags    # the discrete integrator's update: v += h·a, q += h·v (the
-        option.disableflags = flags | _NO_EULER_DAMPING                              # metric has D)
-        mujoco.mj_Euler(m, d)
-        option.disableflags = flags
+        """One ``mj_step`` of the discrete integrator with the scan's contacts added (bit-identical
+        to ``mj_step`` on a step without any), in compiled code
+        (:func:`~pipeline.engines.mujoco.step_kernels.scan_step`): MuJoCo's position stage, the
+        scan search, and when it finds contacts the collision again (its contacts end the arena,
+        those added follow them, :func:`~pipeline.engines.mujoco.face_kernels.fill_contacts`)
+        and the position stage from there (the constraints, islands, projections, transmissions
+        and the effective metric with the activity flag the stage had set), then the rest of the
+        step and the discrete integrator's update (v += h·a, q += h·v, without Euler damping:
+        the metric has D)."""
+        if not self.kernels.scan_step(*self.arguments(m, d)):
+            raise MemoryError("MuJoCo's contact buffer is full")
 
-    def contacts(self, m, d) -> tuple[np.ndarray, ...] | None:
-        """The links' current contacts with the scan (:func:`~pipeline.engines.mujoco.face_kernels.scan_search`),
-        or None if there are none."""
-        found = self.kernels.scan_search(m.geom_contype, self.link_geoms, self.link_bodies, self.link_lengths_mm,
-                                         self.link_radii_mm, d.xpos, d.xmat, self.grid.centres, self.grid.radii,
-                                         DUPLICATE_MM, ONE_SIDED_DEPTH_MM, *self.grid.arrays(), self.scratch)
-        return found if len(found[0]) else None
-
-    def append(self, m, d, links: np.ndarray, middle: np.ndarray, toward_link: np.ndarray, gaps: np.ndarray) -> None:
-        """Append the contacts (:meth:`contacts`) to ``d``'s contact list, which must end the
-        arena (right after ``mj_collision``)."""
-        first = d.ncon
-        for _ in range(len(links)):
-            if mujoco.mj_addContact(m, d, self.template):
-                raise MemoryError("MuJoCo's contact buffer is full")
-        contact = d.contact
-        self.kernels.fill_contacts(first, links, middle, toward_link, gaps, self.link_geoms, self.anchor,
-                                   contact.geom, contact.frame, contact.pos, contact.dist)
-
-
-def position_stage_after_collision(m: mujoco.MjModel, d: mujoco.MjData, metric: int) -> None:
-    """MuJoCo's position stage (``mj_fwdPosition``) from its collision on: the constraints,
-    islands and projections, transmissions and the effective metric (``metric``: the
-    ``efm_active`` the stage had set)."""
-    mujoco.mj_makeConstraint(m, d)
-    mujoco.mj_island(m, d)
-    mujoco.mj_projectConstraint(m, d)
-    mujoco.mj_transmission(m, d)
-    _EFFECTIVE_METRIC(m._address, d._address, int(metric != 0), 1)
+    def arguments(self, m, d) -> tuple:
+        """The compiled step's arguments for the model ``m`` and its data ``d`` (made at its first
+        step: views of their memory, :class:`~pipeline.engines.mujoco.native.RawData`)."""
+        key = d._address
+        if key not in self._arguments:
+            raw = RawData(m, d)
+            scan = (m.geom_contype, self.link_geoms, self.link_bodies, self.link_lengths_mm, self.link_radii_mm,
+                    d.xpos, d.xmat, self.grid.centres, self.grid.radii, DUPLICATE_MM, ONE_SIDED_DEPTH_MM,
+                    *self.grid.arrays(), self.scratch)
+            self._arguments[key] = (function_addresses(), m._address, key, raw.header, raw.pointers, raw.option,
+                                    raw.rows64, raw.rows32, raw.fields, self.template_address, self.anchor, scan)
+        return self._arguments[key]
 
 
 def triangles_mm(mesh: TriangleMesh, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
