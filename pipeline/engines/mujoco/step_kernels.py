@@ -104,12 +104,14 @@ def scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, templa
 
 
 @numba.njit(cache=True)
-def run_steps(first, last, spp, h, targets, qpos, qvel, qfrc, kinematic, armature, spring_rate, sensors_on,
-              sensors_off, fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan) -> int:
+def run_steps(spp, h, targets, qpos, qvel, qfrc, kinematic, armature, spring_rate, sensors_on, sensors_off, fn, m,
+              d, header, pointers, option, rows64, rows32, fields, template, anchor, scan, first, last) -> int:
     """Steps ``first`` … of a trial (at most to ``last``), stopping after the first that records a
     sample (``spp`` steps per sample), finds a contact or a bad acceleration; returns its index
-    (−1: MuJoCo's contact buffer full). ``scan``: None without a scan (``mj_step``), else
-    :func:`scan_step`'s."""
+    (−1: MuJoCo's contact buffer full). The world's arrays (``targets`` [steps + 1, kinematic],
+    MjData's ``qpos``, ``qvel``, ``qfrc_applied``, the ``kinematic`` dofs, their ``armature``, the
+    h·K ``spring_rate`` [nv]), ``disableflags`` with the sensors on and off; ``scan``: None
+    without a scan (``mj_step``), else :func:`scan_step`'s, as are the arguments from ``fn``."""
     for step in range(first, last + 1):
         for i in range(len(qfrc)):
             qfrc[i] = spring_rate[i] * qvel[i]

@@ -97,9 +97,7 @@ class ContactLossSubsteps:
         self.step_function(self.model, d)
         if not (had or d.ncon):
             return
-        self._last, *self.read = self._contacts(d)
-        now = np.zeros(len(self.touching), bool)
-        now[self._last[0]] = True
+        now = self._read(d)
         lost = self.touching & ~now
         if lost.any():
             lost &= self._sinking(d, last, lost)
@@ -108,6 +106,22 @@ class ContactLossSubsteps:
                 now |= touched & lost
                 self._last = _replaced(self._last, latest, lost)
         self.touching = now
+
+    def stepped(self, d: mujoco.MjData) -> None:
+        """A step of ``d`` taken without :meth:`step` while no whisker touched (the last of a
+        compiled run, :func:`~pipeline.engines.mujoco.step_kernels.run_steps`): its contacts
+        read as :meth:`step` reads them."""
+        self.found = []
+        if d.ncon:
+            self.touching = self._read(d)
+
+    def _read(self, d: mujoco.MjData) -> np.ndarray:
+        """[members] whether each has a penetrating contact at ``d``'s step start, the contacts kept
+        for the next step's loss check and the world's flags (:meth:`_contacts`)."""
+        self._last, *self.read = self._contacts(d)
+        now = np.zeros(len(self.touching), bool)
+        now[self._last[0]] = True
+        return now
 
     def _contacts(self, d: mujoco.MjData) -> tuple:
         """``d``'s step start's contacts: the penetrating ones' members, link bodies, points (mm,

@@ -4,6 +4,8 @@ Internal units mm–mg–s; results in SI."""
 
 from __future__ import annotations
 
+import functools
+
 import mujoco
 import numpy as np
 
@@ -279,16 +281,27 @@ class MujocoWorld(World):
         substeps = self.substeps
         substeps.reset()
         link_loads = LinkLoads(m, self.link_bodies, [self.whiskers[k].chain for k in self.members], setup.loads, loaded)
+        run = (None if self.faces is None or link_loads.callback is not None else   # compiled: the same steps
+               functools.partial(self.faces.kernels.run_steps, spp, h, targets, qpos, qvel, qfrc, kinematic, armature,
+                                 spring_rate, sensors_on, sensors_off, *self.faces.arguments(m, d)))
         yield plan
-        for step in range(n_steps + 1):
-            np.multiply(spring_rate, qvel, out=qfrc)
-            qfrc[kinematic] = armature * (((targets[step] - qpos[kinematic]) / h - qvel[kinematic]) / h)
+        step = 0
+        while step <= n_steps:
             sample, due = divmod(step, spp)
+            if run is not None and not substeps.touching.any():     # up to a step with something for Python
+                step = run(step, n_steps)
+                if step < 0:
+                    raise MemoryError("MuJoCo's contact buffer is full")
+                substeps.stepped(d)
+                sample, due = divmod(step, spp)
+            else:
+                np.multiply(spring_rate, qvel, out=qfrc)
+                qfrc[kinematic] = armature * (((targets[step] - qpos[kinematic]) / h - qvel[kinematic]) / h)
+                if due < 2:
+                    option.disableflags = sensors_on if due == 0 and sample > 0 else sensors_off
+                with link_loads:
+                    substeps.step(d, targets[step])
             records = due == 0 and sample > 0
-            if due < 2:
-                option.disableflags = sensors_on if records else sensors_off
-            with link_loads:
-                substeps.step(d, targets[step])
             if bad_acceleration.number:
                 self._unless_parked(lambda: self._blown_up(step * h), park, result)
             if records:
@@ -309,6 +322,7 @@ class MujocoWorld(World):
                 result.touched[found[0] // self.links] = True
             if records:
                 yield sample - 1
+            step += 1
 
     def _unless_parked(self, call, park: bool, result: WorldResult) -> None:
         """``call()``; with ``park``, the whiskers of a :class:`_Jam` it raises are parked."""
