@@ -4,15 +4,17 @@ MuJoCo's position stage when done again, and the grid finds what a search of eve
 finds (pipeline.engines.triangle_grid)."""
 
 import copy
+import ctypes
 
 import mujoco
 import numpy as np
 
 from pipeline.config.physics import EngineConfig, ModelConfig
 from pipeline.engines.mujoco import world as engine
-from pipeline.engines.mujoco import face_kernels
+from pipeline.engines.mujoco import face_kernels, step_kernels
 from pipeline.engines.mujoco.face_kernels import contact_frame
 from pipeline.engines.mujoco.faces import GRID_CELL_MM, ScanContacts, triangles_mm
+from pipeline.engines.mujoco.substeps import ContactLossSubsteps
 from pipeline.engines.triangle_grid import TriangleGrid, near_box, nearest_face, segment_triangle
 from pipeline.engines.one_sided import OneSidedMesh
 from pipeline.engines.one_sided_kernels import closest_on_triangle
@@ -40,14 +42,17 @@ def test_a_link_pressed_into_an_edge_of_a_folded_sheet_slides_out_at_any_step(mo
     ever pressed by two opposed contacts, and the peaks are within 30 % of Bullet's and of
     themselves at half the step."""
     opposed = []
-    append = ScanContacts.append
+    read = ContactLossSubsteps._contacts
 
-    def checked(self, m, d, links, middle, toward_link, gaps):
-        same = links[:, None] == links[None]
-        opposed.append(bool((same & (toward_link @ toward_link.T < 0.0)).any()))
-        append(self, m, d, links, middle, toward_link, gaps)
+    def checked(self, d):
+        contact, m = d.contact, self.model
+        anchors = [g for g in range(m.ngeom) if (mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) or "").endswith("/anchor")]
+        scan = np.isin(contact.geom[:, 1], anchors)                    # the scan's contacts
+        links, normals = contact.geom[scan, 0], contact.frame[scan, :3]
+        opposed.append(bool(((links[:, None] == links[None]) & (normals @ normals.T < 0.0)).any()))
+        return read(self, d)
 
-    monkeypatch.setattr(ScanContacts, "append", checked)
+    monkeypatch.setattr(ContactLossSubsteps, "_contacts", checked)
     default, half = _whisk(0.06), _whisk(0.06, dt_s=5e-5, f1_tolerance=0.005)
     assert default.contact.any(axis=(0, 2)).all() and half.contact.any(axis=(0, 2)).all()
     assert opposed and not any(opposed)
@@ -60,10 +65,11 @@ def test_a_link_pressed_into_an_edge_of_a_folded_sheet_slides_out_at_any_step(mo
 
 def test_without_a_scan_contact_the_step_is_mj_step(monkeypatch):
     """Whisking toward the sheet, before touching it: the split step (position stage, search,
-    the rest of mj_forward, Euler) gives mj_step's result bit for bit."""
+    the rest of mj_forward, Euler), in the compiled runs of steps, gives mj_step's result bit for
+    bit."""
     calls = []
-    step = ScanContacts.step
-    monkeypatch.setattr(ScanContacts, "step", lambda self, m, d: (calls.append(1), step(self, m, d)))
+    run = step_kernels.run_steps
+    monkeypatch.setattr(step_kernels, "run_steps", lambda *args: (calls.append(1), run(*args))[1])
     split = _whisk(0.012)
     assert calls and not split.contact.any()
     monkeypatch.setattr(engine.MujocoWorld, "_face_contacts", lambda self, parts: None)
@@ -103,35 +109,60 @@ def test_the_nearest_point_in_double_precision_is_open3d_s_and_smooth():
     assert np.abs(moved - near).max() < 3e-9
 
 
-def test_the_position_stage_done_again_after_the_collision_is_mujoco_s(monkeypatch):
-    """RC1 pressed into a peg (MuJoCo's own contacts): every step taken as the scan's step takes
-    it when it appends contacts (the collision again, then the constraints, islands,
-    projections, transmissions and the effective metric) equals mj_step's, bit for bit."""
-    step, compared = mujoco.mj_step, []
+_EFFECTIVE_METRIC = ctypes.CDLL(mujoco._functions.__file__).mj_effBuild     # not in the bindings
+_EFFECTIVE_METRIC.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_int]
 
-    class Again(ScanContacts):
-        def __init__(self):
-            pass
 
-        def contacts(self, m, d):
-            return ()
+def _bindings_step(faces: ScanContacts, m: mujoco.MjModel, d: mujoco.MjData, scan: tuple) -> None:
+    """The scan's step through the Python bindings: the sequence of MuJoCo's functions the
+    compiled step calls (``scan``: the search's arguments, for ``d``)."""
+    mujoco.mj_checkPos(m, d)
+    mujoco.mj_checkVel(m, d)
+    mujoco.mj_fwdPosition(m, d)
+    links, middle, toward_link, gaps = face_kernels.scan_search(*scan)
+    if len(links):
+        metric = d.efm_active
+        mujoco.mj_collision(m, d)
+        first = d.ncon
+        for _ in links:
+            assert mujoco.mj_addContact(m, d, faces.template) == 0
+        c = d.contact
+        face_kernels.fill_contacts(first, links, middle, toward_link, gaps, faces.link_geoms, faces.anchor, c.geom,
+                                   c.frame, c.pos, c.dist)
+        for stage in (mujoco.mj_makeConstraint, mujoco.mj_island, mujoco.mj_projectConstraint, mujoco.mj_transmission):
+            stage(m, d)
+        _EFFECTIVE_METRIC(m._address, d._address, int(metric != 0), 1)
+    mujoco.mj_sensorPos(m, d)
+    mujoco.mj_forwardSkip(m, d, mujoco.mjtStage.mjSTAGE_POS, 0)
+    mujoco.mj_checkAcc(m, d)
+    flags = m.opt.disableflags
+    m.opt.disableflags = flags | mujoco.mjtDisableBit.mjDSBL_EULERDAMP
+    mujoco.mj_Euler(m, d)
+    m.opt.disableflags = flags
 
-        def append(self, m, d):
-            pass
 
-    def both(m, d):
+def test_the_compiled_scan_step_is_the_bindings_sequence(monkeypatch):
+    """RD3 and RB3 pressed into the folded sheet: every scan step taken in Python (the steps
+    while a whisker touches, the sub-steps) equals, bit for bit, the same MuJoCo functions called
+    through the bindings (the scan's contacts appended after the collision again, the position
+    stage from there with the effective metric's flag the stage had set)."""
+    step, compared = ScanContacts.step, []
+
+    def both(self, m, d):
         e = copy.copy(d)
-        step(m, d)
-        Again().step(m, e)
+        scan = list(self.arguments(m, d)[-1])
+        scan[5:7] = e.xpos, e.xmat
+        step(self, m, d)
+        _bindings_step(self, m, e, tuple(scan))
         compared.append(e.ncon)
-        for field in ("qpos", "qvel", "qacc", "sensordata"):
+        assert d.ncon == e.ncon
+        for field in ("qpos", "qvel", "qacc", "qacc_warmstart", "sensordata"):
             assert np.array_equal(getattr(d, field), getattr(e, field)), field
+        assert np.array_equal(d.contact.pos, e.contact.pos) and np.array_equal(d.contact.frame, e.contact.frame)
 
-    monkeypatch.setattr(mujoco, "mj_step", both)
-    from test_engine_mujoco_contact import _peg_sweep
-
-    out, _, _ = _peg_sweep(0.5, duration_s=0.08)
-    assert out.contact.any() and sum(compared) > 50
+    monkeypatch.setattr(ScanContacts, "step", both)
+    out = _whisk(0.03)
+    assert out.contact.any() and sum(n > 0 for n in compared) > 50
 
 
 def _sheet_grid() -> TriangleGrid:

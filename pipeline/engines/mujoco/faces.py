@@ -68,7 +68,7 @@ class ScanContacts:
         self.link_radii_mm = np.maximum(link_radii_mm, SCAN_RADIUS_MIN_MM)     # read against the scan
         self.template = _template(model, anchor)
         self.template_address = contact_address(self.template)
-        self._arguments: dict[int, tuple] = {}      # per MjData's address: the compiled step's arguments
+        self._arguments: dict[int, tuple] = {}      # per MjData (kept): it and the compiled step's arguments
 
     def step(self, m, d) -> None:
         """One ``mj_step`` of the discrete integrator with the scan's contacts added (bit-identical
@@ -86,15 +86,15 @@ class ScanContacts:
     def arguments(self, m, d) -> tuple:
         """The compiled step's arguments for the model ``m`` and its data ``d`` (made at its first
         step: views of their memory, :class:`~pipeline.engines.mujoco.native.RawData`)."""
-        key = d._address
-        if key not in self._arguments:
+        if id(d) not in self._arguments:
             raw = RawData(m, d)
             scan = (m.geom_contype, self.link_geoms, self.link_bodies, self.link_lengths_mm, self.link_radii_mm,
                     d.xpos, d.xmat, self.grid.centres, self.grid.radii, DUPLICATE_MM, ONE_SIDED_DEPTH_MM,
                     *self.grid.arrays(), self.scratch)
-            self._arguments[key] = (function_addresses(), m._address, key, raw.header, raw.pointers, raw.option,
-                                    raw.rows64, raw.rows32, raw.fields, self.template_address, self.anchor, scan)
-        return self._arguments[key]
+            self._arguments[id(d)] = d, (function_addresses(), m._address, d._address, raw.header, raw.pointers,
+                                         raw.option, raw.rows64, raw.rows32, raw.fields, self.template_address,
+                                         self.anchor, scan)
+        return self._arguments[id(d)][1]
 
 
 def triangles_mm(mesh: TriangleMesh, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -4,8 +4,8 @@ data's memory.
 
 :func:`run_steps` takes the steps of a trial from a given one on, each with the drive force of
 the world's step (``qfrc_applied``: h·K·v of the unfolded springs, the driven joints pulled onto
-their targets), the sensors switched on for the steps that record, and the world's step
-(``mj_step``, or with a scan the scan contacts' step, :func:`scan_step`), as
+their targets), the sensors switched on for the steps that record, and the scan
+contacts' step (:func:`scan_step`), as
 :meth:`~pipeline.engines.mujoco.world.MujocoWorld._stepping` takes them, operation for operation.
 It stops after the first step that leaves something to Python: a recorded sample, a contact, a
 bad acceleration. :func:`scan_step` is :meth:`~pipeline.engines.mujoco.faces.ScanContacts.step`.
@@ -23,7 +23,7 @@ from numba.extending import intrinsic
 from pipeline.engines.mujoco.face_kernels import fill_contacts, scan_search
 
 (CHECK_POS, CHECK_VEL, FWD_POSITION, COLLISION, ADD_CONTACT, MAKE_CONSTRAINT, ISLAND, PROJECT_CONSTRAINT,
- TRANSMISSION, EFF_BUILD, SENSOR_POS, FORWARD_SKIP, CHECK_ACC, EULER, STEP) = range(15)   # native.FUNCTIONS
+ TRANSMISSION, EFF_BUILD, SENSOR_POS, FORWARD_SKIP, CHECK_ACC, EULER) = range(14)   # native.FUNCTIONS
 (NCON, EFM_ACTIVE, DISABLEFLAGS, CONTACT_POINTER, CONTACT_WORDS, DIST, POS, FRAME, GEOM, EXCLUDE,
  BAD_ACCELERATION) = range(11)                                                             # RawData.fields
 STAGE_POS = 1               # mjSTAGE_POS
@@ -110,8 +110,8 @@ def run_steps(spp, h, targets, qpos, qvel, qfrc, kinematic, armature, spring_rat
     sample (``spp`` steps per sample), finds a contact or a bad acceleration; returns its index
     (−1: MuJoCo's contact buffer full). The world's arrays (``targets`` [steps + 1, kinematic],
     MjData's ``qpos``, ``qvel``, ``qfrc_applied``, the ``kinematic`` dofs, their ``armature``, the
-    h·K ``spring_rate`` [nv]), ``disableflags`` with the sensors on and off; ``scan``: None
-    without a scan (``mj_step``), else :func:`scan_step`'s, as are the arguments from ``fn``."""
+    h·K ``spring_rate`` [nv]), ``disableflags`` with the sensors on and off; the arguments from
+    ``fn`` on are :func:`scan_step`'s."""
     for step in range(first, last + 1):
         for i in range(len(qfrc)):
             qfrc[i] = spring_rate[i] * qvel[i]
@@ -122,9 +122,7 @@ def run_steps(spp, h, targets, qpos, qvel, qfrc, kinematic, armature, spring_rat
         records = due == 0 and sample > 0
         if due < 2:
             option[fields[DISABLEFLAGS]] = sensors_on if records else sensors_off
-        if scan is None:
-            _call(fn[STEP], m, d)
-        elif not scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan):
+        if not scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan):
             return -1
         if records or header[fields[NCON]] > 0 or header[fields[BAD_ACCELERATION]] != 0:
             return step
