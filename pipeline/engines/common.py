@@ -196,6 +196,17 @@ class ContactFlags:
         self.touching.flat[flat_links] = True
         self._steps.append((flat_links, points, proximal, distal))
 
+    def add_stacked(self, flat_links: np.ndarray, points: np.ndarray, proximal: np.ndarray, distal: np.ndarray,
+                    counts: np.ndarray) -> None:
+        """The contacts of consecutive steps (:meth:`add`'s arguments stacked, ``counts`` [steps]
+        how many each step had), each step added in turn."""
+        end = 0
+        for count in counts.tolist():
+            if count:
+                self.add(flat_links[end:end + count], points[end:end + count], proximal[end:end + count],
+                         distal[end:end + count])
+                end += count
+
     def take(self) -> tuple[np.ndarray, np.ndarray]:
         """The flags [W, N] and POC [W] (float32) of the interval that just ended; starts a new one."""
         flags, poc = self.touching.copy(), self._points_of_contact().astype(np.float32)

@@ -23,7 +23,7 @@ from mujoco.introspect import structs
 
 FUNCTIONS = ("mj_checkPos", "mj_checkVel", "mj_fwdPosition", "mj_collision", "mj_addContact", "mj_makeConstraint",
              "mj_island", "mj_projectConstraint", "mj_transmission", "mj_effBuild", "mj_sensorPos", "mj_forwardSkip",
-             "mj_checkAcc", "mj_Euler")
+             "mj_checkAcc", "mj_Euler", "mj_kinematics")
 """The C functions compiled code calls, in the order of :func:`function_addresses`."""
 
 _PROBE_XML = """<mujoco><worldbody><geom type="plane" size="1 1 0.1"/>
@@ -40,7 +40,7 @@ def function_addresses() -> np.ndarray:
 @dataclass(frozen=True)
 class Layout:
     """Where the fields lie: int32 word indices into ``mjData``'s header (``ncon``, ``efm_active``,
-    the bad-acceleration warning's count) and ``mjModel`` (``opt.disableflags``), the header's
+    the bad-acceleration warning's count; ``time``: a float64 word index) and ``mjModel`` (``opt.disableflags``), the header's
     length in bytes (up to ``buffer``), the word index of the contact pointer in the pointer block
     that starts there, and an mjContact's size (bytes) and fields (``dist``, ``pos``, ``frame``:
     float64 words; ``geom``, ``exclude``: int32 words)."""
@@ -48,6 +48,7 @@ class Layout:
     ncon: int
     efm_active: int
     bad_acceleration: int
+    time: int
     disableflags: int
     header_bytes: int
     contact_pointer: int
@@ -90,6 +91,10 @@ def layout() -> Layout:
     warning = d.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)]
     bad_at = _changed_word(header, lambda v: setattr(warning, "number", v))
     warning.number = 0
+    time_at = (d.energy.ctypes.data - d._address) // 8 - 1        # ``time`` precedes ``energy``
+    d.time = 0.123456789
+    if header.view(np.float64)[time_at] != d.time:
+        raise RuntimeError("MuJoCo's struct layout was not recognised")
     option = m.opt.gravity.ctypes.data - m._address
     flags = m.opt.disableflags
     flags_at = _changed_word(_int32_view(m._address, option // 4 + 64),
@@ -102,7 +107,7 @@ def layout() -> Layout:
     base = contact.dist.ctypes.data
     if d.ncon != 1 or pointers[pointer] != base or pointers[2] != d.qpos.ctypes.data:
         raise RuntimeError("MuJoCo's struct layout was not recognised")
-    return Layout(ncon_at, efm_at, bad_at, flags_at, header_bytes, pointer, contact.dist.strides[0], 0,
+    return Layout(ncon_at, efm_at, bad_at, time_at, flags_at, header_bytes, pointer, contact.dist.strides[0], 0,
                   (contact.pos.ctypes.data - base) // 8, (contact.frame.ctypes.data - base) // 8,
                   (contact.geom.ctypes.data - base) // 4, (contact.vert.ctypes.data - base) // 4 + 2)
 
@@ -128,7 +133,7 @@ class RawData:
         words32 = words.view(np.int32)
         self.rows32 = np.lib.stride_tricks.as_strided(words32, (2 * n64 - 2 * w64 + 1, 2 * w64), (4, 4))
         self.fields = np.array([at.ncon, at.efm_active, at.disableflags, at.contact_pointer, w64, at.dist, at.pos,
-                                at.frame, at.geom, at.exclude, at.bad_acceleration], np.int64)
+                                at.frame, at.geom, at.exclude, at.bad_acceleration, at.time], np.int64)
 
 
 def contact_address(contact: mujoco.MjContact) -> int:

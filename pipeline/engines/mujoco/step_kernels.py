@@ -20,12 +20,13 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
+from pipeline.engines.mujoco.contact_kernels import step_contacts
 from pipeline.engines.mujoco.face_kernels import fill_contacts, scan_search
 
 (CHECK_POS, CHECK_VEL, FWD_POSITION, COLLISION, ADD_CONTACT, MAKE_CONSTRAINT, ISLAND, PROJECT_CONSTRAINT,
- TRANSMISSION, EFF_BUILD, SENSOR_POS, FORWARD_SKIP, CHECK_ACC, EULER) = range(14)   # native.FUNCTIONS
+ TRANSMISSION, EFF_BUILD, SENSOR_POS, FORWARD_SKIP, CHECK_ACC, EULER, KINEMATICS) = range(15)   # native.FUNCTIONS
 (NCON, EFM_ACTIVE, DISABLEFLAGS, CONTACT_POINTER, CONTACT_WORDS, DIST, POS, FRAME, GEOM, EXCLUDE,
- BAD_ACCELERATION) = range(11)                                                             # RawData.fields
+ BAD_ACCELERATION, TIME) = range(12)                                                             # RawData.fields
 STAGE_POS = 1               # mjSTAGE_POS
 NO_EULER_DAMPING = 1 << 15  # mjDSBL_EULERDAMP
 
@@ -104,14 +105,74 @@ def scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, templa
 
 
 @numba.njit(cache=True)
-def run_steps(spp, h, targets, qpos, qvel, qfrc, kinematic, armature, spring_rate, sensors_on, sensors_off, fn, m,
-              d, header, pointers, option, rows64, rows32, fields, template, anchor, scan, first, last) -> int:
-    """Steps ``first`` … of a trial (at most to ``last``), stopping after the first that records a
-    sample (``spp`` steps per sample), finds a contact or a bad acceleration; returns its index
-    (−1: MuJoCo's contact buffer full). The world's arrays (``targets`` [steps + 1, kinematic],
-    MjData's ``qpos``, ``qvel``, ``qfrc_applied``, the ``kinematic`` dofs, their ``armature``, the
-    h·K ``spring_rate`` [nv]), ``disableflags`` with the sensors on and off; the arguments from
-    ``fn`` on are :func:`scan_step`'s."""
+def _sinking(fn, m, loss, carried, lost) -> np.ndarray:
+    """[members] whether some contact the lost whiskers carried (``carried``: members, link bodies,
+    points, points in the link's frame, normals toward the link, gaps), moved with its link to
+    the step's end (``loss``' scratch data set to the world's joints), lies deeper than the limit
+    inside its plane (:meth:`~pipeline.engines.mujoco.substeps.ContactLossSubsteps._sinking`)."""
+    e, e_qpos, e_mocap_pos, e_mocap_quat, d_qpos, d_mocap_pos, d_mocap_quat, e_xpos, e_xmat, limit = loss[4:14]
+    e_qpos[:] = d_qpos
+    e_mocap_pos[:] = d_mocap_pos
+    e_mocap_quat[:] = d_mocap_quat
+    _call(fn[KINEMATICS], m, e)
+    members, bodies, points, local, normals, gaps = carried
+    sinking = np.zeros(len(lost), np.bool_)
+    for c in range(len(members)):
+        b = bodies[c]
+        along = 0.0
+        for i in range(3):
+            moved = e_xpos[b, i] + (e_xmat[b, 3 * i] * local[c, 0] + e_xmat[b, 3 * i + 1] * local[c, 1]
+                                    + e_xmat[b, 3 * i + 2] * local[c, 2])
+            along += (moved - points[c, i]) * normals[c, i]
+        if -(gaps[c] + along) > limit:
+            sinking[members[c]] = True
+    return sinking & lost
+
+
+@numba.njit(cache=True)
+def _appended(buffer: np.ndarray, count: int, rows: np.ndarray) -> np.ndarray:
+    """``buffer`` (grown when needed) with ``rows`` written from row ``count`` on."""
+    if count + len(rows) > len(buffer):
+        grown = np.empty((2 * (count + len(rows)),) + buffer.shape[1:], buffer.dtype)
+        grown[:count] = buffer[:count]
+        buffer = grown
+    buffer[count:count + len(rows)] = rows
+    return buffer
+
+
+@numba.njit(cache=True)
+def run_steps(spp, h, targets, qpos, qvel, qfrc, kinematic, armature, spring_rate, sensors_on, sensors_off, loss,
+              touched, fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan, first, last,
+              touching, carried):
+    """Steps ``first`` … of a trial (at most to ``last``) as the world takes them, stopping after
+    the first that records a sample (``spp`` steps per sample), meets a bad acceleration or on
+    which a whisker that lost its contact sinks (:mod:`pipeline.engines.mujoco.substeps`).
+
+    The world's arrays: ``targets`` [steps + 1, kinematic], MjData's ``qpos``, ``qvel``,
+    ``qfrc_applied``, the ``kinematic`` dofs, their ``armature``, the h·K ``spring_rate`` [nv];
+    ``disableflags`` with the sensors on and off; ``loss``: the contact-loss sub-steps' arrays
+    (the start state's buffers and MjData's, the scratch data's, the sinking limit, the contact
+    reading's maps); ``touched`` [members] set for each whisker a link of which has a contact;
+    the arguments from ``fn`` on are :func:`scan_step`'s. ``touching`` [members] and ``carried``:
+    the sub-steps' state (whether each whisker touched at the last step, the contacts it carries).
+
+    Returns (the last step's index, −1 if MuJoCo's contact buffer filled; whether its lost
+    whiskers sink [members] (all False: none); the start time of that step; ``touching`` and
+    ``carried`` after it; its contacts as the flags take them and the members hit; the contacts of
+    the steps before it as the flags take them, stacked, and how many each step had)."""
+    start_qpos, start_qvel, start_warm, warmstart = loss[0:4]
+    member_of_geom, geom_bodyid, link_of_geom, link_bodies, link_lengths = loss[14:19]
+    xpos, xmat = scan[5], scan[6]
+    n_members = len(touching)
+    lost = np.zeros(n_members, np.bool_)
+    stacked_links, stacked_points = np.empty(16, np.int64), np.empty((16, 3))
+    stacked_proximal, stacked_distal = np.empty((16, 3)), np.empty((16, 3))
+    counts = np.zeros(last + 1 - first, np.int64)
+    total = 0
+    read = (stacked_links[:0], stacked_points[:0], stacked_proximal[:0], stacked_distal[:0])
+    hit = np.zeros(0, np.int64)
+    start_time = 0.0
+    time = header.view(np.float64)
     for step in range(first, last + 1):
         for i in range(len(qfrc)):
             qfrc[i] = spring_rate[i] * qvel[i]
@@ -122,8 +183,48 @@ def run_steps(spp, h, targets, qpos, qvel, qfrc, kinematic, armature, spring_rat
         records = due == 0 and sample > 0
         if due < 2:
             option[fields[DISABLEFLAGS]] = sensors_on if records else sensors_off
+        had = touching.any()
+        if had:
+            start_qpos[:] = qpos
+            start_qvel[:] = qvel
+            start_warm[:] = warmstart
+            start_time = time[fields[TIME]]
         if not scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan):
-            return -1
-        if records or header[fields[NCON]] > 0 or header[fields[BAD_ACCELERATION]] != 0:
-            return step
-    return last
+            return (-1, lost, start_time, touching, carried, read, hit, stacked_links[:0], stacked_points[:0],
+                    stacked_proximal[:0], stacked_distal[:0], counts[:0])
+        ncon = header[fields[NCON]]
+        if had or ncon > 0:
+            count, words = header[fields[NCON]], fields[CONTACT_WORDS]
+            row = (pointers[fields[CONTACT_POINTER]] - pointers[1]) // 8
+            contacts = rows64[row:row + count * words:words]
+            ints = rows32[2 * row:2 * (row + count * words):2 * words]
+            pressed, read, hit = step_contacts(
+                contacts[:, fields[DIST]], ints[:, fields[EXCLUDE]], ints[:, fields[GEOM]:fields[GEOM] + 2],
+                contacts[:, fields[FRAME]:fields[FRAME] + 9], contacts[:, fields[POS]:fields[POS] + 3], xpos, xmat,
+                member_of_geom, geom_bodyid, link_of_geom, link_bodies, link_lengths)
+            now = np.zeros(n_members, np.bool_)
+            now[pressed[0]] = True
+            lost = touching & ~now
+            if lost.any():
+                lost = _sinking(fn, m, loss, carried, lost)
+            carried = pressed
+            if lost.any():
+                touching = now
+                break
+            touching = now
+        else:
+            read = (stacked_links[:0], stacked_points[:0], stacked_proximal[:0], stacked_distal[:0])
+            hit = np.zeros(0, np.int64)
+        if records or header[fields[BAD_ACCELERATION]] != 0 or step == last:
+            break
+        if ncon > 0:                                 # the flags of a step before the last
+            links = read[0]
+            stacked_links = _appended(stacked_links, total, links)
+            stacked_points = _appended(stacked_points, total, read[1])
+            stacked_proximal = _appended(stacked_proximal, total, read[2])
+            stacked_distal = _appended(stacked_distal, total, read[3])
+            counts[step - first] = len(links)
+            total += len(links)
+            touched[hit] = True
+    return (step, lost, start_time, touching, carried, read, hit, stacked_links[:total], stacked_points[:total],
+            stacked_proximal[:total], stacked_distal[:total], counts[:step - first])

@@ -102,18 +102,40 @@ class ContactLossSubsteps:
         if lost.any():
             lost &= self._sinking(d, last, lost)
             if lost.any():
-                touched, latest = self._substeps(d, targets, lost, start_time)
-                now |= touched & lost
-                self._last = _replaced(self._last, latest, lost)
+                self.take_again(d, targets, now, lost, start_time)
+                return
         self.touching = now
 
-    def stepped(self, d: mujoco.MjData) -> None:
-        """A step of ``d`` taken without :meth:`step` while no whisker touched (the last of a
-        compiled run, :func:`~pipeline.engines.mujoco.step_kernels.run_steps`): its contacts
-        read as :meth:`step` reads them."""
+    def take_again(self, d: mujoco.MjData, targets: np.ndarray, now: np.ndarray, lost: np.ndarray,
+                   start_time: float) -> None:
+        """The step just taken (its start state saved, its contacts read: ``now`` [members]) taken
+        again in sub-steps from ``start_time`` for the ``lost`` whiskers, which sink."""
+        touched, latest = self._substeps(d, targets, lost, start_time)
+        now |= touched & lost
+        self._last = _replaced(self._last, latest, lost)
+        self.touching = now
+
+    def loss_arrays(self, d: mujoco.MjData) -> tuple:
+        """What the compiled runs of steps (:func:`~pipeline.engines.mujoco.step_kernels.run_steps`)
+        take of this class for ``d``: the start state's buffers and ``d``'s warm start, the
+        scratch data (its address, joints and mocap bodies), ``d``'s joints and mocap bodies, the
+        scratch data's link frames, the sinking limit and the contact reading's maps."""
+        e = self._scratch_data()
+        return (*self._start, d.qacc_warmstart, e._address, e.qpos, e.mocap_pos, e.mocap_quat, d.qpos, d.mocap_pos,
+                d.mocap_quat, e.xpos, e.xmat, PREDICTED_DEPTH_MM, self.member_of_geom, self.model.geom_bodyid,
+                *self.links)
+
+    def carried(self) -> tuple[np.ndarray, ...]:
+        """The contacts the whiskers carry into the next step (:meth:`_contacts`' first part)."""
+        if not self._last:
+            self._last = (np.zeros(0, np.int64), np.zeros(0, np.int64), *np.zeros((3, 0, 3)), np.zeros(0))
+        return self._last
+
+    def ran(self, touching: np.ndarray, carried: tuple, read: tuple, hit: np.ndarray) -> None:
+        """The state after a compiled run of steps: ``touching`` [members], the ``carried``
+        contacts, its last step's contacts as the flags take them and the members ``hit``."""
         self.found = []
-        if d.ncon:
-            self.touching = self._read(d)
+        self.touching, self._last, self.read = touching, carried, [read, hit]
 
     def _read(self, d: mujoco.MjData) -> np.ndarray:
         """[members] whether each has a penetrating contact at ``d``'s step start, the contacts kept

@@ -281,18 +281,24 @@ class MujocoWorld(World):
         substeps = self.substeps
         substeps.reset()
         link_loads = LinkLoads(m, self.link_bodies, [self.whiskers[k].chain for k in self.members], setup.loads, loaded)
-        run = (None if self.faces is None or link_loads.callback is not None else   # compiled: the same steps
-               functools.partial(self.faces.kernels.run_steps, spp, h, targets, qpos, qvel, qfrc, kinematic, armature,
-                                 spring_rate, sensors_on, sensors_off, *self.faces.arguments(m, d)))
+        run = None          # the same steps compiled, up to one with something for Python (step_kernels)
+        if self.faces is not None and link_loads.callback is None and not setup.hold_on_contact:
+            run = functools.partial(self.faces.kernels.run_steps, spp, h, targets, qpos, qvel, qfrc, kinematic,
+                                    armature, spring_rate, sensors_on, sensors_off, substeps.loss_arrays(d),
+                                    result.touched, *self.faces.arguments(m, d))
         yield plan
         step = 0
         while step <= n_steps:
             sample, due = divmod(step, spp)
-            if run is not None and not substeps.touching.any():     # up to a step with something for Python
-                step = run(step, n_steps)
+            if run is not None:
+                step, lost, start_time, touching, carried, read, hit, *stacked = run(
+                    step, n_steps, substeps.touching, substeps.carried())
                 if step < 0:
                     raise MemoryError("MuJoCo's contact buffer is full")
-                substeps.stepped(d)
+                flags.add_stacked(*stacked)
+                substeps.ran(touching, carried, read, hit)
+                if lost.any():
+                    substeps.take_again(d, targets[step], touching, lost, start_time)
                 sample, due = divmod(step, spp)
             else:
                 np.multiply(spring_rate, qvel, out=qfrc)
