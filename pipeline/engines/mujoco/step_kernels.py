@@ -2,14 +2,16 @@
 MuJoCo's C functions called by address (:mod:`pipeline.engines.mujoco.native`) on the model's and
 data's memory.
 
-:func:`run_steps` takes the steps of a trial from a given one on, each with the drive force of
-the world's step (``qfrc_applied``: h·K·v of the unfolded springs, the driven joints pulled onto
-their targets), the sensors switched on for the steps that record, and the scan
-contacts' step (:func:`scan_step`), as
-:meth:`~pipeline.engines.mujoco.world.MujocoWorld._stepping` takes them, operation for operation.
-It stops after the first step that leaves something to Python: a recorded sample, a contact, a
-bad acceleration. :func:`scan_step` is :meth:`~pipeline.engines.mujoco.faces.ScanContacts.step`.
-Internal units mm–mg–s.
+:func:`run_steps` takes the steps of a trial from a given one on as
+:meth:`~pipeline.engines.mujoco.world.MujocoWorld._stepping` and
+:meth:`~pipeline.engines.mujoco.substeps.ContactLossSubsteps.step` take them, operation for
+operation: the drive force (``qfrc_applied``: h·K·v of the unfolded springs, the driven joints
+pulled onto their targets), the sensors switched on for the steps that record, the start state
+kept while a whisker touches, the scan contacts' step (:func:`scan_step`, which is
+:meth:`~pipeline.engines.mujoco.faces.ScanContacts.step`), the step's contacts read for the
+flags and the contact-loss test (a whisker that lost its contact: does it sink?). It stops after
+the first step that leaves something to Python: a recorded sample, a bad acceleration, or sub-steps
+for a whisker that sinks. Internal units mm–mg–s.
 """
 
 from __future__ import annotations

@@ -261,9 +261,11 @@ class MujocoWorld(World):
         interval before asking for the next sample (:mod:`pipeline.engines.session`). A jam
         raises :class:`_Jam`, or with ``park`` takes the whisker out (:meth:`_park`) and goes on.
 
-        The per-step work in Python is kept to array operations on views taken once: the
-        kinematic targets of every step are computed before the loop (rows rewritten when a
-        base holds), the sensors are switched only on the steps that record."""
+        The kinematic targets of every step are computed before the loop (rows rewritten when a
+        base holds), the sensors are switched only on the steps that record. With a scan (and
+        without Python loads or holds), the steps between those that record are taken in compiled
+        runs (:func:`~pipeline.engines.mujoco.step_kernels.run_steps`), the same operations as the
+        loop's; Python takes over to record, on a bad acceleration and for the sub-steps."""
         m, d, h, spp = self.model, self.data, self.dt_s, self.steps_per_sample
         offset, theta_rate = self._reset(setup.pose, setup.drive, setup.initial, setup.initial_rates, setup.head)
         n_w, n_steps = len(self.members), setup.samples * spp
