@@ -19,7 +19,6 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-from mujoco.introspect import structs
 
 FUNCTIONS = ("mj_checkPos", "mj_checkVel", "mj_fwdPosition", "mj_collision", "mj_addContact", "mj_makeConstraint",
              "mj_island", "mj_projectConstraint", "mj_transmission", "mj_effBuild", "mj_sensorPos", "mj_forwardSkip",
@@ -100,6 +99,8 @@ def layout() -> Layout:
     flags_at = _changed_word(_int32_view(m._address, option // 4 + 64),
                              lambda v: setattr(m.opt, "disableflags", v))
     m.opt.disableflags = flags
+    from mujoco.introspect import structs      # here, not at the top: 15 ms, only scan worlds need it
+
     names = [field.name for field in structs.STRUCTS["mjData"].fields]
     pointer = names.index("contact") - names.index("buffer")
     pointers = np.ctypeslib.as_array((ctypes.c_uint64 * (pointer + 1)).from_address(d._address + header_bytes))
