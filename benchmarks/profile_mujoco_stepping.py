@@ -7,10 +7,11 @@ The trials are those of benchmarks/profile_dataset_trial.py (configs/simulate.ya
 builds the engine and is left out). Per trial (mean): CPU of the trial, of the cheap path
 (pipeline/engines/free_path.py), of building the full worlds' models (the spec, MuJoCo's
 compile), of finding the scan's faces within reach (pipeline/engines/mujoco/reach.py), of the full
-worlds' stepping split into the step's MuJoCo calls (position stage: kinematics, collision,
-constraints; the scan's contacts, pipeline/engines/mujoco/faces.py: the search, MuJoCo's collision
-again, appending them and the constraints made again; velocity to the constraint solve and no-slip; the update) and
-the Python of the loop (recording, contact flags); per full world run its whiskers, those that
+worlds' stepping split into the step's MuJoCo calls made from Python (position stage:
+kinematics, collision, constraints; velocity to the constraint solve and no-slip; the update),
+the scan contacts' steps (pipeline/engines/mujoco/faces.py) and the compiled runs of steps
+(pipeline/engines/mujoco/step_kernels.py: the steps, the scan's contacts and the contact reading
+in one item), and the Python of the loop (recording, contact flags); per full world run its whiskers, those that
 touched and their whisker-steps. Within the full worlds' steps, MuJoCo's stage timers
 (``MjData.timer``, wall-clock: shares only) and per step with contacts the contacts, constraint
 rows and PGS sweeps summed over the constraint islands. The instrumentation (a process-time
@@ -30,7 +31,7 @@ import numpy as np
 from pipeline.config.loader import load_config
 from pipeline.config.simulate import SimulateConfig
 from pipeline.engines import free_path
-from pipeline.engines.mujoco import faces, world as engine
+from pipeline.engines.mujoco import faces, step_kernels, world as engine
 from pipeline.runner.scenes import scene_catalogue
 from pipeline.runner.simulate import _layout
 from pipeline.runner.trial import RunSpec, Simulator
@@ -80,7 +81,8 @@ def instrument() -> None:
     full = {"on": False}
     for name, label in STEP_CALLS.items():
         timed(mujoco, name, label, seconds=steps_cpu)
-    timed(faces.ScanContacts, "contacts", "scan: search (grid, one-sided)", seconds=steps_cpu)
+    timed(step_kernels, "run_steps", "compiled runs: steps, scan search and contacts, contact reading",
+          seconds=steps_cpu)
 
     def counted(function):
         def counted_step(*args):
