@@ -27,3 +27,21 @@ def test_each_whisker_keeps_its_last_contact_step_and_a_new_interval_starts_empt
     assert touching.tolist() == [[False, True, True, True], [False, False, False, True], [False] * 4]
     touching, poc = flags.take()
     assert not touching.any() and np.isnan(poc).all()
+
+
+def test_steps_added_stacked_are_the_steps_added_one_by_one():
+    """The compiled runs hand back their steps' contacts stacked (ContactFlags.add_stacked): the
+    same flags and POC as the steps added in turn, a step without contacts counting for none."""
+    fractions = np.tile(np.linspace(0.0, 1.0, 5), (3, 1))
+    steps = [([0 * 4 + 1, 1 * 4 + 3], [0.5, 0.5]), ([], []), ([0 * 4 + 3, 2 * 4 + 0], [0.0, 0.25]),
+             ([1 * 4 + 2], [0.75])]
+    one_by_one, stacked = ContactFlags(fractions), ContactFlags(fractions)
+    for links, at in steps:
+        one_by_one.add(*_link_points(links, at))
+    parts = [_link_points(links, at) for links, at in steps]
+    flat = np.concatenate([p[0] for p in parts]).astype(np.int64)
+    stacked.add_stacked(flat, *(np.concatenate([p[i] for p in parts]).reshape(-1, 3) for i in (1, 2, 3)),
+                        np.array([len(links) for links, _ in steps]))
+    (flags_a, poc_a), (flags_b, poc_b) = one_by_one.take(), stacked.take()
+    assert np.array_equal(flags_a, flags_b) and np.array_equal(poc_a, poc_b, equal_nan=True)
+    assert np.isfinite(poc_a).all()
