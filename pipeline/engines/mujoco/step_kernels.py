@@ -16,6 +16,7 @@ for a whisker that sinks. Internal units mm–mg–s.
 
 from __future__ import annotations
 
+import mujoco
 import numba
 import numpy as np
 from llvmlite import ir
@@ -29,8 +30,8 @@ from pipeline.engines.mujoco.face_kernels import fill_contacts, scan_search
  TRANSMISSION, EFF_BUILD, SENSOR_POS, FORWARD_SKIP, CHECK_ACC, EULER, KINEMATICS) = range(15)   # native.FUNCTIONS
 (NCON, EFM_ACTIVE, DISABLEFLAGS, CONTACT_POINTER, CONTACT_WORDS, DIST, POS, FRAME, GEOM, EXCLUDE,
  BAD_ACCELERATION, TIME) = range(12)                                                             # RawData.fields
-STAGE_POS = 1               # mjSTAGE_POS
-NO_EULER_DAMPING = 1 << 15  # mjDSBL_EULERDAMP
+STAGE_POS = int(mujoco.mjtStage.mjSTAGE_POS)
+NO_EULER_DAMPING = int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
 
 
 def _codegen(returns: ir.Type, kinds: list[ir.Type]):
