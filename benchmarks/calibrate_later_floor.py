@@ -59,18 +59,22 @@ def report(rows: list[dict]) -> list[str]:
     return lines
 
 
+def _saved(paths) -> list[dict]:
+    return [row for path in paths if path and path.is_file() for row in json.loads(path.read_text())]
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--from-json", type=Path, nargs="+", help="only print the report of these saved rows")
+    parser.add_argument("--json", type=Path, help="write the rows here (resumes from them)")
     parser.add_argument("--classes", nargs="+", default=["follicle", "stiffness_gradient"])
     parser.add_argument("--n", type=int, default=6, help="draws per class")
     parser.add_argument("--seed", type=int, default=9600)
-    parser.add_argument("--json", type=Path)
-    parser.add_argument("--from-json", type=Path, nargs="+", help="only print the report of these saved rows")
     args = parser.parse_args()
     if args.from_json:
-        print("\n".join(report([row for path in args.from_json for row in json.loads(path.read_text())])))
+        print("\n".join(report(_saved(args.from_json))))
         return
-    rows = json.loads(args.json.read_text()) if args.json and args.json.is_file() else []
+    rows = _saved([args.json])
     done = {row["seed"] for row in rows}
     draws = sorted(CLASSES.index(c) + len(CLASSES) * j for c in args.classes for j in range(args.n))
     with tempfile.TemporaryDirectory() as tmp:
