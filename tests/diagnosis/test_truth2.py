@@ -54,7 +54,8 @@ def test_later_round_gains_are_read_only_behind_the_draws_own_cause():
     fold = {"baseline_m": 5e-5, "amplitude_m": 1e-3,
             "candidates": [{"name": "stiffness_gradient", "heldout_m": 4e-5}, {"name": "drag", "heldout_m": 6e-5}]}
     row = {"expected": ["follicle"], "causes": ["follicle"], "decision": {"rounds": [{"first_fold": fold}]}}
-    assert later_absorbed(row) == [("first_fold", "stiffness_gradient", pytest.approx(0.03)), ("first_fold", "drag", 0.0)]
+    assert later_absorbed(row) == [("first_fold", "stiffness_gradient", pytest.approx(0.03)),
+                                   ("first_fold", "drag", 0.0)]
     assert later_absorbed({**row, "causes": ["stiffness_gradient", "follicle"]}) == []
     assert later_absorbed({**row, "expected": ["follicle", "drag"], "causes": ["follicle", "drag"]}) == []
     assert later_absorbed({**row, "decision": {"rounds": []}}) == []
