@@ -46,7 +46,7 @@ def later_absorbed(row: dict) -> list[tuple[str, str, float]]:
 
 def report(rows: list[dict]) -> list[str]:
     used = [r for r in rows if later_absorbed(r)]
-    lines = [f"{len(used)} of {len(rows)} single-cause draws named their own cause first: "
+    lines = [f"{len(used)} of {len(rows)} draws have a single cause and named it first: "
              + ", ".join(f"{r['seed']} {r['label']}" for r in used), "",
              f"{'candidate':>18} {'max κ_c':>9} {'(draw, fold)':>22} {'first round':>12}"]
     best: dict[str, tuple[float, str]] = {}
