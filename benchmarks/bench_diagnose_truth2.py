@@ -16,7 +16,9 @@ Seeds 7000– are the benchmark; none of the rule's constants was set on them.
 Printed: the confusion table (class × named cause); right causes (all of them, for two-cause
 draws) on draws whose effect exceeds the noise (the effect: RMS of the clean tracked positions
 with minus without it; the noise: RMS of the per-axis tracking σ), "none" (or twist alone on
-a curved whisker: see :func:`_right`) on effect-free draws, the named parameter within 15 %, the two-cause table, tracebacks, CPU per diagnosis.
+a curved whisker: see :func:`_right`) on effect-free draws, the named parameter within 15 %, the
+two-cause table (with each cause's own effect over the noise: the RMS change of the clean tracked
+positions when that cause alone is taken out), tracebacks, CPU per diagnosis.
 """
 
 from __future__ import annotations
@@ -44,6 +46,8 @@ from tests.truth2.draws import CLASSES, KEY_PARAMETER, bend, clean_positions, dr
 TOLERANCE = 0.15
 NEUTRAL = {"law": "kelvin_voigt", "stiffness_gamma": 0.0, "damping_gamma": 0.0, "density_gamma": 0.0,
            "length_scale": 1.0, "follicle": None, "drag_linear": 0.0, "gravity_m_s2": 0.0}
+CAUSE_FIELD = {"follicle": "follicle", "stiffness_gradient": "stiffness_gamma", "damping_gradient": "damping_gamma",
+               "density": "density_gamma", "length": "length_scale", "drag": "drag_linear", "gravity": "gravity_m_s2"}
 
 
 def _noise_m(d) -> float:
@@ -63,7 +67,17 @@ def _effect_rms_m(d, clean, first_mode_zeta: float) -> float:
     neutral = replace(d, whisker=Whisker(**{**d.whisker.__dict__, **NEUTRAL, **law}))
     if d.whisker.length_scale != 1.0:     # trimmed: the same material points of the untrimmed whisker
         neutral = replace(neutral, whisker=replace(neutral.whisker, length_scale=1.0))
-    other = clean_positions(neutral)
+    return _rms_m(clean, clean_positions(neutral))
+
+
+def own_effects_m(d, clean) -> dict[str, float]:
+    """Each effect's own part on a draw with several: RMS of the clean tracked positions with minus
+    without that effect alone, the others kept (same drives)."""
+    return {cause: _rms_m(clean, clean_positions(replace(d, whisker=replace(d.whisker, **{field: NEUTRAL[field]}))))
+            for cause, field in CAUSE_FIELD.items() if cause in d.expected}
+
+
+def _rms_m(clean, other) -> float:
     return float(np.sqrt(np.mean([np.mean((a[0] - b[0]) ** 2) for a, b in zip(clean, other)])))
 
 
@@ -77,6 +91,7 @@ def prepare(k: int, seed0: int, workdir: Path, elements: int) -> tuple[Path, dic
     write_timeseries(path, measurement(d, clean))
     meta = {"label": label, "seed": seed, "expected": sorted(d.expected), "truth": d.truth,
             "noise_m": _noise_m(d), "effect_rms_m": _effect_rms_m(d, clean, modes["zeta"][0]), "bend": bend(d, clean),
+            "own_effect_rms_m": own_effects_m(d, clean) if len(d.expected) > 1 else {},
             "modes": modes, "curved": d.whisker.curvature_per_m > 0, "length_m": d.whisker.length_m}
     meta_path.write_text(json.dumps(meta, default=float))
     return path, meta
@@ -144,9 +159,13 @@ def report(rows: list[dict]) -> str:
     lines += [f"  {r['seed']} {c:>18}: {e:+.3f}" for r, c, e in keyed]
     two = [r for r in rows if len(r["expected"]) == 2]
     if two:
-        lines += ["", "two-cause draws: causes named (of the two)"]
+        lines += ["", "two-cause draws: causes named (of the two); each cause's own effect / noise σ (the other kept)"]
         lines += [f"  {r['seed']} {r['label']:>28} → {', '.join(r['causes']) or r['named']} "
-                  f"({len(set(r['causes']) & set(r['expected']))}/2)" for r in two]
+                  f"({len(set(r['causes']) & set(r['expected']))}/2)"
+                  + "".join(f"  {c} {e / r['noise_m']:.2f}" for c, e in r.get("own_effect_rms_m", {}).items())
+                  for r in two]
+        each = [r for r in two if r.get("own_effect_rms_m") and min(r["own_effect_rms_m"].values()) > r["noise_m"]]
+        lines.append(f"  right where each cause's own effect > noise σ: {_share(sum(map(_right, each)), len(each))}")
     laws = [r for r in rows if r["label"].startswith("law:")]
     if laws:
         lines += ["", "damping-law draws: true law → causes named (mass-proportional α where fitted)"]

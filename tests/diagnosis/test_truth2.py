@@ -43,3 +43,19 @@ def test_effect_free_draw_is_diagnosed_none(tmp_path):
     data, _ = run_diagnose(path, MaterialConfig(), None, None)
     assert data["cause"] == "none" and data["causes"] == []
     assert data["params"]["E"]["value"] == pytest.approx(case.truth["E"], rel=0.02)
+
+
+def test_later_round_gains_are_read_only_behind_the_draws_own_cause():
+    """benchmarks/calibrate_later_floor.py reads a candidate's held-out gain √(e₀² − e_c²)/A in the
+    round after the first cause (per fold; a loss counts 0) only on a single-cause draw whose first
+    named cause is its own: elsewhere that gain may be a real second effect, or the model under it wrong."""
+    from benchmarks.calibrate_later_floor import later_absorbed
+
+    fold = {"baseline_m": 5e-5, "amplitude_m": 1e-3,
+            "candidates": [{"name": "stiffness_gradient", "heldout_m": 4e-5}, {"name": "drag", "heldout_m": 6e-5}]}
+    row = {"expected": ["follicle"], "causes": ["follicle"], "decision": {"rounds": [{"first_fold": fold}]}}
+    assert later_absorbed(row) == [("first_fold", "stiffness_gradient", pytest.approx(0.03)),
+                                   ("first_fold", "drag", 0.0)]
+    assert later_absorbed({**row, "causes": ["stiffness_gradient", "follicle"]}) == []
+    assert later_absorbed({**row, "expected": ["follicle", "drag"], "causes": ["follicle", "drag"]}) == []
+    assert later_absorbed({**row, "decision": {"rounds": []}}) == []
