@@ -1,10 +1,10 @@
 """Bullet engine (pybullet): whiskers as Featherstone chains with implicit joint spring-dampers.
 
 Each whisker is one multibody (:mod:`pipeline.engines.bullet.whisker`). Whiskers never touch each
-other, only obstacles, so they are independent systems: the whiskers that
-share a step size form one world, run by the template of :mod:`pipeline.engines.base`, and all
-the worlds share one pybullet server (:mod:`~pipeline.engines.bullet.scenery`). Each whisker steps at ``engine.dt_s / 2**j`` with j from its first
-mode (:mod:`pipeline.engines.stepping`).
+other, only obstacles, so they are independent systems: the whiskers that share a step size form
+one world, run by the template of :mod:`pipeline.engines.base`, and all the worlds share one
+pybullet server (:mod:`~pipeline.engines.bullet.scenery`). Each whisker steps at
+``engine.dt_s / 2**j`` with j from its first mode (:mod:`pipeline.engines.stepping`).
 
 Integration scheme (one step of size h, per whisker; q, v joint positions and velocities):
 

@@ -3,8 +3,8 @@ has seen (internal units mm).
 
 A DIRECT pybullet server costs ≈ 30 MB resident before it holds anything, and a scan's mesh
 shape ≈ 0.4 kB per triangle in every server that builds it (docs/scaling.md, "Issue 26,
-session 21"); one server per step size and scene made a worker hold four servers and up to
-four copies of every scan. The worlds never share a contact (Bullet's own collision is off
+session 21"); a server per step size made a worker hold four servers and up to four copies
+of every scan. The worlds never share a contact (Bullet's own collision is off
 and the contact search asks one whisker–obstacle pair at a time), so they share one server.
 
 Obstacle shapes cannot be freed in pybullet (``removeBody`` on a static mesh body fails and
