@@ -184,6 +184,10 @@ class Engine(ABC):
     def make_world(self, whiskers: list[WhiskerModel], dt_s: float) -> World:
         """A world of ``whiskers`` stepping at ``dt_s``."""
 
+    def make_alone_world(self, whisker: WhiskerModel, dt_s: float) -> World:
+        """A world of ``whisker`` alone, simulated again after a jam and closed after its trial."""
+        return self.make_world([whisker], dt_s)
+
     def run(self, scene: Scene, pose: Pose, drive: ProtractionDrive, duration_s: float, *,
             stop_drive_on_contact: bool = False, external_tip_force_n=None,
             initial_joint_angles_rad=None, head_motion: HeadMotion | None = None) -> TrialOutput:
@@ -279,7 +283,7 @@ class Engine(ABC):
         """Whisker k alone with half the step, again while it jams: (its result, halvings, steps)."""
         steps = 0
         for halvings in range(1, self.config.jam_refinements + 1):
-            world = self.make_world([self.array.whiskers[k]], dt_s / 2 ** halvings)
+            world = self.make_alone_world(self.array.whiskers[k], dt_s / 2 ** halvings)
             try:
                 result = world.run(setup, np.ones(1, bool))
             finally:

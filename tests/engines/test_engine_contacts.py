@@ -69,8 +69,12 @@ def test_a_tip_on_a_rough_sheet_no_longer_jams_at_the_coarse_step():
     assert np.array_equal(alone.base_wrench[:, 0], out.base_wrench[:, out.index("RB3")])
 
 
-def test_switching_scenes_reuses_their_bodies():
-    """pybullet cannot free a mesh shape, so each scene is built once per world and parked."""
+def test_bullet_worlds_share_one_server_whose_bodies_stop_growing():
+    """An engine's worlds (one per step size) share one pybullet server (a server costs ≈ 30 MB
+    before it holds anything, and each built a copy of every scan); pybullet cannot free a mesh
+    shape, so each scene is built once and parked, and the bodies stop growing once every
+    scene and whisker has been seen."""
+    import pybullet
 
     from pipeline.engines import create_engine
     from pipeline.model.kinematics import sinusoidal_whisk
@@ -78,13 +82,18 @@ def test_switching_scenes_reuses_their_bodies():
     model = ModelConfig()
     array = build_array(load_morphology("model_rat").select("RA0,RE4"), model.material)
     scenes = [Scene(f"sheet-{i}", (beside_right_array(bumpy_sheet(seed=i), 0.04),)) for i in range(2)]
+    servers = [k for k in range(64) if pybullet.isConnected(k)]
     with create_engine(model, array) as engine:
+        assert len(engine.worlds) == 2          # RA0 and RE4 step at different sizes: two worlds
+        assert {id(world.client) for _, world in engine.worlds} == {id(engine.scenery.client)}
         counts = []
         for k in range(6):
-            engine.run(scenes[k % 2], Pose(), sinusoidal_whisk(duration_s=0.002), 0.002)
-            counts.append([world.client.getNumBodies() for _, world in engine.worlds])
-    assert counts[1] == counts[-1]          # built once per scene, then reused
-    assert len(counts[0]) == 2               # RA0 and RE4 step at different sizes: two worlds
+            whisk = sinusoidal_whisk(frequency_hz=8.0 + k, duration_s=0.002)    # no free motion to reuse
+            assert engine.run(scenes[k % 2], Pose(), whisk, 0.002).metadata["whisker_steps"] > 0
+            counts.append(engine.scenery.client.getNumBodies())
+        assert [k for k in range(64) if pybullet.isConnected(k)] == sorted(servers + [engine.scenery.client._client])
+    assert counts[1] == counts[-1] == 2 + 2     # the two whiskers, one sheet per scene
+    assert [k for k in range(64) if pybullet.isConnected(k)] == servers       # closed with the engine
 
 
 @pytest.mark.parametrize("engine", ["bullet", "mujoco"])

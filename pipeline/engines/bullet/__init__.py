@@ -1,10 +1,10 @@
 """Bullet engine (pybullet): whiskers as Featherstone chains with implicit joint spring-dampers.
 
 Each whisker is one multibody (:mod:`pipeline.engines.bullet.whisker`). Whiskers never touch each
-other, only obstacles, so they are independent systems: the whiskers that
-share a step size form one Bullet world (a pybullet client), run by the template of
-:mod:`pipeline.engines.base`. Each whisker steps at ``engine.dt_s / 2**j`` with j from its first
-mode (:mod:`pipeline.engines.stepping`).
+other, only obstacles, so they are independent systems: the whiskers that share a step size form
+one world, run by the template of :mod:`pipeline.engines.base`, and all the worlds share one
+pybullet server (:mod:`~pipeline.engines.bullet.scenery`). Each whisker steps at
+``engine.dt_s / 2**j`` with j from its first mode (:mod:`pipeline.engines.stepping`).
 
 Integration scheme (one step of size h, per whisker; q, v joint positions and velocities):
 
@@ -60,10 +60,9 @@ axis has crossed a face (which has no thickness) is pushed back out along that f
 normal. Bullet's own solver would see the links' inertia but not the joint springs (base
 moments low, the whisker sinking in: docs/model.md §2).
 
-Obstacle shapes cannot be freed in pybullet (``removeBody`` on a static mesh body fails and
-``removeCollisionShape`` refuses shapes in use), so each world keeps the bodies of every scene
-it has seen and parks those of other scenes far away: memory grows with the number of distinct
-scenes, not of trials.
+Obstacle shapes cannot be freed in pybullet, so the server keeps the bodies of every scene it
+has seen and parks those of other scenes far away (:mod:`~pipeline.engines.bullet.scenery`):
+memory grows with the number of distinct scenes, not of trials.
 
 Point of contact: each touching link's contact points (on the whisker's surface) projected onto the link's axis between its nodes
 (:class:`~pipeline.engines.common.ContactFlags`).

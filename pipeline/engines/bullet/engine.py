@@ -1,115 +1,41 @@
 """The Bullet engine: the template of :mod:`pipeline.engines.base` with a
-:class:`BulletWorld` (one pybullet server) per step size (the scheme: :mod:`pipeline.engines.bullet`).
-Internal units mm–mg–s; results in SI."""
+:class:`BulletWorld` per step size, all in one pybullet server (:mod:`~pipeline.engines.bullet.scenery`;
+the scheme: :mod:`pipeline.engines.bullet`). Internal units mm–mg–s; results in SI."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
-import pybullet as p
 
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import Engine, TrialSetup, World, WorldResult
-from pipeline.engines.bullet.client import BulletClient
 from pipeline.engines.bullet.contact import Contacts, find_contacts
 from pipeline.engines.bullet.plan import BulletPlan, relative_to_head
+from pipeline.engines.bullet.scenery import Obstacle, Scenery
 from pipeline.engines.bullet.multibody import MAX_MULTIBODY_LINKS, quat
 from pipeline.engines.bullet.whisker import BulletWhisker
 from pipeline.engines.common import ContactFlags, implausible, jam_message, node_arc_fractions
-from pipeline.engines.one_sided import OneSidedMesh
 from pipeline.errors import UserError
 from pipeline.model.array import ArrayModel, WhiskerModel
-from pipeline.scenes.obstacles import Box, Cylinder, Scene, TriangleMesh
 
 __all__ = ["BulletEngine"]
 
-PARKED_MM = 1e6          # obstacles of other scenes wait this far away
-
-
-@dataclass
-class _Obstacle:
-    body: int
-    start_mm: np.ndarray
-    velocity_mm_s: np.ndarray
-    mesh: OneSidedMesh | None       # a triangle mesh's faces (module docstring)
-
-
-def _cylinder_shape(client: BulletClient, peg: Cylinder) -> int:
-    return client.createCollisionShape(p.GEOM_CYLINDER, radius=peg.radius_m * U.LENGTH,
-                                  height=peg.length_m * U.LENGTH)
-
-
-def _box_shape(client: BulletClient, box: Box) -> int:
-    return client.createCollisionShape(p.GEOM_BOX,
-                                  halfExtents=[v * U.LENGTH for v in box.half_extents_m])
-
-
-def _mesh_shape(client: BulletClient, mesh: TriangleMesh) -> int:
-    vertices = mesh.vertices_m * U.LENGTH
-    try:
-        return client.createCollisionShape(p.GEOM_MESH, vertices=vertices.tolist(),
-                                      indices=mesh.faces.astype(int).ravel().tolist())
-    except (p.error, SystemError) as exc:   # beyond 131 072 vertices or 524 288 indices
-        raise UserError(f"{mesh.source}: pybullet cannot take this mesh ({len(vertices)} vertices, "
-                        f"{len(mesh.faces)} triangles): {' '.join(str(exc).split())}") from None
-
-
-SHAPES = {Cylinder: _cylinder_shape, Box: _box_shape, TriangleMesh: _mesh_shape}
-
 
 class BulletWorld(World):
-    """One pybullet client stepping some whiskers at one step size ``dt_s`` (no native gravity:
-    gravity is a load)."""
+    """Some whiskers stepping at one step size ``dt_s`` in a pybullet server: ``scenery``'s,
+    shared with the engine's other worlds, or its own when None (closed with the world)."""
 
-    def __init__(self, whiskers: list[WhiskerModel], config: EngineConfig, dt_s: float):
+    def __init__(self, whiskers: list[WhiskerModel], config: EngineConfig, dt_s: float,
+                 scenery: Scenery | None = None):
         super().__init__(whiskers, config, dt_s)
-        self.client = BulletClient()
-        self.client.setPhysicsEngineParameter(fixedTimeStep=dt_s, numSubSteps=0, deterministicOverlappingPairs=1)
-        self.client.setGravity(0, 0, 0)
+        self._own_scenery = scenery is None
+        self.scenery = Scenery() if scenery is None else scenery
+        self.client = self.scenery.client
         self.bodies = [BulletWhisker(self.client, w, built=False) for w in whiskers]
-        self._scenes: dict[str, list[_Obstacle]] = {}
-        self._scene_key: str | None = None
-
-    # -- scene ---------------------------------------------------------------------------
-    def _without_bullet_contact(self, body: int, links) -> None:
-        """Bullet's solver never sees a contact (collision masks 0): contacts are found and solved
-        in the implicit step (:mod:`pipeline.engines.bullet.contact`)."""
-        for link in links:
-            self.client.setCollisionFilterGroupMask(body, link, 0, 0)
 
     @property
-    def obstacles(self) -> list[_Obstacle]:
-        return self._scenes.get(self._scene_key, [])
-
-    def set_scene(self, scene: Scene) -> None:
-        """Make ``scene`` the active one (built on first use, kept for later trials)."""
-        if scene.key == self._scene_key:
-            return
-        self._place_obstacles(0.0, far=True)
-        if scene.key not in self._scenes:
-            built = []
-            for obstacle in scene.obstacles:
-                shape = SHAPES[type(obstacle)](self.client, obstacle)
-                start = np.asarray(obstacle.position_m, float) * U.LENGTH
-                body = self.client.createMultiBody(0.0, shape, -1, (start + PARKED_MM).tolist(), quat(obstacle.rotation))
-                self._without_bullet_contact(body, [-1])
-                built.append(_Obstacle(body, start, np.asarray(obstacle.velocity_m_s, float) * U.LENGTH,
-                                       OneSidedMesh(obstacle) if isinstance(obstacle, TriangleMesh) else None))
-            self._scenes[scene.key] = built
-        self._scene_key = scene.key
-
-    def _contact_obstacles(self, t: float) -> list[tuple]:
-        """The obstacles of the implicit contact at time t, as :func:`find_contacts` takes them."""
-        return [(o.body, o.velocity_mm_s, o.mesh, o.start_mm + o.velocity_mm_s * t) for o in self.obstacles]
-
-    def _place_obstacles(self, t: float, far: bool = False) -> None:
-        for obstacle in self.obstacles:
-            if far or obstacle.velocity_mm_s.any() or t == 0.0:
-                position = obstacle.start_mm + obstacle.velocity_mm_s * t + (PARKED_MM if far else 0.0)
-                orientation = self.client.getBasePositionAndOrientation(obstacle.body)[1]
-                self.client.resetBasePositionAndOrientation(obstacle.body, position.tolist(), orientation)
+    def obstacles(self) -> list[Obstacle]:
+        return self.scenery.obstacles
 
     # -- trial ---------------------------------------------------------------------------
     def _reset(self, setup: TrialSetup, active: np.ndarray) -> None:
@@ -127,10 +53,10 @@ class BulletWorld(World):
             if active[k]:
                 if w.body is None:
                     w.build()
-                    self._without_bullet_contact(w.body, w.whisker_links)
+                    self.scenery.without_bullet_contact(w.body, w.whisker_links)
                 w.reset((position + rotation @ w.model.base_point_m) * U.LENGTH, orientation,
                         setup.drive, self.dt_s, setup.initial[k], setup.initial_rates[k])
-        self._place_obstacles(0.0)
+        self.scenery.place(0.0)
 
     def _place_head(self, whiskers, position_m: np.ndarray, rotation: np.ndarray) -> None:
         """The bases of ``whiskers`` (indices) where a head at ``position_m`` (m), ``rotation`` has them."""
@@ -157,7 +83,7 @@ class BulletWorld(World):
         interval before asking for the next sample (:mod:`pipeline.engines.session`).
         ``travel_m`` is not needed: every whisker looks for contacts with every obstacle."""
         c, h, config = self.client, self.dt_s, self.config
-        self.set_scene(setup.scene)
+        self.scenery.set_scene(setup.scene)
         self._reset(setup, active)
         n_w = len(self.bodies)
         flags = ContactFlags(node_arc_fractions(self.whiskers))
@@ -167,7 +93,7 @@ class BulletWorld(World):
         spp = self.steps_per_sample
         n_steps = setup.samples * spp + 1                # + the step whose start is the last sample
         plan = BulletPlan(setup, n_steps, h, n_w)
-        obstacles = self._contact_obstacles(0.0)
+        obstacles = self.scenery.contact_obstacles(0.0)
         loads, head = setup.loads, setup.head
         yield plan
         for step in range(n_steps):
@@ -178,8 +104,8 @@ class BulletWorld(World):
                     result.nodes[sample - 1, k] = self.bodies[k].node_positions()
                 result.contact[sample - 1], result.point_of_contact[sample - 1] = flags.take()
             if moving:                                   # contacts with where obstacles will be
-                self._place_obstacles((step + 1) * h)
-                obstacles = self._contact_obstacles((step + 1) * h)
+                self.scenery.place((step + 1) * h)
+                obstacles = self.scenery.contact_obstacles((step + 1) * h)
             twist = None
             if head is not None and (step == 0 or plan.moves(step)):     # ... and where the head will be
                 self._place_head(running, plan.head_position_m[step], plan.head_rotation[step])
@@ -225,15 +151,19 @@ class BulletWorld(World):
                       segments[:, 0], segments[:, 1])
 
     def close(self) -> None:
-        if self.client is not None:
-            self.client.close()
-        self.client = None
+        """Close its own server; a shared one is the engine's to close."""
+        if self._own_scenery:
+            self.scenery.close()
 
 
 class BulletEngine(Engine):
     """The WHISKiT model on Bullet (see the module docstring for the scheme)."""
 
     name = "bullet"
+
+    def __init__(self, array: ArrayModel, config: EngineConfig, levels: np.ndarray | None = None):
+        self.scenery: Scenery | None = None         # the worlds' one server, made with the first
+        super().__init__(array, config, levels)
 
     @classmethod
     def check(cls, array: ArrayModel) -> None:
@@ -248,4 +178,18 @@ class BulletEngine(Engine):
                                 f"Bullet links, at most {MAX_MULTIBODY_LINKS}; use fewer links or engine mujoco")
 
     def make_world(self, whiskers: list[WhiskerModel], dt_s: float) -> BulletWorld:
-        return BulletWorld(whiskers, self.config, dt_s)
+        """A world in the server all the engine's worlds share (:mod:`~pipeline.engines.bullet.scenery`)."""
+        if self.scenery is None:
+            self.scenery = Scenery()
+        return BulletWorld(whiskers, self.config, dt_s, self.scenery)
+
+    def make_alone_world(self, whisker: WhiskerModel, dt_s: float) -> BulletWorld:
+        """A jammed whisker's world, in a server of its own: closing it frees its multibody and
+        shapes, which a shared server could not (:mod:`~pipeline.engines.bullet.scenery`)."""
+        return BulletWorld([whisker], self.config, dt_s)
+
+    def close(self) -> None:
+        super().close()
+        if self.scenery is not None:
+            self.scenery.close()
+        self.scenery = None
