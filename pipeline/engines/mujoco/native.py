@@ -99,7 +99,8 @@ def layout() -> Layout:
     flags_at = _changed_word(_int32_view(m._address, option // 4 + 64),
                              lambda v: setattr(m.opt, "disableflags", v))
     m.opt.disableflags = flags
-    from mujoco.introspect import structs      # here, not at the top: 15 ms, only scan worlds need it
+    # imported here, not at the top: 15 ms, and only scan worlds need it
+    from mujoco.introspect import structs
 
     names = [field.name for field in structs.STRUCTS["mjData"].fields]
     pointer = names.index("contact") - names.index("buffer")
