@@ -35,18 +35,18 @@ def _pair_matrices() -> np.ndarray:
 
 def com_hessian(lin: LinearWhisker) -> np.ndarray:
     """[L, n, n, 3] ∂²c_l/∂q_i∂q_j at rest (m per rad²) of the links' centres of mass: for the
-    joints lo ≤ hi of the pair, a_lo × (a_hi × (c − o_hi)) (module docstring). Not cached: its
-    two users cache what they derive from it (≈ 0.4 MB per whisker of the model rat, 22 MB for
-    the array, that a worker would otherwise hold twice; docs/scaling.md, issue 26, session 21)."""
-    chain, layout = lin.physics.chain, lin.dofs
-    _, com, _ = link_frames(chain)
-    links = np.arange(chain.links)
-    n = layout.n
-    lo, hi = np.minimum.outer(np.arange(n), np.arange(n)), np.maximum.outer(np.arange(n), np.arange(n))
-    arm = com[:, None, None, :] - layout.pivots[hi][None]                  # [L, n, n, 3]
-    second = np.cross(layout.axes[lo][None], np.cross(layout.axes[hi][None], arm))
-    active = layout.first_link[None, :] <= links[:, None]                   # [L, n]
-    return second * (active[:, :, None] & active[:, None, :])[..., None]
+    joints lo ≤ hi of the pair, a_lo × (a_hi × (c − o_hi)) (module docstring); cached on ``lin``."""
+    if "com_hessian" not in lin.cache:
+        chain, layout = lin.physics.chain, lin.dofs
+        _, com, _ = link_frames(chain)
+        links = np.arange(chain.links)
+        n = layout.n
+        lo, hi = np.minimum.outer(np.arange(n), np.arange(n)), np.maximum.outer(np.arange(n), np.arange(n))
+        arm = com[:, None, None, :] - layout.pivots[hi][None]                  # [L, n, n, 3]
+        second = np.cross(layout.axes[lo][None], np.cross(layout.axes[hi][None], arm))
+        active = layout.first_link[None, :] <= links[:, None]                   # [L, n]
+        lin.cache["com_hessian"] = second * (active[:, :, None] & active[:, None, :])[..., None]
+    return lin.cache["com_hessian"]
 
 
 def rotating_matrices(lin: LinearWhisker) -> tuple[np.ndarray, np.ndarray]:
