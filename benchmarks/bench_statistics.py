@@ -50,11 +50,12 @@ from pipeline.config.simulate import SimulateConfig
 from pipeline.runner.scenes import scene_catalogue
 from pipeline.runner.simulate import _layout
 from pipeline.runner.trial import RunSpec, Simulator
+from statistics_ensemble import (PATH_FIELDS, PERTURBATIONS, MemberWhisking, compare_ensembles, ensemble_report,
+                                 member_friction, paired_summary, relative)
 
 REPO = Path(__file__).resolve().parents[1]
 HALF_STEP = {"dt_s": 5e-5, "f1_tolerance": 0.005}
 QUARTER_STEP = {"dt_s": 2.5e-5, "f1_tolerance": 0.0025}
-BOOTSTRAP_DRAWS = 2000      # resamplings of the pairs for the P90's 90 % interval
 TIP_SEGMENT = {"tip_segment": {}}
 VARIANTS = {"default": {}, "half": {"model": {"engine": HALF_STEP}},
             "quarter": {"model": {"engine": QUARTER_STEP}},
@@ -85,29 +86,43 @@ def trial_table(arrays: dict[str, np.ndarray], samples: int) -> dict[str, np.nda
             "poc_at_peak": np.where(touched, poc[peak, columns], np.nan)}
 
 
-def run_variant(name: str, trials: list[int], cache: Path | None, meshes: Path) -> dict[str, np.ndarray]:
-    """[trials, W] of every FIELD for variant ``name`` (and ``cpu_s`` per trial)."""
-    path = cache / f"{name}_{trials[0]}-{trials[-1]}.npz" if cache else None
+def run_variant(name: str, trials: list[int], cache: Path | None, meshes: Path, perturbation: str = "pose",
+                member: int = 0) -> dict[str, np.ndarray]:
+    """[trials, W] of every FIELD for variant ``name`` (and ``cpu_s`` per trial, each whisker's path
+    flags, the trials' scenes, the whiskers' names and arc lengths), as ensemble ``member`` of
+    ``perturbation`` (benchmarks/statistics_ensemble.py; member 0: unperturbed)."""
+    label = name if member == 0 else f"{name}_{perturbation}{member}"
+    path = cache / f"{label}_{trials[0]}-{trials[-1]}.npz" if cache else None
     if path is not None and path.is_file():
         return dict(np.load(path))
     config, _ = load_config(SimulateConfig, REPO / "configs" / "simulate.yaml", env_prefix="PIPELINE_SIMULATE_",
                             overrides=VARIANTS[name] | {"scenes": {"folder": str(meshes)}})
+    if perturbation == "mu" and member:
+        engine = config.model.engine.model_copy(
+            update={"contact_friction": member_friction(config.model.engine.contact_friction, member)})
+        config = config.model_copy(update={"model": config.model.model_copy(update={"engine": engine})})
     simulator = Simulator(RunSpec(config, scene_catalogue(config.scenes), _layout(config)))
+    simulator.whisking = MemberWhisking(simulator.whisking, member, move_pose=perturbation == "pose")
+    whiskers = len(config_whiskers(simulator))
     rows, cpu = [], []
     for index in trials:
         start = time.process_time()
         result = simulator.run(index)
         cpu.append(time.process_time() - start)
         if result.arrays is None:           # a failed trial: compared as touching nothing, counted
-            print(f"  {name}: trial {index} failed: {result.record.error}", flush=True)
-            rows.append({f: np.full(len(config_whiskers(simulator)), np.nan) for f in FIELDS[1:]}
-                        | {"touched": np.zeros(len(config_whiskers(simulator)), bool), "failed": True})
+            print(f"  {label}: trial {index} failed: {result.record.error}", flush=True)
+            rows.append({f: np.full(whiskers, np.nan) for f in FIELDS[1:]} | {"touched": np.zeros(whiskers, bool)}
+                        | {f: np.zeros(whiskers, bool) for f in PATH_FIELDS} | {"failed": True})
             continue
-        rows.append(trial_table(result.arrays, result.record.samples) | {"failed": False})
-        print(f"  {name}: trial {index} {cpu[-1]:.1f} CPU-s, {int(rows[-1]['touched'].sum())} whiskers touched",
+        rows.append(trial_table(result.arrays, result.record.samples) | simulator.whisking.paths | {"failed": False})
+        print(f"  {label}: trial {index} {cpu[-1]:.1f} CPU-s, {int(rows[-1]['touched'].sum())} whiskers touched",
               flush=True)
-    table = {f: np.array([r[f] for r in rows]) for f in FIELDS} | {"cpu_s": np.array(cpu),
-                                                                    "failed": np.array([r["failed"] for r in rows])}
+    simulator.close()
+    table = {f: np.array([r[f] for r in rows]) for f in FIELDS + PATH_FIELDS} | {
+        "cpu_s": np.array(cpu), "failed": np.array([r["failed"] for r in rows]),
+        "scene": np.array([simulator.spec.scenes[i % len(simulator.spec.scenes)].name for i in trials]),
+        "whisker": np.array(config_whiskers(simulator)).astype(str),
+        "arc_length_m": simulator.spec.layout.whiskers["arc_length_m"]}
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez(path, **table)
@@ -119,17 +134,13 @@ def config_whiskers(simulator: Simulator) -> list[str]:
     return list(simulator.spec.layout.whiskers["name"])
 
 
-def relative(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return b / a - 1.0
-
-
 def compare(base: dict[str, np.ndarray], other: dict[str, np.ndarray]) -> dict[str, float]:
     """The statistics of the module docstring, ``other`` against ``base``."""
     def failed(table):
         return np.asarray(table.get("failed", np.zeros(len(table["touched"]), bool)), bool)
 
     ok = ~(failed(base) | failed(other))                                # trials both finished
-    base, other = ({k: v[ok] for k, v in t.items() if k != "failed"} for t in (base, other))
+    base, other = ({k: t[k][ok] for k in FIELDS + ("cpu_s",)} for t in (base, other))
     both = base["touched"] & other["touched"]
     either = base["touched"] | other["touched"]
     out = {"pairs_touched_both": int(both.sum()), "pairs_touched_one_only": int((either & ~both).sum()),
@@ -140,15 +151,8 @@ def compare(base: dict[str, np.ndarray], other: dict[str, np.ndarray]) -> dict[s
     duration = np.abs(other["duration"][both] - base["duration"][both]) / base["duration"][both]
     out |= {"duration_median_abs_rel": float(np.median(duration)),
             "duration_p90_abs_rel": float(np.percentile(duration, 90))}
-    draws = np.random.default_rng(0).integers(0, both.sum(), (BOOTSTRAP_DRAWS, both.sum()))
     for field in ("peak_moment", "peak_transverse"):
-        d = relative(base[field][both], other[field][both])
-        low, high = np.percentile(np.percentile(np.abs(d)[draws], 90, axis=1), [5, 95])
-        out |= {f"{field}_median_abs_rel": float(np.median(np.abs(d))),
-                f"{field}_p90_abs_rel": float(np.percentile(np.abs(d), 90)),
-                f"{field}_p90_low": float(low), f"{field}_p90_high": float(high),
-                f"{field}_median_rel": float(np.median(d)),
-                f"{field}_share_above_20pct": float(np.mean(np.abs(d) > 0.2))}
+        out |= paired_summary(relative(base, other, field, both), f"{field}_")
     out["poc_at_peak_median_abs"] = float(np.nanmedian(np.abs(other["poc_at_peak"][both] - base["poc_at_peak"][both])))
     for field in ("peak_moment", "peak_transverse", "duration", "poc_at_peak"):
         a, b = base[field][base["touched"]], other[field][other["touched"]]
@@ -185,17 +189,31 @@ def main() -> None:
     parser.add_argument("--base", default="default", choices=list(VARIANTS), help="the variant compared against")
     parser.add_argument("--cache", type=Path, default=None, help="folder for each variant's per-pair table")
     parser.add_argument("--meshes", type=Path, default=REPO / "outputs" / "meshes", help="folder of built meshes")
+    parser.add_argument("--ensemble", type=int, default=1,
+                        help="members per variant (K ≥ 2: benchmarks/statistics_ensemble.py's statistics too)")
+    parser.add_argument("--perturbation", default="pose", choices=PERTURBATIONS, help="what the members perturb")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
     first, last = map(int, args.trials.split("-"))
     trials = list(range(first, last + 1))
-    base = run_variant(args.base, trials, args.cache, args.meshes)
+    if args.ensemble < 1:
+        parser.exit(2, "error: --ensemble must be ≥ 1\n")
+
+    def ensemble(name):
+        return [run_variant(name, trials, args.cache, args.meshes, args.perturbation, m) for m in range(args.ensemble)]
+
+    base = ensemble(args.base)
     results = {}
     for name in args.variants.split(","):
-        results[name] = compare(base, run_variant(name, trials, args.cache, args.meshes))
+        other = ensemble(name)
+        results[name] = compare(base[0], other[0])
         print(report(args.base, name, results[name]), flush=True)
+        if args.ensemble > 1:
+            results[name] |= {"ensemble": compare_ensembles(base, other)}
+            print(ensemble_report(args.base, name, results[name]["ensemble"], base[0], trials), flush=True)
     if args.json:
-        args.json.write_text(json.dumps({"trials": args.trials, "base": args.base, "comparisons": results}, indent=1))
+        args.json.write_text(json.dumps({"trials": args.trials, "base": args.base, "ensemble": args.ensemble,
+                                         "perturbation": args.perturbation, "comparisons": results}, indent=1))
 
 
 if __name__ == "__main__":

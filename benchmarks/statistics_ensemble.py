@@ -1,0 +1,221 @@
+"""Ensembles for benchmarks/bench_statistics.py: every variant run K times with perturbations far
+below anything a user can specify or measure, the same K perturbations for every variant, and the
+statistics that tell a pair's sensitivity to any perturbation apart from the effect of a variant
+(the step halved, the other engine).
+
+Perturbations (member 0 is always the unperturbed trial, so member 0 against member 0 is the
+benchmark's literal statistic):
+
+- ``pose``: the head pose of member m ≥ 1 is moved by ``POSE_SHIFT_M`` (1 µm) along a random
+  direction and turned by ``POSE_TURN_RAD`` (1 µrad) about a random axis through the head origin
+  (world frame), both drawn from ``numpy.random.default_rng([POSE_SEED, m])``. The scans' surface
+  error is 0.42–0.58 mm and a tracked head's error is tens of µm or more, so no user can tell the
+  members' poses apart; 1 µrad turns a 50 mm whisker's tip by 0.05 µm. The pose sampler still
+  draws the trial's pose from the unperturbed stream; only the engine sees the moved pose.
+- ``mu``: the whisker–object friction coefficient of member m is μ·(1 + m·``FRICTION_STEP``)
+  (10⁻⁶: no friction coefficient is known to better than a few per cent).
+
+Per (trial, whisker) pair touched in every member of the ensembles compared, of peak |M| and
+peak |F_t|: the ensemble's relative spread (range / median and median absolute deviation / median
+over the members); the paired |relative difference| between two members of the same step (the
+within-ensemble floor); the |relative difference| of the two variants' ensemble medians and its
+floor, the same difference between the two halves of one ensemble.
+"""
+
+from __future__ import annotations
+
+from itertools import combinations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from pipeline.model.kinematics import Pose
+from pipeline.model.rotations import yaw_pitch_roll
+
+POSE_SHIFT_M = 1e-6
+POSE_TURN_RAD = 1e-6
+POSE_SEED = 24
+FRICTION_STEP = 1e-6
+PERTURBATIONS = ("pose", "mu")
+BOOTSTRAP_DRAWS = 2000      # resamplings of the pairs for the P90's 90 % interval
+SENSITIVE = 0.05            # a pair whose ensemble spread of a peak exceeds this is listed apart
+PATH_FIELDS = ("coarse", "refined", "at_rest")
+
+
+def member_pose(pose: Pose, member: int, shift_m: float = POSE_SHIFT_M, turn_rad: float = POSE_TURN_RAD) -> Pose:
+    """``pose`` moved by ``shift_m`` (m) and turned by ``turn_rad`` (rad) about an axis through its
+    origin, both directions random (seeded by ``member``); member 0: ``pose`` itself."""
+    if member == 0:
+        return pose
+    rng = np.random.default_rng([POSE_SEED, member])
+    direction, axis = (v / np.linalg.norm(v) for v in rng.standard_normal((2, 3)))
+    turned = Rotation.from_rotvec(turn_rad * axis).as_matrix() @ pose.rotation
+    return Pose(tuple(np.asarray(pose.position_m) + shift_m * direction), yaw_pitch_roll(turned))
+
+
+def member_friction(mu: float, member: int) -> float:
+    """The friction coefficient of ``member`` for a configured ``mu``: μ·(1 + member·10⁻⁶)."""
+    return mu * (1.0 + member * FRICTION_STEP)
+
+
+class MemberWhisking:
+    """A :class:`~pipeline.protocols.whisking.Whisking` whose trials run at ``member``'s pose
+    (``pose`` perturbation) and which keeps, of its last trial, each whisker's path: ``coarse``
+    (the cheap free path), ``refined`` (taken again alone at a finer step after a jam),
+    ``at_rest`` (started from rest: its quasi-steady shape would pass through the scene)."""
+
+    def __init__(self, whisking, member: int, move_pose: bool):
+        self.whisking, self.member, self.move_pose = whisking, member, move_pose
+        self.paths: dict[str, np.ndarray] = {}
+
+    def run(self, scene, pose: Pose, drive, duration_s: float, head_motion=None):
+        if head_motion is not None:
+            raise ValueError("the ensembles need a still head (head_motion: none)")
+        pose = member_pose(pose, self.member) if self.move_pose else pose
+        output = self.whisking.run(scene, pose, drive, duration_s)
+        names, meta = list(output.whisker_names), output.metadata
+        angles, rates = self.whisking.engine._drive_start(scene, pose, drive)
+        self.paths = {"coarse": np.isin(names, meta["coarse_free_whiskers"]),
+                      "refined": np.isin(names, list(meta["jam_refined"])),
+                      "at_rest": np.array([not (np.any(a) or np.any(r)) for a, r in zip(angles, rates)])}
+        return output
+
+    def __getattr__(self, name):
+        return getattr(self.whisking, name)
+
+
+def paired_summary(d: np.ndarray, prefix: str = "") -> dict[str, float]:
+    """Median and P90 of |d| over pairs, the 5–95 % range of the P90 over the pairs resampled with
+    replacement (seeded), the median signed d and the share of pairs with |d| > 5 % and > 20 %."""
+    d = np.asarray(d, float)
+    a = np.abs(d)
+    if a.size == 0:
+        return {f"{prefix}{k}": float("nan") for k in ("median_abs_rel", "p90_abs_rel", "p90_low", "p90_high",
+                                                       "median_rel", "share_above_5pct", "share_above_20pct")}
+    draws = np.random.default_rng(0).integers(0, a.size, (BOOTSTRAP_DRAWS, a.size))
+    low, high = np.percentile(np.percentile(a[draws], 90, axis=1), [5, 95])
+    return {f"{prefix}median_abs_rel": float(np.median(a)), f"{prefix}p90_abs_rel": float(np.percentile(a, 90)),
+            f"{prefix}p90_low": float(low), f"{prefix}p90_high": float(high), f"{prefix}median_rel": float(np.median(d)),
+            f"{prefix}share_above_5pct": float(np.mean(a > 0.05)), f"{prefix}share_above_20pct": float(np.mean(a > 0.2))}
+
+
+def stack(ensemble: list[dict[str, np.ndarray]], field: str) -> np.ndarray:
+    """[K, trials, W] of ``field`` over the members."""
+    return np.stack([member[field] for member in ensemble])
+
+
+def usable(ensemble: list[dict[str, np.ndarray]]) -> np.ndarray:
+    """[trials, W]: pairs touched in every member, on trials no member failed."""
+    failed = stack(ensemble, "failed").any(axis=0)
+    return stack(ensemble, "touched").all(axis=0) & ~failed[:, None]
+
+
+def spread(ensemble: list[dict[str, np.ndarray]], field: str) -> tuple[np.ndarray, np.ndarray]:
+    """[trials, W] relative range (max − min) / median and relative median absolute deviation of
+    ``field`` over the members (NaN where a member did not touch)."""
+    values = stack(ensemble, field)
+    centre = np.median(values, axis=0)
+    return (values.max(axis=0) - values.min(axis=0)) / centre, np.median(np.abs(values - centre), axis=0) / centre
+
+
+def within_floor(ensemble: list[dict[str, np.ndarray]], field: str, mask: np.ndarray) -> np.ndarray:
+    """[member pairs, pairs] relative difference of ``field`` between every two members (i < j) of
+    one ensemble, over the pairs of ``mask``."""
+    values = stack(ensemble, field)[:, mask]
+    return np.array([values[j] / values[i] - 1.0 for i, j in combinations(range(len(ensemble)), 2)])
+
+
+def median_difference(base: list[dict[str, np.ndarray]], other: list[dict[str, np.ndarray]], field: str,
+                      mask: np.ndarray) -> np.ndarray:
+    """[pairs] relative difference of ``other``'s ensemble median of ``field`` from ``base``'s."""
+    return np.median(stack(other, field)[:, mask], axis=0) / np.median(stack(base, field)[:, mask], axis=0) - 1.0
+
+
+def halves(ensemble: list) -> tuple[list, list]:
+    """The first and the second half of the members (the middle one left out if K is odd)."""
+    n = len(ensemble) // 2
+    return ensemble[:n], ensemble[len(ensemble) - n:]
+
+
+def path_changes(ensemble: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """[trials, W] per path flag: whether the members disagree on it."""
+    return {f: stack(ensemble, f).any(axis=0) & ~stack(ensemble, f).all(axis=0) for f in PATH_FIELDS}
+
+
+def compare_ensembles(base: list[dict[str, np.ndarray]], other: list[dict[str, np.ndarray]]) -> dict:
+    """The statistics of the module docstring, ``other`` (a variant) against ``base``, both of K
+    members with the same perturbations. ``*_literal``: member 0 against member 0 (the pairs
+    touched in both); ``*_floor_base``/``*_floor_other``: every two members of one ensemble, pooled;
+    ``*_median_step``: the ensemble medians; ``*_split_step``/``*_split_floor``: the first half of
+    ``base`` against the first half of ``other`` / the second half of ``base``; ``*_stable``: the
+    literal statistic on the pairs whose spread (range / median, ``base``) of both peaks is below
+    ``SENSITIVE``. ``sensitive``: the other pairs touched in member 0 of both."""
+    mask = usable(base) & usable(other)
+    both0 = base[0]["touched"] & other[0]["touched"] & ~(base[0]["failed"] | other[0]["failed"])[:, None]
+    (b1, b2), (o1, _) = halves(base), halves(other)
+    ranges = {f: spread(base, f)[0] for f in ("peak_moment", "peak_transverse")}
+    stable = both0 & mask & np.all([r < SENSITIVE for r in ranges.values()], axis=0)
+    out = {"pairs_all_members": int(mask.sum()), "pairs_member0": int(both0.sum()), "pairs_stable": int(stable.sum()),
+           "members": len(base)}
+    for field in ("peak_moment", "peak_transverse"):
+        rng, mad = spread(base, field)
+        out |= paired_summary(rng[mask], f"{field}_spread_range_") | paired_summary(mad[mask], f"{field}_spread_mad_")
+        out |= paired_summary(relative(base[0], other[0], field, both0), f"{field}_literal_")
+        out |= paired_summary(within_floor(base, field, mask).ravel(), f"{field}_floor_base_")
+        out |= paired_summary(within_floor(other, field, mask).ravel(), f"{field}_floor_other_")
+        out |= paired_summary(within_floor(base, field, mask)[0], f"{field}_floor01_")
+        out |= paired_summary(median_difference(base, other, field, mask), f"{field}_median_step_")
+        out |= paired_summary(median_difference(b1, o1, field, mask), f"{field}_split_step_")
+        out |= paired_summary(median_difference(b1, b2, field, mask), f"{field}_split_floor_")
+        out |= paired_summary(relative(base[0], other[0], field, stable), f"{field}_stable_")
+    out["sensitive"] = np.argwhere(both0 & ~stable).tolist()
+    out["spread_range"] = {f: r.tolist() for f, r in ranges.items()}
+    for name, ensemble in (("base", base), ("other", other)):
+        for flag, changed in path_changes(ensemble).items():
+            out[f"path_{flag}_changes_{name}"] = int(changed.sum())
+            out[f"path_{flag}_changes_touching_{name}"] = int((changed & both0).sum())
+    return out
+
+
+def relative(base: dict[str, np.ndarray], other: dict[str, np.ndarray], field: str, mask: np.ndarray) -> np.ndarray:
+    """[pairs] other / base − 1 of ``field`` over the pairs of ``mask``."""
+    return other[field][mask] / base[field][mask] - 1.0
+
+
+ROWS = (("literal", "a. literal, member 0 vs member 0"),
+        ("floor01", "b. floor, member 0 vs member 1 of the base step"),
+        ("floor_base", "b. floor, every two members of the base, pooled"),
+        ("floor_other", "b. floor, every two members of the variant, pooled"),
+        ("median_step", "c. ensemble medians, variant vs base"),
+        ("split_step", "c. half-ensemble medians, variant vs base (first halves)"),
+        ("split_floor", "c. floor: the base's two half-ensemble medians"),
+        ("stable", "d. literal on the pairs with spread < 5 %"),
+        ("spread_range", "spread over the base's members, range / median"),
+        ("spread_mad", "spread over the base's members, MAD / median"))
+
+
+def ensemble_report(base: str, name: str, stats: dict, table: dict[str, np.ndarray], trials: list[int]) -> str:
+    """The statistics of :func:`compare_ensembles` as a markdown table (median / P90 (5–95 %
+    interval) of |d| per row), the path changes, and the sensitive pairs with their trial,
+    whisker, scene, arc length and spreads (``table``: a member 0 table of the base)."""
+    pct = {k: 100 * v for k, v in stats.items() if isinstance(v, float)}
+
+    def cell(row, field):
+        key = f"{field}_{row}_"
+        return (f"{pct[key + 'median_abs_rel']:.1f} / {pct[key + 'p90_abs_rel']:.1f} % "
+                f"({pct[key + 'p90_low']:.1f}–{pct[key + 'p90_high']:.1f}); "
+                f"{round(stats[key + 'share_above_5pct'] * 100)} % > 5 %")
+
+    lines = [f"{base} vs {name}, ensembles of {stats['members']}: {stats['pairs_all_members']} pairs touched in every "
+             f"member of both, {stats['pairs_member0']} in member 0 of both, {stats['pairs_stable']} with spread < 5 %",
+             "| statistic | peak \\|M\\| median / P90 (interval) | peak F_t median / P90 (interval) |", "|---|---|---|"]
+    lines += [f"| {label} | {cell(row, 'peak_moment')} | {cell(row, 'peak_transverse')} |" for row, label in ROWS]
+    lines.append("  path changes between members (all pairs / touching pairs), base; variant: " + ", ".join(
+        f"{f} {stats[f'path_{f}_changes_base']}/{stats[f'path_{f}_changes_touching_base']}; "
+        f"{stats[f'path_{f}_changes_other']}/{stats[f'path_{f}_changes_touching_other']}" for f in PATH_FIELDS))
+    lines.append("  sensitive pairs (trial, whisker, scene, S mm, spread |M| / F_t over the base's members):")
+    for t, w in stats["sensitive"]:
+        m, f = (stats["spread_range"][k][t][w] for k in ("peak_moment", "peak_transverse"))
+        lines.append(f"    {trials[t]} {table['whisker'][w]} {table['scene'][t]} {1e3 * table['arc_length_m'][w]:.1f} "
+                     f"{100 * m:.1f} / {100 * f:.1f} %")
+    return "\n".join(lines)
