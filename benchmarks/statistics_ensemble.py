@@ -40,6 +40,7 @@ PERTURBATIONS = ("pose", "mu")
 BOOTSTRAP_DRAWS = 2000      # resamplings of the pairs for the P90's 90 % interval
 SENSITIVE = 0.05            # a pair whose ensemble spread of a peak exceeds this is listed apart
 PATH_FIELDS = ("coarse", "refined", "at_rest")
+PEAKS = ("peak_moment", "peak_transverse")
 
 
 def member_pose(pose: Pose, member: int, shift_m: float = POSE_SHIFT_M, turn_rad: float = POSE_TURN_RAD) -> Pose:
@@ -131,6 +132,14 @@ def median_difference(base: list[dict[str, np.ndarray]], other: list[dict[str, n
     return np.median(stack(other, field)[:, mask], axis=0) / np.median(stack(base, field)[:, mask], axis=0) - 1.0
 
 
+def separated(base: list[dict[str, np.ndarray]], other: list[dict[str, np.ndarray]], field: str) -> np.ndarray:
+    """[trials, W] whether the two ensembles' values of ``field`` do not overlap (every member of
+    one above every member of the other): for K = 4 against 4 drawn from one distribution, a
+    chance of 2 in 70 per pair."""
+    a, b = stack(base, field), stack(other, field)
+    return (a.max(axis=0) < b.min(axis=0)) | (b.max(axis=0) < a.min(axis=0))
+
+
 def halves(ensemble: list) -> tuple[list, list]:
     """The first and the second half of the members (the middle one left out if K is odd)."""
     n = len(ensemble) // 2
@@ -149,25 +158,34 @@ def compare_ensembles(base: list[dict[str, np.ndarray]], other: list[dict[str, n
     ``*_median_step``: the ensemble medians; ``*_split_step``/``*_split_floor``: the first half of
     ``base`` against the first half of ``other`` / the second half of ``base``; ``*_stable``: the
     literal statistic on the pairs whose spread (range / median, ``base``) of both peaks is below
-    ``SENSITIVE``. ``sensitive``: the other pairs touched in member 0 of both."""
+    ``SENSITIVE``. ``sensitive``: the other pairs touched in member 0 of both. ``*_separated``: the
+    pairs whose two ensembles do not overlap (:func:`separated`); ``*_separated_above_5pct``: those
+    of them whose ensemble medians differ by more than 5 % (trial, whisker indices)."""
     mask = usable(base) & usable(other)
     both0 = base[0]["touched"] & other[0]["touched"] & ~(base[0]["failed"] | other[0]["failed"])[:, None]
     (b1, b2), (o1, _) = halves(base), halves(other)
-    ranges = {f: spread(base, f)[0] for f in ("peak_moment", "peak_transverse")}
+    ranges = {f: spread(base, f)[0] for f in PEAKS}
     stable = both0 & mask & np.all([r < SENSITIVE for r in ranges.values()], axis=0)
     out = {"pairs_all_members": int(mask.sum()), "pairs_member0": int(both0.sum()), "pairs_stable": int(stable.sum()),
            "members": len(base)}
-    for field in ("peak_moment", "peak_transverse"):
+    for field in PEAKS:
         rng, mad = spread(base, field)
-        out |= paired_summary(rng[mask], f"{field}_spread_range_") | paired_summary(mad[mask], f"{field}_spread_mad_")
-        out |= paired_summary(relative(base[0], other[0], field, both0), f"{field}_literal_")
-        out |= paired_summary(within_floor(base, field, mask).ravel(), f"{field}_floor_base_")
-        out |= paired_summary(within_floor(other, field, mask).ravel(), f"{field}_floor_other_")
-        out |= paired_summary(within_floor(base, field, mask)[0], f"{field}_floor01_")
-        out |= paired_summary(median_difference(base, other, field, mask), f"{field}_median_step_")
-        out |= paired_summary(median_difference(b1, o1, field, mask), f"{field}_split_step_")
-        out |= paired_summary(median_difference(b1, b2, field, mask), f"{field}_split_floor_")
-        out |= paired_summary(relative(base[0], other[0], field, stable), f"{field}_stable_")
+        floor = within_floor(base, field, mask)
+        step = np.full(mask.shape, np.nan)
+        step[mask] = median_difference(base, other, field, mask)
+        apart = separated(base, other, field) & mask
+        out |= (paired_summary(rng[mask], f"{field}_spread_range_") | paired_summary(mad[mask], f"{field}_spread_mad_")
+                | paired_summary(relative(base[0], other[0], field, both0), f"{field}_literal_")
+                | paired_summary(floor.ravel(), f"{field}_floor_base_") | paired_summary(floor[0], f"{field}_floor01_")
+                | paired_summary(within_floor(other, field, mask).ravel(), f"{field}_floor_other_")
+                | paired_summary(step[mask], f"{field}_median_step_")
+                | paired_summary(median_difference(b1, o1, field, mask), f"{field}_split_step_")
+                | paired_summary(median_difference(b1, b2, field, mask), f"{field}_split_floor_")
+                | paired_summary(relative(base[0], other[0], field, stable), f"{field}_stable_"))
+        out |= {f"{field}_separated": int(apart.sum()),
+                f"{field}_separated_above_5pct": np.argwhere(apart & (np.abs(step) > SENSITIVE)).tolist(),
+                f"{field}_pair_median_step": step.tolist(),
+                f"{field}_pair_literal": (other[0][field] / base[0][field] - 1.0).tolist()}
     out["sensitive"] = np.argwhere(both0 & ~stable).tolist()
     out["spread_range"] = {f: r.tolist() for f, r in ranges.items()}
     for name, ensemble in (("base", base), ("other", other)):
@@ -213,9 +231,20 @@ def ensemble_report(base: str, name: str, stats: dict, table: dict[str, np.ndarr
     lines.append("  path changes between members (all pairs / touching pairs), base; variant: " + ", ".join(
         f"{f} {stats[f'path_{f}_changes_base']}/{stats[f'path_{f}_changes_touching_base']}; "
         f"{stats[f'path_{f}_changes_other']}/{stats[f'path_{f}_changes_touching_other']}" for f in PATH_FIELDS))
-    lines.append("  sensitive pairs (trial, whisker, scene, S mm, spread |M| / F_t over the base's members):")
+    for field, label in zip(PEAKS, ("|M|", "F_t")):
+        lines.append(f"  {label}: {stats[f'{field}_separated']} pairs whose ensembles do not overlap; of them with "
+                     f"ensemble medians > 5 % apart: " + (", ".join(pair_name(t, w, table, trials)
+                                                                   for t, w in stats[f"{field}_separated_above_5pct"]) or "none"))
+    lines.append("  sensitive pairs (trial whisker scene S; spread |M| / F_t over the base's members; F_t literal d, "
+                 "ensemble-median d):")
     for t, w in stats["sensitive"]:
-        m, f = (stats["spread_range"][k][t][w] for k in ("peak_moment", "peak_transverse"))
-        lines.append(f"    {trials[t]} {table['whisker'][w]} {table['scene'][t]} {1e3 * table['arc_length_m'][w]:.1f} "
-                     f"{100 * m:.1f} / {100 * f:.1f} %")
+        m, f = (100 * stats["spread_range"][k][t][w] for k in PEAKS)
+        literal, median = (100 * stats[f"peak_transverse_pair_{k}"][t][w] for k in ("literal", "median_step"))
+        lines.append(f"    {pair_name(t, w, table, trials)}; {m:.1f} / {f:.1f} %; {literal:+.1f} %, {median:+.1f} %")
     return "\n".join(lines)
+
+
+def pair_name(t: int, w: int, table: dict[str, np.ndarray], trials: list[int]) -> str:
+    """'trial whisker scene S mm' of a pair (``table``: a member's table)."""
+    return f"{trials[t]} {table['whisker'][w]} {table['scene'][t].removeprefix('mesh:')} " \
+           f"{1e3 * table['arc_length_m'][w]:.1f} mm"

@@ -131,3 +131,25 @@ def test_path_changes_flag_the_pairs_on_which_members_disagree():
     changes = ens.path_changes(a)
     assert changes["refined"].sum() == 1 and changes["refined"][0, 1]
     assert not changes["coarse"].any()
+
+
+def test_separated_pairs_are_those_whose_ensembles_do_not_overlap():
+    base = ensemble(4, 5, scale=0.01)
+    other = [member(m["peak_moment"] * 1.2, m["peak_transverse"]) for m in base]     # |M| 20 % up
+    assert ens.separated(base, other, "peak_moment").all()
+    assert not ens.separated(base, other, "peak_transverse").any()            # the same values overlap
+    stats = ens.compare_ensembles(base, other)
+    assert stats["peak_moment_separated"] == TRIALS * WHISKERS == len(stats["peak_moment_separated_above_5pct"])
+    assert stats["peak_transverse_separated"] == 0
+
+
+def test_the_report_names_the_sensitive_pairs():
+    base = ensemble(4, 6)
+    base[1]["peak_moment"] = base[1]["peak_moment"] * np.where(np.arange(WHISKERS) == 4, 1.2, 1.0)
+    table = base[0] | {"whisker": np.array([f"RC{k}" for k in range(WHISKERS)]),
+                       "scene": np.array([f"mesh:rock{t}" for t in range(TRIALS)]),
+                       "arc_length_m": np.linspace(0.01, 0.05, WHISKERS)}
+    stats = ens.compare_ensembles(base, base)
+    text = ens.ensemble_report("default", "half", stats, table, list(range(10, 10 + TRIALS)))
+    assert stats["pairs_stable"] == TRIALS * (WHISKERS - 1)
+    assert "    10 RC4 rock0 50.0 mm; 20.0 / 0.0 %" in text and "    11 RC3" not in text
