@@ -2,7 +2,7 @@
 and on the other engine, compared the way a neuroscientist would plot them.
 
 Run: .venv/bin/python benchmarks/bench_statistics.py [--trials 0-11] [--variants half,bullet]
-     [--base default] [--cache DIR] [--meshes DIR] [--json out.json]
+     [--base default] [--cache DIR] [--meshes DIR] [--json out.json] [--ensemble K --perturbation pose|mu]
 
 The trials are those of configs/simulate.yaml (as `pipeline simulate` draws them: scene, head
 pose, whisk; run `pipeline build-meshes` first; ``--meshes`` another folder of built meshes). Variants: ``default`` (the config), ``half``
@@ -33,6 +33,14 @@ the point of contact at the peak |M| (fraction of S). Each variant is compared w
 The issue's targets (issue 24): peak |M| and |F_t| median |d| ≤ 2 % and P90 ≤ 5 % for ``half``,
 ≤ 5 % and ≤ 15 % for the other engine; contact map and durations as before. With ``--cache``
 each variant's per-pair table is kept (npz) and reused on the next run.
+
+With ``--ensemble K`` (K ≥ 2) every variant is run K times, member m perturbed by ``--perturbation``
+(the head pose by 1 µm and 1 µrad, or μ·(1 + m·10⁻⁶); the same K perturbations for every variant;
+member 0 unperturbed, so the statistics above are member 0's), and benchmarks/statistics_ensemble.py
+reports per pair the members' spread and over pairs the literal statistic, the floor between
+members of one step, the difference of the ensemble medians and its floor, the statistic on the
+pairs whose spread is below 5 %, the sensitive pairs, and whether a perturbation changed a
+whisker's path (cheap free path, jam refinement, start at rest).
 """
 
 from __future__ import annotations
