@@ -5,9 +5,13 @@ import importlib.util
 from pathlib import Path
 
 import numpy as np
+import pytest
 from scipy.spatial.transform import Rotation
 
-from pipeline.model.kinematics import Pose
+from pipeline.config.physics import ModelConfig
+from pipeline.model.kinematics import Pose, sinusoidal_whisk
+from pipeline.protocols.whisking import Whisking
+from pipeline.scenes import empty
 
 _PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "statistics_ensemble.py"
 _SPEC = importlib.util.spec_from_file_location("statistics_ensemble", _PATH)
@@ -153,3 +157,21 @@ def test_the_report_names_the_sensitive_pairs():
     text = ens.ensemble_report("default", "half", stats, table, list(range(10, 10 + TRIALS)))
     assert stats["pairs_stable"] == TRIALS * (WHISKERS - 1)
     assert "    10 RC4 rock0 50.0 mm; 20.0 / 0.0 %" in text and "    11 RC3" not in text
+
+
+@pytest.mark.slow
+def test_a_member_s_pose_reaches_the_engine_and_its_paths_are_kept():
+    """Member 1 of ``pose`` runs the engine at a head pose 1 µm away: every node of a whisker
+    sweeping free moves by about that much (less than 1 µm + 1 µrad × 60 mm), member 0 by nothing."""
+    drive, pose = sinusoidal_whisk(8.0, 30.0, 10.0, 0.02), Pose((0.001, 0.002, 0.0), (0.3, 0.1, -0.2))
+    with Whisking(ModelConfig(whiskers="RC1,RC2")) as whisking:
+        nodes = []
+        for m in (0, 1):
+            member_whisking = ens.MemberWhisking(whisking, m, move_pose=True)
+            nodes.append(member_whisking.run(empty(), pose, drive, 0.02).node_positions_m.astype(float))
+            assert set(member_whisking.paths) == set(ens.PATH_FIELDS)
+            assert all(flags.shape == (2,) for flags in member_whisking.paths.values())
+        again = ens.MemberWhisking(whisking, 0, move_pose=True).run(empty(), pose, drive, 0.02)
+    moved = np.linalg.norm(nodes[1] - nodes[0], axis=-1)
+    assert np.array_equal(again.node_positions_m, nodes[0].astype(np.float32))
+    assert 0.5e-6 < np.median(moved) and moved.max() < 1.2e-6
