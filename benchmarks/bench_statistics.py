@@ -97,11 +97,11 @@ def trial_table(arrays: dict[str, np.ndarray], samples: int) -> dict[str, np.nda
 
 
 def run_variant(name: str, trials: list[int], cache: Path | None, meshes: Path, perturbation: str = "pose",
-                member: int = 0) -> dict[str, np.ndarray]:
+                member: int = 0, scale: float = 1.0) -> dict[str, np.ndarray]:
     """[trials, W] of every FIELD for variant ``name`` (and ``cpu_s`` per trial, each whisker's path
     flags, the trials' scenes, the whiskers' names and arc lengths), as ensemble ``member`` of
-    ``perturbation`` (benchmarks/statistics_ensemble.py; member 0: unperturbed)."""
-    label = name if member == 0 else f"{name}_{perturbation}{member}"
+    ``perturbation`` at ``scale`` (benchmarks/statistics_ensemble.py; member 0: unperturbed)."""
+    label = name if member == 0 else f"{name}_{perturbation}{member}" + ("" if scale == 1 else f"x{scale:g}")
     path = cache / f"{label}_{trials[0]}-{trials[-1]}.npz" if cache else None
     if path is not None and path.is_file():
         return dict(np.load(path))
@@ -109,10 +109,10 @@ def run_variant(name: str, trials: list[int], cache: Path | None, meshes: Path, 
                             overrides=VARIANTS[name] | {"scenes": {"folder": str(meshes)}})
     if perturbation == "mu" and member:
         engine = config.model.engine.model_copy(
-            update={"contact_friction": member_friction(config.model.engine.contact_friction, member)})
+            update={"contact_friction": member_friction(config.model.engine.contact_friction, member, scale)})
         config = config.model_copy(update={"model": config.model.model_copy(update={"engine": engine})})
     simulator = Simulator(RunSpec(config, scene_catalogue(config.scenes), _layout(config)))
-    simulator.whisking = MemberWhisking(simulator.whisking, member, move_pose=perturbation == "pose")
+    simulator.whisking = MemberWhisking(simulator.whisking, member, scale if perturbation == "pose" else 0.0)
     whiskers = len(config_whiskers(simulator))
     rows, cpu = [], []
     for index in trials:
@@ -202,15 +202,18 @@ def main() -> None:
     parser.add_argument("--ensemble", type=int, default=1,
                         help="members per variant (K ≥ 2: benchmarks/statistics_ensemble.py's statistics too)")
     parser.add_argument("--perturbation", default="pose", choices=PERTURBATIONS, help="what the members perturb")
+    parser.add_argument("--scale", type=float, default=1.0,
+                        help="multiplies the perturbation (1: 1 µm and 1 µrad, or μ·10⁻⁶ per member)")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
     first, last = map(int, args.trials.split("-"))
     trials = list(range(first, last + 1))
-    if args.ensemble < 1:
-        parser.exit(2, "error: --ensemble must be ≥ 1\n")
+    if args.ensemble < 1 or not args.scale > 0:
+        parser.exit(2, "error: --ensemble must be ≥ 1 and --scale > 0\n")
 
     def ensemble(name):
-        return [run_variant(name, trials, args.cache, args.meshes, args.perturbation, m) for m in range(args.ensemble)]
+        return [run_variant(name, trials, args.cache, args.meshes, args.perturbation, m, args.scale)
+                for m in range(args.ensemble)]
 
     base = ensemble(args.base)
     results = {}
@@ -223,7 +226,7 @@ def main() -> None:
             print(ensemble_report(args.base, name, results[name]["ensemble"], base[0], trials), flush=True)
     if args.json:
         args.json.write_text(json.dumps({"trials": args.trials, "base": args.base, "ensemble": args.ensemble,
-                                         "perturbation": args.perturbation, "comparisons": results}, indent=1))
+                                         "perturbation": args.perturbation, "scale": args.scale, "comparisons": results}, indent=1))
 
 
 if __name__ == "__main__":

@@ -15,6 +15,9 @@ benchmark's literal statistic):
 - ``mu``: the whisker–object friction coefficient of member m is μ·(1 + m·``FRICTION_STEP``)
   (10⁻⁶: no friction coefficient is known to better than a few per cent).
 
+A scale multiplies either (10: 10 µm and 10 µrad, or 10⁻⁵ of μ per member), to see whether the
+members' spread grows with the perturbation.
+
 Per (trial, whisker) pair touched in every member of the ensembles compared, of peak |M| and
 peak |F_t|: the ensemble's relative spread (range / median and median absolute deviation / median
 over the members); the paired |relative difference| between two members of the same step (the
@@ -43,20 +46,21 @@ PATH_FIELDS = ("coarse", "refined", "at_rest")
 PEAKS = ("peak_moment", "peak_transverse")
 
 
-def member_pose(pose: Pose, member: int, shift_m: float = POSE_SHIFT_M, turn_rad: float = POSE_TURN_RAD) -> Pose:
-    """``pose`` moved by ``shift_m`` (m) and turned by ``turn_rad`` (rad) about an axis through its
-    origin, both directions random (seeded by ``member``); member 0: ``pose`` itself."""
-    if member == 0:
+def member_pose(pose: Pose, member: int, scale: float = 1.0) -> Pose:
+    """``pose`` moved by ``scale`` × ``POSE_SHIFT_M`` and turned by ``scale`` × ``POSE_TURN_RAD``
+    about an axis through its origin, both directions random (seeded by ``member``); member 0 or
+    scale 0: ``pose`` itself."""
+    if member == 0 or scale == 0:
         return pose
     rng = np.random.default_rng([POSE_SEED, member])
     direction, axis = (v / np.linalg.norm(v) for v in rng.standard_normal((2, 3)))
-    turned = Rotation.from_rotvec(turn_rad * axis).as_matrix() @ pose.rotation
-    return Pose(tuple(np.asarray(pose.position_m) + shift_m * direction), yaw_pitch_roll(turned))
+    turned = Rotation.from_rotvec(scale * POSE_TURN_RAD * axis).as_matrix() @ pose.rotation
+    return Pose(tuple(np.asarray(pose.position_m) + scale * POSE_SHIFT_M * direction), yaw_pitch_roll(turned))
 
 
-def member_friction(mu: float, member: int) -> float:
-    """The friction coefficient of ``member`` for a configured ``mu``: μ·(1 + member·10⁻⁶)."""
-    return mu * (1.0 + member * FRICTION_STEP)
+def member_friction(mu: float, member: int, scale: float = 1.0) -> float:
+    """The friction coefficient of ``member`` for a configured ``mu``: μ·(1 + member·scale·10⁻⁶)."""
+    return mu * (1.0 + member * scale * FRICTION_STEP)
 
 
 class MemberWhisking:
@@ -65,14 +69,15 @@ class MemberWhisking:
     (the cheap free path), ``refined`` (taken again alone at a finer step after a jam),
     ``at_rest`` (started from rest: its quasi-steady shape would pass through the scene)."""
 
-    def __init__(self, whisking, member: int, move_pose: bool):
-        self.whisking, self.member, self.move_pose = whisking, member, move_pose
+    def __init__(self, whisking, member: int, pose_scale: float):
+        """``pose_scale``: :func:`member_pose`'s scale (0: the pose as given)."""
+        self.whisking, self.member, self.pose_scale = whisking, member, pose_scale
         self.paths: dict[str, np.ndarray] = {}
 
     def run(self, scene, pose: Pose, drive, duration_s: float, head_motion=None):
         if head_motion is not None:
             raise ValueError("the ensembles need a still head (head_motion: none)")
-        pose = member_pose(pose, self.member) if self.move_pose else pose
+        pose = member_pose(pose, self.member, self.pose_scale)
         output = self.whisking.run(scene, pose, drive, duration_s)
         names, meta = list(output.whisker_names), output.metadata
         angles, rates = self.whisking.engine._drive_start(scene, pose, drive)

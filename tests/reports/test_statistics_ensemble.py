@@ -48,11 +48,15 @@ def test_member_zero_is_the_pose_and_the_others_move_by_a_micrometre_and_a_micro
     directions = [np.subtract(p.position_m, pose.position_m) for p in moved]
     assert not np.allclose(directions[0], directions[1])          # each member its own direction
     assert ens.member_pose(pose, 2) == moved[1]                     # seeded by the member index
+    ten = ens.member_pose(pose, 2, scale=10.0)
+    assert np.allclose(np.subtract(ten.position_m, pose.position_m), 10 * directions[1], rtol=1e-6, atol=0)
+    assert ens.member_pose(pose, 2, scale=0.0) is pose
 
 
 def test_member_friction():
     assert ens.member_friction(0.5, 0) == 0.5
     assert np.isclose(ens.member_friction(0.5, 3), 0.5 * (1 + 3e-6), rtol=0, atol=1e-15)
+    assert np.isclose(ens.member_friction(0.5, 3, scale=10.0), 0.5 * (1 + 3e-5), rtol=0, atol=1e-15)
 
 
 def test_spread_is_the_range_and_the_mad_over_the_members_relative_to_their_median():
@@ -167,11 +171,11 @@ def test_a_member_s_pose_reaches_the_engine_and_its_paths_are_kept():
     with Whisking(ModelConfig(whiskers="RC1,RC2")) as whisking:
         nodes = []
         for m in (0, 1):
-            member_whisking = ens.MemberWhisking(whisking, m, move_pose=True)
+            member_whisking = ens.MemberWhisking(whisking, m, pose_scale=1.0)
             nodes.append(member_whisking.run(empty(), pose, drive, 0.02).node_positions_m.astype(float))
             assert set(member_whisking.paths) == set(ens.PATH_FIELDS)
             assert all(flags.shape == (2,) for flags in member_whisking.paths.values())
-        again = ens.MemberWhisking(whisking, 0, move_pose=True).run(empty(), pose, drive, 0.02)
+        again = ens.MemberWhisking(whisking, 0, pose_scale=1.0).run(empty(), pose, drive, 0.02)
     moved = np.linalg.norm(nodes[1] - nodes[0], axis=-1)
     assert np.array_equal(again.node_positions_m, nodes[0].astype(np.float32))
     assert 0.5e-6 < np.median(moved) and moved.max() < 1.2e-6
