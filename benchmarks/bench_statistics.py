@@ -226,7 +226,8 @@ def main() -> None:
             print(ensemble_report(args.base, name, results[name]["ensemble"], base[0], trials), flush=True)
     if args.json:
         args.json.write_text(json.dumps({"trials": args.trials, "base": args.base, "ensemble": args.ensemble,
-                                         "perturbation": args.perturbation, "scale": args.scale, "comparisons": results}, indent=1))
+                                         "perturbation": args.perturbation, "scale": args.scale,
+                                         "comparisons": results}, indent=1))
 
 
 if __name__ == "__main__":

@@ -96,13 +96,12 @@ def paired_summary(d: np.ndarray, prefix: str = "") -> dict[str, float]:
     d = np.asarray(d, float)
     a = np.abs(d)
     if a.size == 0:
-        return {f"{prefix}{k}": float("nan") for k in ("median_abs_rel", "p90_abs_rel", "p90_low", "p90_high",
-                                                       "median_rel", "share_above_5pct", "share_above_20pct")}
+        a = d = np.full(1, np.nan)
     draws = np.random.default_rng(0).integers(0, a.size, (BOOTSTRAP_DRAWS, a.size))
     low, high = np.percentile(np.percentile(a[draws], 90, axis=1), [5, 95])
-    return {f"{prefix}median_abs_rel": float(np.median(a)), f"{prefix}p90_abs_rel": float(np.percentile(a, 90)),
-            f"{prefix}p90_low": float(low), f"{prefix}p90_high": float(high), f"{prefix}median_rel": float(np.median(d)),
-            f"{prefix}share_above_5pct": float(np.mean(a > 0.05)), f"{prefix}share_above_20pct": float(np.mean(a > 0.2))}
+    values = {"median_abs_rel": np.median(a), "p90_abs_rel": np.percentile(a, 90), "p90_low": low, "p90_high": high,
+              "median_rel": np.median(d), "share_above_5pct": np.mean(a > 0.05), "share_above_20pct": np.mean(a > 0.2)}
+    return {f"{prefix}{k}": float(v) for k, v in values.items()}
 
 
 def stack(ensemble: list[dict[str, np.ndarray]], field: str) -> np.ndarray:
@@ -237,9 +236,9 @@ def ensemble_report(base: str, name: str, stats: dict, table: dict[str, np.ndarr
         f"{f} {stats[f'path_{f}_changes_base']}/{stats[f'path_{f}_changes_touching_base']}; "
         f"{stats[f'path_{f}_changes_other']}/{stats[f'path_{f}_changes_touching_other']}" for f in PATH_FIELDS))
     for field, label in zip(PEAKS, ("|M|", "F_t")):
+        apart = ", ".join(pair_name(t, w, table, trials) for t, w in stats[f"{field}_separated_above_5pct"])
         lines.append(f"  {label}: {stats[f'{field}_separated']} pairs whose ensembles do not overlap; of them with "
-                     f"ensemble medians > 5 % apart: " + (", ".join(pair_name(t, w, table, trials)
-                                                                   for t, w in stats[f"{field}_separated_above_5pct"]) or "none"))
+                     f"ensemble medians > 5 % apart: {apart or 'none'}")
     lines.append("  sensitive pairs (trial whisker scene S; spread |M| / F_t over the base's members; F_t literal d, "
                  "ensemble-median d):")
     for t, w in stats["sensitive"]:
