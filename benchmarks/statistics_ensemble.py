@@ -22,7 +22,8 @@ Per (trial, whisker) pair touched in every member of the ensembles compared, of 
 peak |F_t|: the ensemble's relative spread (range / median and median absolute deviation / median
 over the members); the paired |relative difference| between two members of the same step (the
 within-ensemble floor); the |relative difference| of the two variants' ensemble medians and its
-floor, the same difference between the two halves of one ensemble.
+floor, the same difference between the two halves of one ensemble; whether the two variants'
+ensembles do not overlap at all (a difference no member's perturbation explains).
 """
 
 from __future__ import annotations
@@ -67,7 +68,8 @@ class MemberWhisking:
     """A :class:`~pipeline.protocols.whisking.Whisking` whose trials run at ``member``'s pose
     (``pose`` perturbation) and which keeps, of its last trial, each whisker's path: ``coarse``
     (the cheap free path), ``refined`` (taken again alone at a finer step after a jam),
-    ``at_rest`` (started from rest: its quasi-steady shape would pass through the scene)."""
+    ``at_rest`` (started from rest: its quasi-steady shape would pass through the scene; asked of
+    the engine's own start, ``Engine._drive_start``)."""
 
     def __init__(self, whisking, member: int, pose_scale: float):
         """``pose_scale``: :func:`member_pose`'s scale (0: the pose as given)."""
