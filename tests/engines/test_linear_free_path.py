@@ -14,6 +14,8 @@ from pipeline.engines.linear.chain import linearise
 from pipeline.engines.linear.free import (LINEAR_PATH_MARGIN_M, MAX_BEND, bend, free_response, running_integral,
                                          whisker_frames)
 from pipeline.engines.linear.modal import _state_matrix, discretise, modal
+from pipeline.engines.linear.rotating import com_hessian, rotating_matrices
+from pipeline.engines.linear.wrench import _hessian
 from pipeline.model.array import build_array
 from pipeline.model.effects.registry import model_parts
 from pipeline.model.kinematics import Pose, sinusoidal_whisk
@@ -135,3 +137,16 @@ def test_running_integral_is_scipys_cumulative_trapezoid_to_the_bit():
         values = rng.normal(size=shape)
         assert np.array_equal(running_integral(values, times),
                               cumulative_trapezoid(values, times, axis=0, initial=0.0))
+
+
+def test_a_chain_keeps_its_com_hessian_only_until_both_users_have_theirs():
+    """The rotating matrices and the wrench's transposed copy are what a worker keeps of the
+    centre-of-mass Hessian (22 MB for the array); the Hessian itself goes once both are cached."""
+    whisker = build_array(model_rat().select("RA1"), *model_parts(ModelConfig())).whiskers[0]
+    lin = linearise(whisker.physics)
+    second = com_hessian(lin)
+    rotating_matrices(lin)
+    assert "com_hessian" in lin.cache                 # the wrench has not taken its copy yet
+    transposed = _hessian(lin)
+    assert "com_hessian" not in lin.cache and not np.shares_memory(transposed, second)    # a copy: second is freed
+    assert np.array_equal(transposed, np.transpose(second, (2, 0, 3, 1)).reshape(second.shape[2], -1))
