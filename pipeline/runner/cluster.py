@@ -20,6 +20,7 @@ from contextlib import contextmanager
 from typing import Iterator
 from urllib.parse import urlsplit
 
+import dask
 import dask_jobqueue
 from distributed import Client, LocalCluster
 
@@ -36,6 +37,10 @@ def dashboard_address(config: ClusterConfig) -> str:
 
 
 WORKER_EXTRA_ARGS = ["--dashboard-address", f"{LOOPBACK}:0"]   # workers' HTTP servers on loopback too
+# dask's statistical profiler samples a worker's stack every 10 ms and keeps a call tree per
+# second (up to 1000 of them) and per task: a MuJoCo worker grew by ≈ 25 MB per 100 trials
+# (docs/scaling.md, "Issue 26, session 22"); a run never reads them
+LOCAL_WORKER_CONFIG = {"distributed.worker.profile.enabled": False}
 SCHEDULER_PLACEHOLDER = "tcp://SCHEDULER:8786"    # in a previewed job script: the run's scheduler
 
 
@@ -144,9 +149,10 @@ def dask_client(config: ClusterConfig) -> Iterator[Client]:
                 cluster = _submitted(config)
                 hint = f"check the {config.kind} queue: the jobs may be waiting or may have failed to start"
             else:
-                cluster = LocalCluster(n_workers=config.workers or os.cpu_count() or 1, threads_per_worker=1,
-                                       processes=True, host=LOOPBACK, dashboard_address=dashboard_address(config),
-                                       scheduler_kwargs={"dashboard": config.dashboard})
+                with dask.config.set(LOCAL_WORKER_CONFIG):     # the nannies pass it to their workers
+                    cluster = LocalCluster(n_workers=config.workers or os.cpu_count() or 1, threads_per_worker=1,
+                                           processes=True, host=LOOPBACK, dashboard_address=dashboard_address(config),
+                                           scheduler_kwargs={"dashboard": config.dashboard})
                 hint = "the local workers did not start"
         client = Client(cluster)
         where = f"the {config.kind} cluster"

@@ -30,7 +30,7 @@ class SurfaceQueries:
                                  o3d.core.Tensor(faces.astype(np.uint32)))
         corners = vertices[faces]                                   # [F, 3, 3]
         normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-        self._corners = corners
+        self._vertices, self._faces = vertices, faces     # not the corners: 72 B per face for a run
         self._cumulative_area = np.cumsum(0.5 * np.linalg.norm(normals, axis=1))
 
     def distance(self, points: np.ndarray) -> np.ndarray:
@@ -62,7 +62,8 @@ class SurfaceQueries:
         # imported here, not at the top: numba (and with it scipy) ≈0.3 CPU-s on a trial's start-up
         from pipeline.scenes.distance_bounds import DistanceBounds
 
-        return DistanceBounds(self._corners.min(axis=1), self._corners.max(axis=1), BOUNDS_VOXEL_M)
+        corners = self._vertices[self._faces]
+        return DistanceBounds(corners.min(axis=1), corners.max(axis=1), BOUNDS_VOXEL_M)
 
     def segment_hits(self, starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Rays from ``starts`` toward ``ends`` [..., 3]: (t [...] in units of the segment, as
@@ -91,7 +92,7 @@ class SurfaceQueries:
         a, b = rng.uniform(size=2)
         if a + b > 1.0:
             a, b = 1.0 - a, 1.0 - b
-        p0, p1, p2 = self._corners[min(face, len(self._corners) - 1)]
+        p0, p1, p2 = self._vertices[self._faces[min(face, len(self._faces) - 1)]]
         return p0 + a * (p1 - p0) + b * (p2 - p0)
 
 

@@ -4,14 +4,18 @@ keeps the engine, and the chain's wrench is Newton–Euler of its own motion."""
 
 import numpy as np
 import pytest
+from scipy.integrate import cumulative_trapezoid
 from scipy.linalg import expm
 from threadpoolctl import threadpool_limits
 
 from pipeline.config.physics import EngineConfig, ModelConfig
 from pipeline.engines import create_engine
 from pipeline.engines.linear.chain import linearise
-from pipeline.engines.linear.free import LINEAR_PATH_MARGIN_M, MAX_BEND, bend, free_response, whisker_frames
+from pipeline.engines.linear.free import (LINEAR_PATH_MARGIN_M, MAX_BEND, bend, free_response, running_integral,
+                                         whisker_frames)
 from pipeline.engines.linear.modal import _state_matrix, discretise, modal
+from pipeline.engines.linear.rotating import com_hessian, rotating_matrices
+from pipeline.engines.linear.wrench import _hessian
 from pipeline.model.array import build_array
 from pipeline.model.effects.registry import model_parts
 from pipeline.model.kinematics import Pose, sinusoidal_whisk
@@ -122,3 +126,27 @@ def test_the_cached_step_is_the_exact_exponential_per_whisker_and_step():
         for a, b in zip(free_response(whiskers[0], warm, drive.continued(DURATION_S, 1e-3), 60, 1e-3)[:2],
                         free_response(whiskers[0], cold, drive.continued(DURATION_S, 1e-3), 60, 1e-3)[:2]):
             np.testing.assert_array_equal(a, b)
+
+
+def test_running_integral_is_scipys_cumulative_trapezoid_to_the_bit():
+    """The free path integrates the base's rate without importing scipy.integrate (≈ 15 MB per
+    worker), to the same bits as scipy's cumulative_trapezoid (the outputs stay identical)."""
+    rng = np.random.default_rng(3)
+    times = np.cumsum(rng.uniform(1e-5, 2e-5, 401))
+    for shape in [(401,), (401, 3), (401, 2, 3)]:
+        values = rng.normal(size=shape)
+        assert np.array_equal(running_integral(values, times),
+                              cumulative_trapezoid(values, times, axis=0, initial=0.0))
+
+
+def test_a_chain_keeps_its_com_hessian_only_until_both_users_have_theirs():
+    """The rotating matrices and the wrench's transposed copy are what a worker keeps of the
+    centre-of-mass Hessian (22 MB for the array); the Hessian itself goes once both are cached."""
+    whisker = build_array(model_rat().select("RA1"), *model_parts(ModelConfig())).whiskers[0]
+    lin = linearise(whisker.physics)
+    second = com_hessian(lin)
+    rotating_matrices(lin)
+    assert "com_hessian" in lin.cache                 # the wrench has not taken its copy yet
+    transposed = _hessian(lin)
+    assert "com_hessian" not in lin.cache and not np.shares_memory(transposed, second)    # a copy: second is freed
+    assert np.array_equal(transposed, np.transpose(second, (2, 0, 3, 1)).reshape(second.shape[2], -1))

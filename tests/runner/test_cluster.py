@@ -99,6 +99,16 @@ def test_local_cluster_listens_on_loopback_only_and_never_warns_about_port_8787(
     assert shown.startswith("dask dashboard: http://127.0.0.1:") and "ssh -L" in shown
 
 
+def _profiling(dask_worker) -> bool:
+    return dask_worker.periodic_callbacks.get("profile") is not None
+
+
+def test_local_workers_run_without_dasks_profiler():
+    """Its call trees grew a worker by ≈ 25 MB per 100 trials (docs/scaling.md, issue 26, session 22)."""
+    with dask_client(ClusterConfig(workers=1)) as client:
+        assert list(client.run(_profiling).values()) == [False]
+
+
 def test_plain_progress_lines_agree_with_the_summary_rate():
     stream = io.StringIO()
     started = time.perf_counter() - 10.0

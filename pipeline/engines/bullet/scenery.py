@@ -49,11 +49,21 @@ def _box_shape(client: BulletClient, box: Box) -> int:
     return client.createCollisionShape(p.GEOM_BOX, halfExtents=[v * U.LENGTH for v in box.half_extents_m])
 
 
+def _mesh_lists(vertices: np.ndarray, faces: np.ndarray) -> tuple[list, list]:
+    """The vertices [V, 3] and flat face indices [3F] as pybullet's ``createCollisionShape`` takes
+    them, built to keep small what it keeps: pybullet 3.2.7 never drops its references to the lists
+    it is given and to their items (docs/scaling.md, "Issue 26, session 21"), so the vertices are
+    tuples and each vertex's index is one int object however many faces share it (the three
+    scans: 19 → 11 MB kept per worker)."""
+    shared = list(range(len(vertices)))
+    return [tuple(v) for v in vertices.tolist()], [shared[i] for i in faces.ravel().tolist()]
+
+
 def _mesh_shape(client: BulletClient, mesh: TriangleMesh) -> int:
     vertices = mesh.vertices_m * U.LENGTH
     try:
-        return client.createCollisionShape(p.GEOM_MESH, vertices=vertices.tolist(),
-                                           indices=mesh.faces.astype(int).ravel().tolist())
+        points, indices = _mesh_lists(vertices, mesh.faces)
+        return client.createCollisionShape(p.GEOM_MESH, vertices=points, indices=indices)
     except (p.error, SystemError) as exc:   # beyond 131 072 vertices or 524 288 indices
         raise UserError(f"{mesh.source}: pybullet cannot take this mesh ({len(vertices)} vertices, "
                         f"{len(mesh.faces)} triangles): {' '.join(str(exc).split())}") from None

@@ -35,7 +35,8 @@ def _pair_matrices() -> np.ndarray:
 
 def com_hessian(lin: LinearWhisker) -> np.ndarray:
     """[L, n, n, 3] ∂²c_l/∂q_i∂q_j at rest (m per rad²) of the links' centres of mass: for the
-    joints lo ≤ hi of the pair, a_lo × (a_hi × (c − o_hi)) (module docstring); cached on ``lin``."""
+    joints lo ≤ hi of the pair, a_lo × (a_hi × (c − o_hi)) (module docstring); cached on ``lin``
+    until both its users have derived what they keep (:func:`drop_com_hessian`)."""
     if "com_hessian" not in lin.cache:
         chain, layout = lin.physics.chain, lin.dofs
         _, com, _ = link_frames(chain)
@@ -65,4 +66,13 @@ def rotating_matrices(lin: LinearWhisker) -> tuple[np.ndarray, np.ndarray]:
         geometric = np.einsum("l,kla,lija->kij", m, rest_acceleration, second, optimize=True)
         stiffness = direct + geometric
         lin.cache["rotating"] = (stiffness, 2 * direct[:3])
+        drop_com_hessian(lin)
     return lin.cache["rotating"]
+
+
+def drop_com_hessian(lin: LinearWhisker) -> None:
+    """Forget ``lin``'s cached centre-of-mass Hessian once :func:`rotating_matrices` and the
+    wrench's transposed copy (:mod:`.wrench`) are both cached: ≈ 0.37 MB per whisker, 22 MB
+    for an array, that a worker would otherwise hold for the whole run."""
+    if "rotating" in lin.cache and "wrench_hessian" in lin.cache:
+        lin.cache.pop("com_hessian", None)

@@ -27,7 +27,7 @@ from functools import reduce
 import numpy as np
 
 from pipeline.engines.linear.chain import LinearWhisker
-from pipeline.engines.linear.rotating import com_hessian
+from pipeline.engines.linear.rotating import com_hessian, drop_com_hessian
 from pipeline.model.base_motion import joint_jacobian, link_frames
 
 
@@ -78,6 +78,7 @@ def _hessian(lin: LinearWhisker) -> np.ndarray:
     if "wrench_hessian" not in lin.cache:
         second = com_hessian(lin)                                              # [L, i, j, 3]
         lin.cache["wrench_hessian"] = np.transpose(second, (2, 0, 3, 1)).reshape(second.shape[2], -1)
+        drop_com_hessian(lin)
     return lin.cache["wrench_hessian"]
 
 
