@@ -15,6 +15,7 @@ from pipeline.engines.base import TrialSetup, World, WorldResult
 from pipeline.engines.common import (ContactFlags, implausible, jam_message, link_reach_m, node_arc_fractions,
                                      start_rate)
 from pipeline.engines.mujoco.faces import ScanContacts, triangles_mm
+from pipeline.engines.mujoco.follicle import FollicleTurns
 from pipeline.engines.mujoco.loads import LinkLoads
 from pipeline.engines.mujoco.plan import MujocoPlan, head_coordinates
 from pipeline.engines.mujoco.prisms import MeshPrisms, cached_prisms
@@ -26,7 +27,7 @@ from pipeline.errors import SimulationError
 from pipeline.model.array import WhiskerModel
 from pipeline.model.head_motion import HeadMotion
 from pipeline.model.kinematics import Pose, ProtractionDrive
-from pipeline.model.rotations import axis_rotation, quat_wxyz
+from pipeline.model.rotations import quat_wxyz
 from pipeline.scenes.obstacles import Scene, TriangleMesh
 
 MAX_ACCELERATION = 1e10        # mjMAXVAL: MuJoCo's bound for a sane acceleration (rad/s², mm/s²)
@@ -95,12 +96,13 @@ class MujocoWorld(World):
             for position, j in enumerate(self.whiskers[k].layout.at_node(0)):
                 hinges.setdefault((position, "xyz".index(j.local_axis)), []).append(
                     (member, m.jnt_qposadr[named(joint, f"w{k}/{j.label}")]))
-        self.follicle = [(axis, *map(np.array, zip(*rows))) for (_, axis), rows in sorted(hinges.items())]
-        self.identities = np.tile(np.eye(3), (len(members), 1, 1))     # the follicle's rotations start here
+        self.follicle = FollicleTurns([(axis, *map(np.array, zip(*rows))) for (_, axis), rows in sorted(hinges.items())],
+                                      len(members))
         self.link_bodies = np.array([[named(body, f"w{k}/l{i}") for i in range(self.links)]
                                      for k in members])
         self.link_lengths_mm = np.array([self.whiskers[k].chain.link_lengths_m for k in members]) * U.LENGTH
         self.flat_link_bodies, self.flat_link_lengths_mm = self.link_bodies.ravel(), self.link_lengths_mm.ravel()
+        self._link_frames = np.empty((self.flat_link_bodies.size, 3))   # _record's gather of the link bodies' origins
 
         def joints(b):
             return np.arange(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])
@@ -376,24 +378,21 @@ class MujocoWorld(World):
         d = self.data
         wrench = d.sensordata.reshape(-1, 2, 3)                 # [w, (force, torque), 3], site frame
         if self.follicle:
-            rotation = self.identities.copy()
-            for axis, member, qpos in self.follicle:
-                rotation[member] = rotation[member] @ axis_rotation(axis, d.qpos[qpos])
-            wrench = wrench @ rotation.transpose(0, 2, 1)
+            wrench = wrench @ self.follicle.matrices(d.qpos).transpose(0, 2, 1)
         row = result.wrench[sample]
+        nodes = result.nodes[sample]
         with np.errstate(over="ignore", invalid="ignore"):           # a jam shows as inf/nan
             np.divide(wrench[:, 0], U.FORCE, out=row[:, :3])
             np.divide(wrench[:, 1], U.TORQUE, out=row[:, 3:])
-        nodes = result.nodes[sample]
-        np.divide(d.xpos[self.link_bodies], U.LENGTH, out=nodes[:, :-1])
+            bad = implausible(row)
+        links = np.take(d.xpos, self.flat_link_bodies, axis=0, out=self._link_frames)
+        np.divide(links.reshape(nodes[:, :-1].shape), U.LENGTH, out=nodes[:, :-1])
         np.divide(d.site_xpos[self.tip_sites], U.LENGTH, out=nodes[:, -1])
         if self.joint_log is not None:                       # hinges: qpos address = dof address
-            self.joint_log[sample] = [(d.qpos[q].copy(), d.qvel[q].copy()) for q in self.free_qpos]
+            qpos, qvel = d.qpos, d.qvel
+            self.joint_log[sample] = [(qpos[q], qvel[q]) for q in self.free_qpos]    # fancy indexing copies
         result.contact[sample] = contact
         result.point_of_contact[sample] = point_of_contact
-        bad = implausible(result.wrench[sample])
         if bad.size:
             raise _Jam({int(self.members[j]): jam_message(self.whiskers[self.members[j]].name,
                                                           result.wrench[sample, j], time_s) for j in bad})
-
-
