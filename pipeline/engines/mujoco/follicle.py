@@ -20,19 +20,23 @@ class FollicleTurns:
         # None: every member has the hinge (a plain product, no gather and scatter of the stack)
         self.hinges = [(axis, None if np.array_equal(member, everyone) else member, qpos)
                        for axis, member, qpos in hinges]
+        self.addresses = [qpos for _, _, qpos in hinges]
         self.identities = np.tile(np.eye(3), (members, 1, 1))
 
     def __bool__(self) -> bool:
         return bool(self.hinges)
 
-    def matrices(self, qpos: np.ndarray) -> np.ndarray:
-        """[members, 3, 3] each member's follicle rotation at the joint angles ``qpos`` (rad)."""
+    def matrices(self, angles: list[np.ndarray]) -> np.ndarray:
+        """[..., members, 3, 3] each member's follicle rotation at its hinges' ``angles`` (rad; per
+        hinge of :attr:`hinges` [..., its members], e.g. ``qpos[addresses]`` for every address of
+        :attr:`addresses`); each product is the same 3×3 product at any batch shape."""
         rotation = self.identities
-        for axis, member, addresses in self.hinges:
-            turn = axis_rotation(axis, qpos[addresses])
+        for (axis, member, _), angle in zip(self.hinges, angles):
+            turn = axis_rotation(axis, angle)
             if member is None:
                 rotation = rotation @ turn
             else:
-                rotation = rotation.copy() if rotation is self.identities else rotation
-                rotation[member] = rotation[member] @ turn
+                if rotation is self.identities:
+                    rotation = np.broadcast_to(rotation, angle.shape[:-1] + rotation.shape).copy()
+                rotation[..., member, :, :] = rotation[..., member, :, :] @ turn
         return rotation
