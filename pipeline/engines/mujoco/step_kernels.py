@@ -231,3 +231,70 @@ def run_steps(spp, h, targets, qpos, qvel, qfrc, kinematic, armature, spring_rat
             touched[hit] = True
     return (step, lost, start_time, touching, carried, read, hit, stacked_links[:total], stacked_points[:total],
             stacked_proximal[:total], stacked_distal[:total], counts[:step - first])
+
+
+@numba.njit(cache=True)
+def _replaced(old, new, members):
+    """The contacts ``old`` (:func:`~pipeline.engines.mujoco.contact_kernels.pressed_contacts`' tuple,
+    member first) without those of the ``members`` [members] (bool) that ``new`` has, then ``new``'s
+    (:func:`~pipeline.engines.mujoco.substeps._replaced` with every contact of ``new`` taken)."""
+    keep = np.flatnonzero(~members[old[0]])
+    return (np.concatenate((old[0][keep], new[0])), np.concatenate((old[1][keep], new[1])),
+            np.concatenate((old[2][keep], new[2])), np.concatenate((old[3][keep], new[3])),
+            np.concatenate((old[4][keep], new[4])), np.concatenate((old[5][keep], new[5])))
+
+
+@numba.njit(cache=True)
+def run_substeps(count, h, start, targets, qpos, qvel, qfrc, kinematic, armature, spring_rate, maps, touched,
+                 fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan):
+    """The ``count`` sub-steps of h (each its own scan step, :func:`scan_step`) of a step taken again
+    on the scratch data (:meth:`~pipeline.engines.mujoco.substeps.ContactLossSubsteps._substeps`'
+    loop, operation for operation): the driven joints pulled onto the targets interpolated linearly
+    from ``start`` [kinematic], h·K·v of the unfolded springs (``spring_rate`` [nv] for h), each
+    sub-step's contacts read; ``touched`` [members] set for each whisker with a penetrating contact
+    in a sub-step; ``maps``: the contact reading's (member and body of each geom, link of each
+    geom, each link's body and length). The arguments from ``fn`` on are :func:`scan_step`'s for
+    the scratch data.
+
+    Returns (False if MuJoCo's contact buffer filled; the penetrating contacts of each whisker's
+    last sub-step that had any; the sub-steps' contacts as the flags take them, stacked, and how
+    many each sub-step had)."""
+    member_of_geom, geom_bodyid, link_of_geom, link_bodies, link_lengths = maps
+    xpos, xmat = scan[5], scan[6]
+    latest = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)),
+              np.zeros(0))
+    stacked_links, stacked_points = np.empty(16, np.int64), np.empty((16, 3))
+    stacked_proximal, stacked_distal = np.empty((16, 3)), np.empty((16, 3))
+    counts = np.zeros(count, np.int64)
+    total = 0
+    for i in range(1, count + 1):
+        fraction = i / count
+        for i_dof in range(len(qfrc)):
+            qfrc[i_dof] = spring_rate[i_dof] * qvel[i_dof]
+        for j in range(len(kinematic)):
+            k = kinematic[j]
+            goal = start[j] + (targets[j] - start[j]) * fraction
+            qfrc[k] = armature[j] * (((goal - qpos[k]) / h - qvel[k]) / h)
+        if not scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan):
+            return False, latest, stacked_links[:0], stacked_points[:0], stacked_proximal[:0], stacked_distal[:0], counts
+        ncon, words = header[fields[NCON]], fields[CONTACT_WORDS]
+        row = (pointers[fields[CONTACT_POINTER]] - pointers[1]) // 8
+        contacts = rows64[row:row + ncon * words:words]
+        ints = rows32[2 * row:2 * (row + ncon * words):2 * words]
+        pressed, read, _ = step_contacts(
+            contacts[:, fields[DIST]], ints[:, fields[EXCLUDE]], ints[:, fields[GEOM]:fields[GEOM] + 2],
+            contacts[:, fields[FRAME]:fields[FRAME] + 9], contacts[:, fields[POS]:fields[POS] + 3], xpos, xmat,
+            member_of_geom, geom_bodyid, link_of_geom, link_bodies, link_lengths)
+        has = np.zeros(len(touched), np.bool_)
+        has[pressed[0]] = True
+        latest = _replaced(latest, pressed, has)
+        touched |= has
+        links = read[0]
+        stacked_links = _appended(stacked_links, total, links)
+        stacked_points = _appended(stacked_points, total, read[1])
+        stacked_proximal = _appended(stacked_proximal, total, read[2])
+        stacked_distal = _appended(stacked_distal, total, read[3])
+        counts[i - 1] = len(links)
+        total += len(links)
+    return (True, latest, stacked_links[:total], stacked_points[:total], stacked_proximal[:total],
+            stacked_distal[:total], counts)

@@ -128,7 +128,7 @@ class MujocoWorld(World):
                 m.dof_damping[qpos] -= self.spring_rate[qpos]
                 self.spring_rate[qpos] = 0.0
         self.substeps = ContactLossSubsteps(
-            m, mujoco.mj_step if self.faces is None else self.faces.step, self.kinematic, self.armature, stiffness,
+            m, self.faces, self.kinematic, self.armature, stiffness,
             (stiffness > 0) & (self.spring_rate == 0), self.dof_member,
             np.where(self.link_of_geom >= 0, self.link_of_geom // self.links, -1), len(members),
             (self.link_of_geom, self.flat_link_bodies, self.flat_link_lengths_mm))
