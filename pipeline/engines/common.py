@@ -211,6 +211,8 @@ class ContactFlags:
 
     def take(self) -> tuple[np.ndarray, np.ndarray]:
         """The flags [W, N] and POC [W] (float32) of the interval that just ended; starts a new one."""
+        if not self._steps:                       # no contact in the interval: no flag set either
+            return self.touching.copy(), np.full(len(self.node_fractions), np.nan, np.float32)
         flags, poc = self.touching.copy(), self._points_of_contact().astype(np.float32)
         self.touching[:] = False
         self._steps = []

@@ -17,7 +17,8 @@ from pipeline.engines import units as U
 from pipeline.engines.base import WorldResult
 from pipeline.engines.common import MAX_PLAUSIBLE_MOMENT_NM, implausible
 
-# the raw moment (internal units, squared) below which a sample's conversion can wait
+# the raw moment (internal units, squared) below which a sample's conversion can wait (checked on the
+# sum over a world's members, which no member's exceeds)
 _SAFE_SQUARED = (0.5 * MAX_PLAUSIBLE_MOMENT_NM * U.TORQUE) ** 2
 
 
@@ -48,8 +49,8 @@ class SampleReadings:
         np.take(d.site_xpos, self.tip_sites, axis=0, out=self.tips[sample])
         if self.eager:
             return True
-        torque = sensors[:, 1]
-        return not (torque * torque).sum(axis=1).max() <= _SAFE_SQUARED
+        torque = sensors[:, 1].ravel()
+        return not torque @ torque <= _SAFE_SQUARED        # the members' sum bounds each one's
 
     def convert(self, result: WorldResult, until: int) -> tuple[int, np.ndarray] | None:
         """Write samples up to ``until`` (exclusive) into ``result``'s wrench and nodes; the first
