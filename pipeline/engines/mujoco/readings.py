@@ -4,10 +4,11 @@ the result's SI arrays (whisker-frame wrench, node positions in m) in one pass o
 with the same arithmetic as one sample at a time, so the same numbers.
 
 A run nobody reads sample by sample (:meth:`~pipeline.engines.mujoco.world.MujocoWorld._simulate`)
-converts at its end; a sample whose raw base moment could be implausible (above half
-:data:`~pipeline.engines.common.MAX_PLAUSIBLE_MOMENT_NM`, or not finite: rotating a moment keeps
-its length, so a reading below half the limit cannot exceed it after the rotation) is converted
-at once, so a jam is still found at the sample it happens in and the run stops there."""
+converts at its end; a sample whose raw base moments, squared and summed over the world's members,
+could make one implausible (above half :data:`~pipeline.engines.common.MAX_PLAUSIBLE_MOMENT_NM`,
+or not finite: rotating a moment keeps its length, so a reading below half the limit cannot
+exceed it after the rotation) is converted at once, so a jam is still found at the sample it
+happens in and the run stops there."""
 
 from __future__ import annotations
 
@@ -15,11 +16,7 @@ import numpy as np
 
 from pipeline.engines import units as U
 from pipeline.engines.base import WorldResult
-from pipeline.engines.common import MAX_PLAUSIBLE_MOMENT_NM, implausible
-
-# the raw moment (internal units, squared) below which a sample's conversion can wait (checked on the
-# sum over a world's members, which no member's exceeds)
-_SAFE_SQUARED = (0.5 * MAX_PLAUSIBLE_MOMENT_NM * U.TORQUE) ** 2
+from pipeline.engines import common
 
 
 class SampleReadings:
@@ -36,6 +33,9 @@ class SampleReadings:
         self.origins = np.empty((samples, self.link_bodies.size, 3))
         self.tips = np.empty((samples, members, 3))
         self.eager = eager
+        # the raw moment (internal units, squared) below which a sample's conversion can wait (checked
+        # on the sum over the members, which no member's exceeds); the limit as it is now
+        self.safe_squared = (0.5 * common.MAX_PLAUSIBLE_MOMENT_NM * U.TORQUE) ** 2
         self.converted = 0                      # samples before this one are in the result
 
     def read(self, d, sample: int) -> bool:
@@ -50,7 +50,7 @@ class SampleReadings:
         if self.eager:
             return True
         torque = sensors[:, 1].ravel()
-        return not torque @ torque <= _SAFE_SQUARED        # the members' sum bounds each one's
+        return not torque @ torque <= self.safe_squared
 
     def convert(self, result: WorldResult, until: int) -> tuple[int, np.ndarray] | None:
         """Write samples up to ``until`` (exclusive) into ``result``'s wrench and nodes; the first
@@ -69,7 +69,7 @@ class SampleReadings:
         origins = self.origins[rows]
         np.divide(origins.reshape(nodes[:, :, :-1].shape), U.LENGTH, out=nodes[:, :, :-1])
         np.divide(self.tips[rows], U.LENGTH, out=nodes[:, :, -1])
-        bad = implausible(out.reshape(-1, 6))
+        bad = common.implausible(out.reshape(-1, 6))
         if not bad.size:
             return None
         sample, member = np.divmod(bad, out.shape[1])

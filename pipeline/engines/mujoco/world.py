@@ -97,8 +97,8 @@ class MujocoWorld(World):
             for position, j in enumerate(self.whiskers[k].layout.at_node(0)):
                 hinges.setdefault((position, "xyz".index(j.local_axis)), []).append(
                     (member, m.jnt_qposadr[named(joint, f"w{k}/{j.label}")]))
-        self.follicle = FollicleTurns([(axis, *map(np.array, zip(*rows))) for (_, axis), rows in sorted(hinges.items())],
-                                      len(members))
+        self.follicle = FollicleTurns(
+            [(axis, *map(np.array, zip(*rows))) for (_, axis), rows in sorted(hinges.items())], len(members))
         self.link_bodies = np.array([[named(body, f"w{k}/l{i}") for i in range(self.links)]
                                      for k in members])
         self.link_lengths_mm = np.array([self.whiskers[k].chain.link_lengths_m for k in members]) * U.LENGTH
