@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.errors import UserError
-from pipeline.model.joints import bent_chain
+from pipeline.model.joints import bent_chains
 from pipeline.model.kinematics import Pose
 
 # A base moment above this is no whisker's (they break near 10⁻⁴ N·m): the contact solver has
@@ -109,8 +109,9 @@ def blocked_at_start(array, scene, pose: Pose, theta0_rad: float, angles=None) -
     if angles is None:
         nodes = [array.whiskers[k].rest_nodes_head(theta0_rad) for k in candidates]
     else:
-        nodes = [array.whiskers[k].base_point_m + bent_chain(array.whiskers[k].physics, angles[k])[1][0]
-                 @ array.whiskers[k].frame(theta0_rad).T for k in candidates]
+        bent = bent_chains([array.whiskers[k].physics for k in candidates], [angles[k] for k in candidates])[1]
+        nodes = [array.whiskers[k].base_point_m + shape @ array.whiskers[k].frame(theta0_rad).T
+                 for k, shape in zip(candidates, bent)]
     nodes = np.array([pose.apply(n) for n in nodes])
     for o, obstacle in enumerate(scene.obstacles):
         blocked[o, candidates] = obstacle.chains_through(nodes)
@@ -137,9 +138,10 @@ def empty_signals(samples: int, whiskers: int, links: int) -> tuple[np.ndarray, 
 def implausible(wrench: np.ndarray) -> np.ndarray:
     """Indices of the whiskers of ``wrench`` [W, 6] (SI) whose base moment is non-finite or
     above :data:`MAX_PLAUSIBLE_MOMENT_NM`."""
+    moment = wrench[:, 3:]
     with np.errstate(over="ignore", invalid="ignore"):           # a jam shows as inf/nan
-        moments = np.linalg.norm(wrench[:, 3:], axis=1)
-    return np.flatnonzero(~np.isfinite(moments) | (moments > MAX_PLAUSIBLE_MOMENT_NM))
+        moments = np.sqrt(np.add.reduce(moment * moment, axis=1))  # np.linalg.norm's sum, without its checks
+    return np.flatnonzero(~(moments <= MAX_PLAUSIBLE_MOMENT_NM))  # NaN and inf fail the comparison
 
 
 def jam_message(name: str, wrench: np.ndarray, time_s: float) -> str:
@@ -209,6 +211,8 @@ class ContactFlags:
 
     def take(self) -> tuple[np.ndarray, np.ndarray]:
         """The flags [W, N] and POC [W] (float32) of the interval that just ended; starts a new one."""
+        if not self._steps:                       # no contact in the interval: no flag set either
+            return self.touching.copy(), np.full(len(self.node_fractions), np.nan, np.float32)
         flags, poc = self.touching.copy(), self._points_of_contact().astype(np.float32)
         self.touching[:] = False
         self._steps = []

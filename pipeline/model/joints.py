@@ -123,21 +123,42 @@ def bent_chain(physics, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The chain's exact forward kinematics (module docstring) for joint angles q [T, n] (rad, in
     the layout's order): link frames [T, N, 3, 3] and node positions [T, N+1, 3] (m), whisker frame."""
     chain = physics.chain
-    q = np.atleast_2d(np.asarray(q, float))
-    t = q.shape[0]
-    column = {label: i for i, label in enumerate(physics.layout.labels)}
-    zero = np.zeros(t)
+    return _forward(physics.layout.labels, np.atleast_2d(np.asarray(q, float)), chain.link_angles_rad[0],
+                    chain.rest_bend_rad, chain.link_lengths_m)
+
+
+def bent_chains(physics: list, q: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`bent_chain` of several whiskers at once, one shape each: ``q`` [n] per whisker
+    (rad); link frames [W, N, 3, 3] and node positions [W, N+1, 3] (m, each its whisker's frame).
+    The whiskers share their joint layout's labels and link count (one array's whiskers do)."""
+    chains = [p.chain for p in physics]
+    labels = physics[0].layout.labels
+    if any(p.layout.labels != labels for p in physics):
+        raise ValueError("bent_chains: the whiskers' joint layouts differ")
+    return _forward(labels, np.array(q, float), np.array([c.link_angles_rad[0] for c in chains]),
+                    np.array([c.rest_bend_rad for c in chains]).T, np.array([c.link_lengths_m for c in chains]).T)
+
+
+def _forward(labels: tuple[str, ...], q: np.ndarray, first_angle_rad, rest_bend_rad: np.ndarray,
+             link_lengths_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Forward kinematics of R rows of joint angles q [R, n] (columns ``labels``): link frames
+    [R, N, 3, 3] and nodes [R, N+1, 3] (m). The chain's first link angle (rad), rest bends [N−1]
+    (rad) and link lengths [N] (m) are one chain's, or per row ([R], [N−1, R], [N, R])."""
+    rows, links = q.shape[0], len(link_lengths_m)
+    column = {label: i for i, label in enumerate(labels)}
+    zero = np.zeros(rows)
 
     def angle(label):
         return q[:, column[label]] if label in column else zero
 
-    frames = np.zeros((t, chain.links, 3, 3))
-    nodes = np.zeros((t, chain.links + 1, 3))
-    frame = rotation_zyx(angle("follicle_z"), angle("follicle_y"), zero) @ axis_rotation(2, chain.link_angles_rad[0])
-    for link in range(chain.links):
+    frames = np.zeros((rows, links, 3, 3))
+    nodes = np.zeros((rows, links + 1, 3))
+    frame = rotation_zyx(angle("follicle_z"), angle("follicle_y"), zero) @ axis_rotation(2, first_angle_rad)
+    for link in range(links):
         if link > 0:
-            frame = frame @ rotation_zyx(chain.rest_bend_rad[link - 1] + angle(f"z{link}"), angle(f"y{link}"),
+            frame = frame @ rotation_zyx(rest_bend_rad[link - 1] + angle(f"z{link}"), angle(f"y{link}"),
                                          angle(f"x{link}"))
         frames[:, link] = frame
-        nodes[:, link + 1] = nodes[:, link] + frame[:, :, 0] * chain.link_lengths_m[link]
+        length = np.asarray(link_lengths_m[link])
+        nodes[:, link + 1] = nodes[:, link] + frame[:, :, 0] * (length[:, None] if length.ndim else length)
     return frames, nodes

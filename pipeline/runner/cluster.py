@@ -36,6 +36,12 @@ def dashboard_address(config: ClusterConfig) -> str:
     return f"{LOOPBACK}:{config.dashboard_port if config.dashboard else 0}"
 
 
+# Each dask server of a cluster we start (the scheduler; a local cluster's nannies, in this process,
+# and its workers) wakes every tick to check that its event loop is not blocked and samples its
+# process's CPU, memory and I/O every system-monitor interval. dask's 20 ms and 500 ms cost a
+# local run's own process ≈ 0.03 CPU-s per trial (docs/scaling.md, issue 26, session 22); these
+# still warn of a loop blocked for tick.limit (3 s) and feed the dashboard every few seconds.
+SERVER_CLOCKS = {"distributed.admin.tick.interval": "1s", "distributed.admin.system-monitor.interval": "5s"}
 WORKER_EXTRA_ARGS = ["--dashboard-address", f"{LOOPBACK}:0"]   # workers' HTTP servers on loopback too
 # dask's statistical profiler samples a worker's stack every 10 ms and keeps a call tree per
 # second (up to 1000 of them) and per task: a MuJoCo worker grew by ≈ 25 MB per 100 trials
@@ -143,8 +149,8 @@ def dask_client(config: ClusterConfig) -> Iterator[Client]:
         hint = f"start some with `dask worker {config.scheduler}`"
         where = f"the dask scheduler at {config.scheduler}"
     else:
-        with warnings.catch_warnings():           # a taken dashboard port: the address printed says which
-            warnings.filterwarnings("ignore", message="Port .* is already in use")
+        with warnings.catch_warnings(), dask.config.set(SERVER_CLOCKS):    # read as each server starts
+            warnings.filterwarnings("ignore", message="Port .* is already in use")   # the address printed says which
             if config.kind in BATCH_KINDS:
                 cluster = _submitted(config)
                 hint = f"check the {config.kind} queue: the jobs may be waiting or may have failed to start"

@@ -53,6 +53,7 @@ def test_a_link_pressed_into_an_edge_of_a_folded_sheet_slides_out_at_any_step(mo
         return read(self, d)
 
     monkeypatch.setattr(ContactLossSubsteps, "_contacts", checked)
+    monkeypatch.setattr(ContactLossSubsteps, "compiled", False)      # the sub-steps read through _contacts
     default, half = _whisk(0.06), _whisk(0.06, dt_s=5e-5, f1_tolerance=0.005)
     assert default.contact.any(axis=(0, 2)).all() and half.contact.any(axis=(0, 2)).all()
     assert opposed and not any(opposed)
@@ -161,8 +162,26 @@ def test_the_compiled_scan_step_is_the_bindings_sequence(monkeypatch):
         assert np.array_equal(d.contact.pos, e.contact.pos) and np.array_equal(d.contact.frame, e.contact.frame)
 
     monkeypatch.setattr(ScanContacts, "step", both)
+    monkeypatch.setattr(ContactLossSubsteps, "compiled", False)      # the sub-steps step through ScanContacts.step
     out = _whisk(0.03)
     assert out.contact.any() and sum(n > 0 for n in compared) > 50
+
+
+def test_the_compiled_sub_steps_are_the_bindings_loop(monkeypatch):
+    """RD3 and RB3 pressed into the folded sheet: the steps that lost a contact taken again in
+    sub-steps in one compiled call (step_kernels.run_substeps) give the trial of the sub-steps
+    taken through the bindings bit for bit, the flags and points of contact included."""
+    calls = []
+    run = step_kernels.run_substeps
+    monkeypatch.setattr(step_kernels, "run_substeps", lambda *args: (calls.append(1), run(*args))[1])
+    compiled = _whisk(0.03)
+    assert calls and compiled.contact.any()
+    monkeypatch.setattr(ContactLossSubsteps, "compiled", False)
+    taken = len(calls)
+    bindings = _whisk(0.03)
+    assert len(calls) == taken                                       # the bindings' loop this time
+    for name in ("base_wrench", "node_positions_m", "contact", "point_of_contact"):
+        assert np.array_equal(getattr(compiled, name), getattr(bindings, name), equal_nan=True), name
 
 
 def _sheet_grid() -> TriangleGrid:

@@ -14,6 +14,7 @@ import time
 import warnings
 from pathlib import Path
 
+import dask
 import psutil
 import pytest
 
@@ -21,7 +22,7 @@ from tests.conftest import REPO, run_pipeline
 from pipeline.config.simulate import ClusterConfig, load_simulate_config
 from pipeline.datasets import manifest
 from pipeline.errors import UserError
-from pipeline.runner.cluster import dask_client, job_script
+from pipeline.runner.cluster import SERVER_CLOCKS, dask_client, job_script
 from pipeline.runner.progress import progress, trials_per_hour
 from test_location import make_project, user_env
 
@@ -107,6 +108,21 @@ def test_local_workers_run_without_dasks_profiler():
     """Its call trees grew a worker by ≈ 25 MB per 100 trials (docs/scaling.md, issue 26, session 22)."""
     with dask_client(ClusterConfig(workers=1)) as client:
         assert list(client.run(_profiling).values()) == [False]
+
+
+def test_a_local_clusters_servers_wake_at_the_run_clocks_and_the_callers_config_is_untouched():
+    before = {key: dask.config.get(key) for key in SERVER_CLOCKS}
+    assert before != SERVER_CLOCKS                     # dask's own 20 ms and 500 ms
+    expected = (1.0, 5.0)
+    assert tuple(dask.utils.parse_timedelta(SERVER_CLOCKS[k]) for k in SERVER_CLOCKS) == expected
+    with dask_client(ClusterConfig(workers=1)) as client:
+        def clocks(dask_scheduler=None, dask_worker=None) -> tuple[float, float]:   # tick, monitor; s
+            server = dask_scheduler or dask_worker
+            return server._tick_interval, server.periodic_callbacks["monitor"].callback_time / 1000
+        assert client.run_on_scheduler(clocks) == expected
+        assert list(client.run(clocks).values()) == [expected]
+        assert [clocks(dask_worker=nanny) for nanny in client.cluster.workers.values()] == [expected]
+    assert {key: dask.config.get(key) for key in SERVER_CLOCKS} == before
 
 
 def test_plain_progress_lines_agree_with_the_summary_rate():

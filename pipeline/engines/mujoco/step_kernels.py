@@ -133,6 +133,20 @@ def _sinking(fn, m, loss, carried, lost) -> np.ndarray:
 
 
 @numba.njit(cache=True)
+def _step_contacts(header, pointers, rows64, rows32, fields, xpos, xmat, maps):
+    """The step's contacts in the data's arena read by
+    :func:`~pipeline.engines.mujoco.contact_kernels.step_contacts` (``maps``: its member and body
+    of each geom, link of each geom, each link's body and length)."""
+    count, words = header[fields[NCON]], fields[CONTACT_WORDS]
+    row = (pointers[fields[CONTACT_POINTER]] - pointers[1]) // 8
+    contacts = rows64[row:row + count * words:words]
+    ints = rows32[2 * row:2 * (row + count * words):2 * words]
+    return step_contacts(contacts[:, fields[DIST]], ints[:, fields[EXCLUDE]], ints[:, fields[GEOM]:fields[GEOM] + 2],
+                         contacts[:, fields[FRAME]:fields[FRAME] + 9], contacts[:, fields[POS]:fields[POS] + 3],
+                         xpos, xmat, *maps)
+
+
+@numba.njit(cache=True)
 def _appended(buffer: np.ndarray, count: int, rows: np.ndarray) -> np.ndarray:
     """``buffer`` (grown when needed) with ``rows`` written from row ``count`` on."""
     if count + len(rows) > len(buffer):
@@ -141,6 +155,20 @@ def _appended(buffer: np.ndarray, count: int, rows: np.ndarray) -> np.ndarray:
         buffer = grown
     buffer[count:count + len(rows)] = rows
     return buffer
+
+
+@numba.njit(cache=True)
+def _stacked(stacked, total: int, read):
+    """The contacts ``stacked`` so far (links, points, proximal and distal nodes: buffers, ``total``
+    rows used) with ``read``'s (the same four) appended."""
+    return (_appended(stacked[0], total, read[0]), _appended(stacked[1], total, read[1]),
+            _appended(stacked[2], total, read[2]), _appended(stacked[3], total, read[3]))
+
+
+@numba.njit(cache=True)
+def _no_contacts():
+    """Empty buffers of :func:`_stacked`."""
+    return np.empty(16, np.int64), np.empty((16, 3)), np.empty((16, 3)), np.empty((16, 3))
 
 
 @numba.njit(cache=True)
@@ -164,12 +192,11 @@ def run_steps(spp, h, targets, qpos, qvel, qfrc, kinematic, armature, spring_rat
     ``carried`` after it; its contacts as the flags take them and the members hit; the contacts of
     the steps before it as the flags take them, stacked, and how many each step had)."""
     start_qpos, start_qvel, start_warm, warmstart = loss[0:4]
-    member_of_geom, geom_bodyid, link_of_geom, link_bodies, link_lengths = loss[14:19]
     xpos, xmat = scan[5], scan[6]
     n_members = len(touching)
     lost = np.zeros(n_members, np.bool_)
-    stacked_links, stacked_points = np.empty(16, np.int64), np.empty((16, 3))
-    stacked_proximal, stacked_distal = np.empty((16, 3)), np.empty((16, 3))
+    stacked = _no_contacts()
+    stacked_links, stacked_points, stacked_proximal, stacked_distal = stacked
     counts = np.zeros(last + 1 - first, np.int64)
     total = 0
     read = (stacked_links[:0], stacked_points[:0], stacked_proximal[:0], stacked_distal[:0])
@@ -197,14 +224,7 @@ def run_steps(spp, h, targets, qpos, qvel, qfrc, kinematic, armature, spring_rat
                     stacked_proximal[:0], stacked_distal[:0], counts[:0])
         ncon = header[fields[NCON]]
         if had or ncon > 0:
-            count, words = header[fields[NCON]], fields[CONTACT_WORDS]
-            row = (pointers[fields[CONTACT_POINTER]] - pointers[1]) // 8
-            contacts = rows64[row:row + count * words:words]
-            ints = rows32[2 * row:2 * (row + count * words):2 * words]
-            pressed, read, hit = step_contacts(
-                contacts[:, fields[DIST]], ints[:, fields[EXCLUDE]], ints[:, fields[GEOM]:fields[GEOM] + 2],
-                contacts[:, fields[FRAME]:fields[FRAME] + 9], contacts[:, fields[POS]:fields[POS] + 3], xpos, xmat,
-                member_of_geom, geom_bodyid, link_of_geom, link_bodies, link_lengths)
+            pressed, read, hit = _step_contacts(header, pointers, rows64, rows32, fields, xpos, xmat, loss[14:19])
             now = np.zeros(n_members, np.bool_)
             now[pressed[0]] = True
             lost = touching & ~now
@@ -221,13 +241,63 @@ def run_steps(spp, h, targets, qpos, qvel, qfrc, kinematic, armature, spring_rat
         if records or header[fields[BAD_ACCELERATION]] != 0 or step == last:
             break
         if ncon > 0:                                 # the flags of a step before the last
-            links = read[0]
-            stacked_links = _appended(stacked_links, total, links)
-            stacked_points = _appended(stacked_points, total, read[1])
-            stacked_proximal = _appended(stacked_proximal, total, read[2])
-            stacked_distal = _appended(stacked_distal, total, read[3])
-            counts[step - first] = len(links)
-            total += len(links)
+            stacked = _stacked(stacked, total, read)
+            counts[step - first] = len(read[0])
+            total += len(read[0])
             touched[hit] = True
+    stacked_links, stacked_points, stacked_proximal, stacked_distal = stacked
     return (step, lost, start_time, touching, carried, read, hit, stacked_links[:total], stacked_points[:total],
             stacked_proximal[:total], stacked_distal[:total], counts[:step - first])
+
+
+@numba.njit(cache=True)
+def _replaced(old, new, members):
+    """The contacts ``old`` (:func:`~pipeline.engines.mujoco.contact_kernels.pressed_contacts`' tuple,
+    member first) without those of the ``members`` [members] (bool) that ``new`` has, then ``new``'s
+    (:func:`~pipeline.engines.mujoco.substeps._replaced` with every contact of ``new`` taken)."""
+    keep = np.flatnonzero(~members[old[0]])
+    return (np.concatenate((old[0][keep], new[0])), np.concatenate((old[1][keep], new[1])),
+            np.concatenate((old[2][keep], new[2])), np.concatenate((old[3][keep], new[3])),
+            np.concatenate((old[4][keep], new[4])), np.concatenate((old[5][keep], new[5])))
+
+
+@numba.njit(cache=True)
+def run_substeps(count, h, start, targets, qpos, qvel, qfrc, kinematic, armature, spring_rate, maps, touched,
+                 fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan):
+    """The ``count`` sub-steps of h (each its own scan step, :func:`scan_step`) of a step taken again
+    on the scratch data (:meth:`~pipeline.engines.mujoco.substeps.ContactLossSubsteps._substeps`'
+    loop, operation for operation): the driven joints pulled onto the targets interpolated linearly
+    from ``start`` [kinematic], h·K·v of the unfolded springs (``spring_rate`` [nv] for h), each
+    sub-step's contacts read; ``touched`` [members] set for each whisker with a penetrating contact
+    in a sub-step; ``maps``: the contact reading's (member and body of each geom, link of each
+    geom, each link's body and length). The arguments from ``fn`` on are :func:`scan_step`'s for
+    the scratch data.
+
+    Returns (False if MuJoCo's contact buffer filled; the penetrating contacts of each whisker's
+    last sub-step that had any; the sub-steps' contacts as the flags take them, stacked, and how
+    many each sub-step had)."""
+    xpos, xmat = scan[5], scan[6]
+    latest = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)),
+              np.zeros(0))
+    stacked = _no_contacts()
+    counts = np.zeros(count, np.int64)
+    total = 0
+    for i in range(1, count + 1):
+        fraction = i / count
+        for i_dof in range(len(qfrc)):
+            qfrc[i_dof] = spring_rate[i_dof] * qvel[i_dof]
+        for j in range(len(kinematic)):
+            k = kinematic[j]
+            goal = start[j] + (targets[j] - start[j]) * fraction
+            qfrc[k] = armature[j] * (((goal - qpos[k]) / h - qvel[k]) / h)
+        if not scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan):
+            return False, latest, stacked[0][:0], stacked[1][:0], stacked[2][:0], stacked[3][:0], counts
+        pressed, read, _ = _step_contacts(header, pointers, rows64, rows32, fields, xpos, xmat, maps)
+        has = np.zeros(len(touched), np.bool_)
+        has[pressed[0]] = True
+        latest = _replaced(latest, pressed, has)
+        touched |= has
+        stacked = _stacked(stacked, total, read)
+        counts[i - 1] = len(read[0])
+        total += len(read[0])
+    return True, latest, stacked[0][:total], stacked[1][:total], stacked[2][:total], stacked[3][:total], counts

@@ -31,18 +31,21 @@ describe its start) is the full step's. Internal units mm–mg–s.
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
+
+if TYPE_CHECKING:
+    from pipeline.engines.mujoco.faces import ScanContacts
 
 SUBSTEPS = 4        # sub-steps of a step that lost a whisker's contact (0.16 → 0.011 mm, RC3 at 85 %)
 PREDICTED_DEPTH_MM = 0.05    # a lost contact carried to the step's end this deep (contact_statics: a pass-through)
 
 
 class ContactLossSubsteps:
-    """The step of a world (``step_function(m, d)``: ``mj_step`` or the scan contacts' step), with
-    the steps on which a whisker lost its last contact taken again in sub-steps for it.
+    """The step of a world (``mj_step``, or with a ``scan`` its contacts' step), with the steps on
+    which a whisker lost its last contact taken again in sub-steps for it.
 
     ``kinematic``, ``armature``: the driven dofs and their armatures (the step's kinematic
     force); ``stiffness`` [nv] each dof's spring, ``folded`` [nv] whether its damping has h·K
@@ -60,10 +63,15 @@ class ContactLossSubsteps:
     a contact (not excluded, penetrating or not; may repeat), read when it had any
     (:func:`~pipeline.engines.mujoco.contact_kernels.step_contacts`)."""
 
-    def __init__(self, model: mujoco.MjModel, step_function: Callable, kinematic: np.ndarray,
+    compiled = True
+    """Whether a world with a scan takes the sub-steps in compiled code (False: through the
+    bindings, the same operations; the tests compare the two)."""
+
+    def __init__(self, model: mujoco.MjModel, scan: ScanContacts | None, kinematic: np.ndarray,
                  armature: np.ndarray, stiffness: np.ndarray, folded: np.ndarray, dof_member: np.ndarray,
                  member_of_geom: np.ndarray, members: int, links: tuple[np.ndarray, np.ndarray, np.ndarray]):
-        self.model, self.step_function, self.links = model, step_function, links
+        self.model, self.scan, self.links = model, scan, links
+        self.step_function = mujoco.mj_step if scan is None else scan.step
         self.found = []
         self.read = ()
         self.kinematic, self.armature = kinematic, armature
@@ -203,17 +211,10 @@ class ContactLossSubsteps:
         touched = np.zeros(len(self.touching), bool)
         latest = tuple(a[:0] for a in self._last)       # the sub-stepped whiskers' contacts, none yet
         try:
-            for i in range(1, SUBSTEPS + 1):
-                goal = start + (targets - start) * (i / SUBSTEPS)
-                np.multiply(self.spring_rate_sub, e.qvel, out=e.qfrc_applied)
-                e.qfrc_applied[kinematic] = self.armature * (((goal - e.qpos[kinematic]) / h - e.qvel[kinematic]) / h)
-                self.step_function(m, e)
-                pressed, flagged, _ = self._contacts(e)
-                has = np.zeros(len(touched), bool)
-                has[pressed[0]] = True
-                latest = _replaced(latest, pressed, has)
-                touched |= has
-                self.found.append(flagged)
+            if self.scan is not None and self.compiled:
+                latest = self._compiled_substeps(e, targets, start, touched)
+            else:
+                latest = self._bindings_substeps(e, targets, start, touched, latest)
         finally:
             m.opt.timestep, m.opt.disableflags, m.dof_damping[:] = self.h, flags, damping
             m.geom_contype[:], m.body_contype[:] = geom_contype, body_contype
@@ -221,6 +222,40 @@ class ContactLossSubsteps:
         for into, state in ((d.qpos, e.qpos), (d.qvel, e.qvel), (d.qacc_warmstart, e.qacc_warmstart)):
             into[dofs] = state[dofs]
         return touched, latest
+
+    def _bindings_substeps(self, e: mujoco.MjData, targets: np.ndarray, start: np.ndarray, touched: np.ndarray,
+                           latest: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+        """The sub-steps' loop of :meth:`_substeps` on the scratch data ``e`` through the bindings:
+        ``touched`` set, :attr:`found` filled; returns ``latest`` with the sub-stepped whiskers'
+        contacts."""
+        kinematic, h = self.kinematic, self.h_sub
+        for i in range(1, SUBSTEPS + 1):
+            goal = start + (targets - start) * (i / SUBSTEPS)
+            np.multiply(self.spring_rate_sub, e.qvel, out=e.qfrc_applied)
+            e.qfrc_applied[kinematic] = self.armature * (((goal - e.qpos[kinematic]) / h - e.qvel[kinematic]) / h)
+            self.step_function(self.model, e)
+            pressed, flagged, _ = self._contacts(e)
+            has = np.zeros(len(touched), bool)
+            has[pressed[0]] = True
+            latest = _replaced(latest, pressed, has)
+            touched |= has
+            self.found.append(flagged)
+        return latest
+
+    def _compiled_substeps(self, e: mujoco.MjData, targets: np.ndarray, start: np.ndarray,
+                           touched: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The sub-steps' loop of :meth:`_substeps` on the scratch data ``e`` in one compiled call
+        (:func:`~pipeline.engines.mujoco.step_kernels.run_substeps`, operation for operation):
+        ``touched`` set, :attr:`found` filled; returns the latest contacts."""
+        ok, latest, *stacked, counts = self.scan.kernels.run_substeps(
+            SUBSTEPS, self.h_sub, start, targets, e.qpos, e.qvel, e.qfrc_applied, self.kinematic, self.armature,
+            self.spring_rate_sub, (self.member_of_geom, self.model.geom_bodyid, *self.links), touched,
+            *self.scan.arguments(self.model, e))
+        if not ok:
+            raise MemoryError("MuJoCo's contact buffer is full")
+        ends = np.cumsum(counts).tolist()
+        self.found.extend(tuple(part[end - n:end] for part in stacked) for n, end in zip(counts.tolist(), ends))
+        return latest
 
 
 def _replaced(contacts: tuple[np.ndarray, ...], newer: tuple[np.ndarray, ...], members: np.ndarray) -> tuple:

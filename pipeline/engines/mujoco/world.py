@@ -12,11 +12,13 @@ import numpy as np
 from pipeline.config.physics import EngineConfig
 from pipeline.engines import units as U
 from pipeline.engines.base import TrialSetup, World, WorldResult
-from pipeline.engines.common import (ContactFlags, implausible, jam_message, link_reach_m, node_arc_fractions,
+from pipeline.engines.common import (ContactFlags, jam_message, link_reach_m, node_arc_fractions,
                                      start_rate)
 from pipeline.engines.mujoco.faces import ScanContacts, triangles_mm
+from pipeline.engines.mujoco.follicle import FollicleTurns
 from pipeline.engines.mujoco.loads import LinkLoads
 from pipeline.engines.mujoco.plan import MujocoPlan, head_coordinates
+from pipeline.engines.mujoco.readings import SampleReadings
 from pipeline.engines.mujoco.prisms import MeshPrisms, cached_prisms
 from pipeline.engines.mujoco.reach import reachable_parts
 from pipeline.engines.mujoco.spec import WHISKER_CONTYPE, Part, compile_model
@@ -26,7 +28,7 @@ from pipeline.errors import SimulationError
 from pipeline.model.array import WhiskerModel
 from pipeline.model.head_motion import HeadMotion
 from pipeline.model.kinematics import Pose, ProtractionDrive
-from pipeline.model.rotations import axis_rotation, quat_wxyz
+from pipeline.model.rotations import quat_wxyz
 from pipeline.scenes.obstacles import Scene, TriangleMesh
 
 MAX_ACCELERATION = 1e10        # mjMAXVAL: MuJoCo's bound for a sane acceleration (rad/s², mm/s²)
@@ -95,8 +97,8 @@ class MujocoWorld(World):
             for position, j in enumerate(self.whiskers[k].layout.at_node(0)):
                 hinges.setdefault((position, "xyz".index(j.local_axis)), []).append(
                     (member, m.jnt_qposadr[named(joint, f"w{k}/{j.label}")]))
-        self.follicle = [(axis, *map(np.array, zip(*rows))) for (_, axis), rows in sorted(hinges.items())]
-        self.identities = np.tile(np.eye(3), (len(members), 1, 1))     # the follicle's rotations start here
+        self.follicle = FollicleTurns(
+            [(axis, *map(np.array, zip(*rows))) for (_, axis), rows in sorted(hinges.items())], len(members))
         self.link_bodies = np.array([[named(body, f"w{k}/l{i}") for i in range(self.links)]
                                      for k in members])
         self.link_lengths_mm = np.array([self.whiskers[k].chain.link_lengths_m for k in members]) * U.LENGTH
@@ -126,7 +128,7 @@ class MujocoWorld(World):
                 m.dof_damping[qpos] -= self.spring_rate[qpos]
                 self.spring_rate[qpos] = 0.0
         self.substeps = ContactLossSubsteps(
-            m, mujoco.mj_step if self.faces is None else self.faces.step, self.kinematic, self.armature, stiffness,
+            m, self.faces, self.kinematic, self.armature, stiffness,
             (stiffness > 0) & (self.spring_rate == 0), self.dof_member,
             np.where(self.link_of_geom >= 0, self.link_of_geom // self.links, -1), len(members),
             (self.link_of_geom, self.flat_link_bodies, self.flat_link_lengths_mm))
@@ -249,17 +251,19 @@ class MujocoWorld(World):
         """Integrate the current model (its ``members``; ``setup`` for them) for the trial's
         output intervals, open loop (:meth:`_stepping` with the plan it makes)."""
         result = WorldResult.zeros(setup.samples, len(self.members), self.links)
-        for _ in self._stepping(setup, result):
+        for _ in self._stepping(setup, result, deferred=True):
             pass
         return result
 
-    def _stepping(self, setup: TrialSetup, result: WorldResult, park: bool = False):
+    def _stepping(self, setup: TrialSetup, result: WorldResult, park: bool = False, deferred: bool = False):
         """A generator that integrates the current model for the trial's output intervals into
         ``result``: it first yields its :class:`MujocoPlan` (the kinematic targets and head frames
         of every step, from the drive and head trajectory), then the index of every sample it
         records, after recording it. A controller may rewrite the plan's rows of the next
         interval before asking for the next sample (:mod:`pipeline.engines.session`). A jam
         raises :class:`_Jam`, or with ``park`` takes the whisker out (:meth:`_park`) and goes on.
+        ``deferred``: the samples' wrench and nodes are converted at the end, not as they are
+        recorded (:mod:`~pipeline.engines.mujoco.readings`; nobody reads them before).
 
         The kinematic targets of every step are computed before the loop (rows rewritten when a
         base holds), the sensors are switched only on the steps that record. With a scan (and
@@ -272,6 +276,7 @@ class MujocoWorld(World):
         plan = MujocoPlan(self, offset, theta_rate, setup, n_steps)
         targets = plan.targets
         flags = ContactFlags(self.node_fractions[self.members])
+        readings = SampleReadings(self, setup.samples, eager=not deferred)
         held = np.zeros(n_w, bool)
         loaded = [k for k in range(n_w) if setup.loads[k]]
         sensor_bit = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
@@ -313,8 +318,7 @@ class MujocoWorld(World):
             if bad_acceleration.number:
                 self._unless_parked(lambda: self._blown_up(step * h), park, result)
             if records:
-                self._unless_parked(lambda: self._record(result, sample - 1, *flags.take(), time_s=step * h),
-                                    park, result)
+                self._unless_parked(lambda: self._record(readings, result, sample - 1, *flags.take()), park, result)
             if d.ncon:                              # read by the sub-steps' step (ContactLossSubsteps.read)
                 touching, members_hit = substeps.read
                 flags.add(*touching)
@@ -331,6 +335,7 @@ class MujocoWorld(World):
             if records:
                 yield sample - 1
             step += 1
+        self._converted(readings, result, setup.samples)
 
     def _unless_parked(self, call, park: bool, result: WorldResult) -> None:
         """``call()``; with ``park``, the whiskers of a :class:`_Jam` it raises are parked."""
@@ -369,31 +374,26 @@ class MujocoWorld(World):
         raise _Jam({int(self.members[j]): f"non-finite acceleration on {self.whiskers[self.members[j]].name} "
                     f"at t = {time_s:.4f} s" for j in members[members >= 0]})
 
-    def _record(self, result: WorldResult, sample: int, contact: np.ndarray, point_of_contact: np.ndarray,
-                time_s: float) -> None:
-        """Base wrench (SI, whisker frame), node positions (m), contact flags and points of
-        contact of one sample."""
+    def _record(self, readings: SampleReadings, result: WorldResult, sample: int, contact: np.ndarray,
+                point_of_contact: np.ndarray) -> None:
+        """Keep one sample's readings (:mod:`~pipeline.engines.mujoco.readings`), contact flags and
+        points of contact; the readings converted into the base wrench (SI, whisker frame) and
+        node positions (m) now or at the end of the run (:meth:`_converted`)."""
         d = self.data
-        wrench = d.sensordata.reshape(-1, 2, 3)                 # [w, (force, torque), 3], site frame
-        if self.follicle:
-            rotation = self.identities.copy()
-            for axis, member, qpos in self.follicle:
-                rotation[member] = rotation[member] @ axis_rotation(axis, d.qpos[qpos])
-            wrench = wrench @ rotation.transpose(0, 2, 1)
-        row = result.wrench[sample]
-        with np.errstate(over="ignore", invalid="ignore"):           # a jam shows as inf/nan
-            np.divide(wrench[:, 0], U.FORCE, out=row[:, :3])
-            np.divide(wrench[:, 1], U.TORQUE, out=row[:, 3:])
-        nodes = result.nodes[sample]
-        np.divide(d.xpos[self.link_bodies], U.LENGTH, out=nodes[:, :-1])
-        np.divide(d.site_xpos[self.tip_sites], U.LENGTH, out=nodes[:, -1])
         if self.joint_log is not None:                       # hinges: qpos address = dof address
-            self.joint_log[sample] = [(d.qpos[q].copy(), d.qvel[q].copy()) for q in self.free_qpos]
+            qpos, qvel = d.qpos, d.qvel
+            self.joint_log[sample] = [(qpos[q], qvel[q]) for q in self.free_qpos]    # fancy indexing copies
         result.contact[sample] = contact
         result.point_of_contact[sample] = point_of_contact
-        bad = implausible(result.wrench[sample])
-        if bad.size:
+        if readings.read(d, sample):
+            self._converted(readings, result, sample + 1)
+
+    def _converted(self, readings: SampleReadings, result: WorldResult, until: int) -> None:
+        """The readings of the samples before ``until`` converted into ``result``; :class:`_Jam`
+        for the whiskers of the first of them whose base moment is implausible."""
+        jam = readings.convert(result, until)
+        if jam is not None:
+            sample, bad = jam
+            time_s = (sample + 1) * self.steps_per_sample * self.dt_s
             raise _Jam({int(self.members[j]): jam_message(self.whiskers[self.members[j]].name,
                                                           result.wrench[sample, j], time_s) for j in bad})
-
-
