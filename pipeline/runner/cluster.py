@@ -38,9 +38,9 @@ def dashboard_address(config: ClusterConfig) -> str:
 
 # Each dask server of a cluster we start (the scheduler; a local cluster's nannies, in this process,
 # and its workers) wakes every tick to check that its event loop is not blocked and samples its
-# process's CPU, memory and I/O every system-monitor interval. dask's 20 ms and 500 ms cost a
-# local run's own process ≈ 0.03 CPU-s per trial (docs/scaling.md, issue 26, session 22); these
-# still warn of a loop blocked for tick.limit (3 s) and feed the dashboard every few seconds.
+# process's CPU, memory and I/O every system-monitor interval. With dask's 20 ms and 500 ms a
+# local run's event-loop thread used ≈ 0.05 CPU-s per wall second, with these ≈ 0.03
+# (docs/scaling.md, issue 26, session 22); these still warn of a loop blocked for tick.limit (3 s) and feed the dashboard every few seconds.
 SERVER_CLOCKS = {"distributed.admin.tick.interval": "1s", "distributed.admin.system-monitor.interval": "5s"}
 WORKER_EXTRA_ARGS = ["--dashboard-address", f"{LOOPBACK}:0"]   # workers' HTTP servers on loopback too
 # dask's statistical profiler samples a worker's stack every 10 ms and keeps a call tree per
