@@ -13,7 +13,6 @@ from pathlib import Path
 import numpy as np
 
 
-
 def read_plain_obj(path: Path) -> tuple[np.ndarray, np.ndarray] | None:
     """(vertices [V, 3] as written, faces [F, 3] 0-based int64) of an OBJ file of plain ``v x y z``
     and ``f a b c`` lines (positive 1-based indices) and comments; None if it holds anything else
