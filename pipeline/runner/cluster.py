@@ -13,15 +13,16 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import socket
 import sys
+import threading
 import warnings
 from contextlib import contextmanager
 from typing import Iterator
 from urllib.parse import urlsplit
 
 import dask
-import dask_jobqueue
 from distributed import Client, LocalCluster
 
 from pipeline.config.simulate import BATCH_KINDS, ClusterConfig
@@ -66,6 +67,15 @@ def scheduler_bind(config: ClusterConfig) -> dict:
 
 
 def _cluster_class(config: ClusterConfig):
+    """dask-jobqueue's cluster class for a batch ``config``, imported without giving up Ctrl-C:
+    dask-jobqueue 0.9.0 replaces the process's SIGINT handler on import with one that exits with
+    code 0 (dask/dask-jobqueue#696, fixed after 0.9.0), so an interrupted run would stop without
+    its ``interrupted:`` line and with a success code. The handler in place before is put back."""
+    handler = signal.getsignal(signal.SIGINT)
+    # imported for batch clusters only, not at the top: its import replaces the SIGINT handler
+    import dask_jobqueue
+    if threading.current_thread() is threading.main_thread() and handler is not None:
+        signal.signal(signal.SIGINT, handler)
     return {"slurm": dask_jobqueue.SLURMCluster, "pbs": dask_jobqueue.PBSCluster,
             "sge": dask_jobqueue.SGECluster, "lsf": dask_jobqueue.LSFCluster}[config.kind]
 
