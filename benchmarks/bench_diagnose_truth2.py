@@ -190,7 +190,8 @@ def report(rows: list[dict]) -> str:
     if twisted:
         lines += ["", "twist draws: true G/E → causes named (fitted G/E ± SD), effect / noise σ"]
         lines += [f"  {r['seed']} {r['truth']['twist.g_over_e']:.3f} → {', '.join(r['causes']) or r['named']}"
-                  + (f" ({r['params']['twist.g_over_e']['value']:.3f} ± {r['params']['twist.g_over_e']['sd'] or 0:.3f})"
+                  + (" ({value:.3f} ± {sd:.3f})".format(value=r["params"]["twist.g_over_e"]["value"],
+                                                         sd=r["params"]["twist.g_over_e"]["sd"] or 0.0)
                      if "twist.g_over_e" in r.get("params", {}) else "")
                   + f"  {r['effect_rms_m'] / r['noise_m']:.2f}" for r in twisted]
     laws = [r for r in rows if r["label"].startswith("law:")]

@@ -139,5 +139,6 @@ def test_out_of_plane_tip_load_on_a_curved_beam_matches_castigliano(g_over_e):
     torque = np.sum(moment * tangent, axis=1)
     bending = np.linalg.norm(moment - torque[:, None] * tangent, axis=1)
     inertia = np.pi * w.base_radius_m ** 4 / 4
-    compliance = bending ** 2 / (w.youngs_modulus_pa * inertia) + torque ** 2 / (g_over_e * w.youngs_modulus_pa * 2 * inertia)
+    bending_rigidity, torsional_rigidity = w.youngs_modulus_pa * inertia, g_over_e * w.youngs_modulus_pa * 2 * inertia
+    compliance = bending ** 2 / bending_rigidity + torque ** 2 / torsional_rigidity
     assert u[-4] == pytest.approx(np.trapezoid(compliance, s), rel=5e-4)

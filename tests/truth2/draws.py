@@ -35,7 +35,8 @@ from scipy.spatial.transform import Rotation
 from pipeline.measurements.timeseries import ReleaseDrive, RotationDrive, TimeSeriesMeasurement, Trial
 from pipeline.model.whisker import WhiskerGeometry
 
-from .beam import FLIP, RIGID_G_OVER_E, Beam, Whisker, build, damped_in_plane, integrate, static, to_rest_frame, undamped_in_plane
+from .beam import (FLIP, RIGID_G_OVER_E, Beam, Whisker, build, damped_in_plane, integrate, static, to_rest_frame,
+                   undamped_in_plane)
 
 CLASSES = ("none", "follicle", "stiffness_gradient", "damping_gradient", "density", "length", "drag",
            "gravity", "follicle+stiffness_gradient", "density+drag", "law:rayleigh", "law:modal", "law:eq3", "twist")
