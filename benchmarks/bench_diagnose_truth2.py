@@ -1,10 +1,14 @@
 """Does ``pipeline diagnose`` name the right causes on the second independent truth (issue 25)?
 
 Run: .venv/bin/python benchmarks/bench_diagnose_truth2.py [--n 104] [--seed 7000] [--json out.json]
-     [--elements 40] [--cache DIR]; or --from-json ROWS.json ... to report saved rows. Rows are
-     saved after every draw; a run given an existing --json resumes (skips the seeds it holds).
+     [--elements 40] [--cache DIR] [--classes C ...] [--seeds S ...]; or --from-json ROWS.json ...
+     to report saved rows. Rows are saved after every draw; a run given an existing --json
+     resumes (skips the (class, seed) pairs it holds).
 
-Draw k has class CLASSES[k mod 13] of tests/truth2/draws.py and seed seed + k: a 3-D
+The draw of seed s (seed + k for k in first … first + n − 1, or each of --seeds) has class
+classes[(s − seed) mod len(classes)] of tests/truth2/draws.py, classes by default
+:data:`ROTATION` (the 13 classes before "twist": draw 7000 + k has class ROTATION[k mod 13]);
+``--classes twist --seed 7200 --n 10`` draws ten of the twist class. Each is a 3-D
 finite-element Euler–Bernoulli frame of the tapered curved whisker (tests/truth2/beam.py:
 no code or conventions shared with pipeline.model or tests/truth), whisks about tilted axes
 and oblique releases, two-camera tracking at other arc positions; zero, one or two hidden
@@ -16,7 +20,8 @@ Seeds 7000– are the benchmark; none of the rule's constants was set on them.
 Printed: the confusion table (class × named cause); right causes (all of them, for two-cause
 draws) on draws whose effect exceeds the noise (the effect: RMS of the clean tracked positions
 with minus without it; the noise: RMS of the per-axis tracking σ), "none" (or twist alone on
-a curved whisker: see :func:`_right`) on effect-free draws, the named parameter within 15 %, the
+a curved whisker whose truth twists: see :func:`_right`) on effect-free draws, twist named
+with its G/E on the twist class, the named parameter within 15 %, the
 two-cause table (with each cause's own effect over the noise: the RMS change of the clean tracked
 positions when that cause alone is taken out), tracebacks, CPU per diagnosis.
 """
@@ -40,10 +45,11 @@ from pipeline.config.physics import MaterialConfig  # noqa: E402
 from pipeline.diagnosis.candidates import DAMPING_LAWS  # noqa: E402
 from pipeline.diagnosis.commands import run_diagnose  # noqa: E402
 from pipeline.measurements.timeseries import write_timeseries  # noqa: E402
-from tests.truth2.beam import Whisker  # noqa: E402
+from tests.truth2.beam import POISSON_G_OVER_E, RIGID_G_OVER_E, Whisker  # noqa: E402
 from tests.truth2.draws import CLASSES, KEY_PARAMETER, bend, clean_positions, draw, measurement, true_modes  # noqa: E402
 
 TOLERANCE = 0.15
+ROTATION = tuple(c for c in CLASSES if c != "twist")     # the classes of draws 7000–7129, in turn
 NEUTRAL = {"law": "kelvin_voigt", "stiffness_gamma": 0.0, "damping_gamma": 0.0, "density_gamma": 0.0,
            "length_scale": 1.0, "follicle": None, "drag_linear": 0.0, "gravity_m_s2": 0.0}
 CAUSE_FIELD = {"follicle": "follicle", "stiffness_gradient": "stiffness_gamma", "damping_gradient": "damping_gamma",
@@ -60,11 +66,14 @@ def _effect_rms_m(d, clean, first_mode_zeta: float) -> float:
     """RMS of the clean tracked positions with minus without the draw's effects (same drives).
     Without a damping law means Kelvin–Voigt at the truth's first in-plane damping ratio
     ``first_mode_zeta``: a fitted ζ takes that up, and the law's ``zeta1`` is not it for eq. 3
-    (θ_ζ, ζ1 ≈ 0.23·θ_ζ), so the effect of a law is what it does beyond its first mode's damping."""
+    (θ_ζ, ζ1 ≈ 0.23·θ_ζ), so the effect of a law is what it does beyond its first mode's damping.
+    Without twist means rigid torsion; the other classes keep their truth's isotropic torsion
+    (their background, not their effect)."""
     if d.label == "none":
         return 0.0
     law = {"zeta1": first_mode_zeta} if d.whisker.law != NEUTRAL["law"] else {}
-    neutral = replace(d, whisker=Whisker(**{**d.whisker.__dict__, **NEUTRAL, **law}))
+    torsion = {"g_over_e": RIGID_G_OVER_E if "twist" in d.expected else d.whisker.g_over_e}
+    neutral = replace(d, whisker=Whisker(**{**d.whisker.__dict__, **NEUTRAL, **law, **torsion}))
     if d.whisker.length_scale != 1.0:     # trimmed: the same material points of the untrimmed whisker
         neutral = replace(neutral, whisker=replace(neutral.whisker, length_scale=1.0))
     return _rms_m(clean, clean_positions(neutral))
@@ -81,9 +90,9 @@ def _rms_m(clean, other) -> float:
     return float(np.sqrt(np.mean([np.mean((a[0] - b[0]) ** 2) for a, b in zip(clean, other)])))
 
 
-def prepare(k: int, seed0: int, workdir: Path, elements: int) -> tuple[Path, dict]:
-    label, seed = CLASSES[k % len(CLASSES)], seed0 + k
-    path, meta_path = workdir / f"t2_{seed}_{elements}.h5", workdir / f"t2_{seed}_{elements}.json"
+def prepare(label: str, seed: int, workdir: Path, elements: int) -> tuple[Path, dict]:
+    stem = f"t2_{label.replace(':', '_').replace('+', '_')}_{seed}_{elements}"
+    path, meta_path = workdir / f"{stem}.h5", workdir / f"{stem}.json"
     if path.is_file() and meta_path.is_file():
         return path, json.loads(meta_path.read_text())
     d = draw(label, seed, elements)
@@ -92,7 +101,8 @@ def prepare(k: int, seed0: int, workdir: Path, elements: int) -> tuple[Path, dic
     meta = {"label": label, "seed": seed, "expected": sorted(d.expected), "truth": d.truth,
             "noise_m": _noise_m(d), "effect_rms_m": _effect_rms_m(d, clean, modes["zeta"][0]), "bend": bend(d, clean),
             "own_effect_rms_m": own_effects_m(d, clean) if len(d.expected) > 1 else {},
-            "modes": modes, "curved": d.whisker.curvature_per_m > 0, "length_m": d.whisker.length_m}
+            "modes": modes, "curved": d.whisker.curvature_per_m > 0, "length_m": d.whisker.length_m,
+            "g_over_e": d.whisker.g_over_e}
     meta_path.write_text(json.dumps(meta, default=float))
     return path, meta
 
@@ -105,8 +115,8 @@ def _key_error(meta: dict, params: dict, cause: str) -> float:
     return float(((1 - value) - (1 - true)) / (1 - true) if cause == "length" else (value - true) / true)
 
 
-def run_one(k: int, seed0: int, workdir: Path, elements: int) -> dict:
-    path, meta = prepare(k, seed0, workdir, elements)
+def run_one(label: str, seed: int, workdir: Path, elements: int) -> dict:
+    path, meta = prepare(label, seed, workdir, elements)
     start = time.process_time()
     try:
         data, _ = run_diagnose(path, MaterialConfig(), None, None)
@@ -120,13 +130,20 @@ def run_one(k: int, seed0: int, workdir: Path, elements: int) -> dict:
             "decision": data.get("decision", {}), "cpu_s": time.process_time() - start}
 
 
+def _twists(row) -> bool:
+    """Does the truth of ``row`` twist measurably: a curved whisker (out-of-plane motion couples
+    its torsion into its bending) not rigid in torsion (rows saved before session 23 carry no
+    G/E: G = E/2.6 on every class then)."""
+    return row["curved"] and row.get("g_over_e", POISSON_G_OVER_E) < RIGID_G_OVER_E
+
+
 def _right(row) -> bool:
-    """All the expected causes and no other; "twist" is allowed on curved whiskers (the truth
-    twists, G = E/2.6, and out-of-plane motion of a curved whisker shows it; the model's default
-    chain has no twist, its ``twist`` extension adds it); any damping-law candidate
+    """All the expected causes and no other; "twist" is allowed as an extra cause where the truth
+    twists (:func:`_twists`: the classes other than "none" and "twist" keep G = E/2.6; the model's
+    default chain has no twist, its ``twist`` extension adds it); any damping-law candidate
     (:data:`~pipeline.diagnosis.candidates.DAMPING_LAWS`) counts as the cause ``damping_law``."""
     named = {"damping_law" if c in DAMPING_LAWS else c for c in row["causes"]}
-    named -= {"twist"} if row["curved"] else set()
+    named -= {"twist"} - set(row["expected"]) if _twists(row) else set()
     return named == set(row["expected"]) and row["named"] != "traceback"
 
 
@@ -147,11 +164,14 @@ def report(rows: list[dict]) -> str:
     big = [r for r in effect if r["effect_rms_m"] > r["noise_m"]]
     clean = [r for r in rows if not r["expected"]]
     twist = [r for r in rows if "twist" in r["causes"]]
+    still = [r for r in clean if not _twists(r)]
     lines += ["", f"right causes (all of them) where the effect > noise σ: {_share(sum(map(_right, big)), len(big))}; "
                   f"{len(effect) - len(big)} effect draws below it (right anyway: "
                   f"{sum(_right(r) for r in effect if r not in big)})",
-              f"nothing but twist on effect-free draws: {_share(sum(map(_right, clean)), len(clean))} ('none' "
-              f"{sum(r['named'] == 'none' for r in clean)}); twist named on {len(twist)} draws "
+              f"'none' on effect-free draws: {_share(sum(r['named'] == 'none' for r in clean), len(clean))} "
+              f"(on those whose truth does not twist, rigid or straight: "
+              f"{_share(sum(r['named'] == 'none' for r in still), len(still))}; nothing but twist where it does: "
+              f"{_share(sum(map(_right, clean)), len(clean))}); twist named on {len(twist)} draws "
               f"({sum(r['curved'] for r in twist)} curved)"]
     keyed = [(r, c, e) for r in rows for c, e in r["key_errors"].items() if c in r["expected"] and np.isfinite(e)]
     lines.append(f"named parameter within {TOLERANCE:.0%}: "
@@ -166,6 +186,14 @@ def report(rows: list[dict]) -> str:
                   for r in two]
         each = [r for r in two if r.get("own_effect_rms_m") and min(r["own_effect_rms_m"].values()) > r["noise_m"]]
         lines.append(f"  right where each cause's own effect > noise σ: {_share(sum(map(_right, each)), len(each))}")
+    twisted = [r for r in rows if r["label"] == "twist"]
+    if twisted:
+        lines += ["", "twist draws: true G/E → causes named (fitted G/E ± SD), effect / noise σ"]
+        lines += [f"  {r['seed']} {r['truth']['twist.g_over_e']:.3f} → {', '.join(r['causes']) or r['named']}"
+                  + (" ({value:.3f} ± {sd:.3f})".format(value=r["params"]["twist.g_over_e"]["value"],
+                                                         sd=r["params"]["twist.g_over_e"]["sd"] or 0.0)
+                     if "twist.g_over_e" in r.get("params", {}) else "")
+                  + f"  {r['effect_rms_m'] / r['noise_m']:.2f}" for r in twisted]
     laws = [r for r in rows if r["label"].startswith("law:")]
     if laws:
         lines += ["", "damping-law draws: true law → causes named (mass-proportional α where fitted)"]
@@ -192,23 +220,28 @@ def main():
     parser.add_argument("--json", type=Path, help="write the rows here")
     parser.add_argument("--elements", type=int, default=40, help="elements of the truth beam")
     parser.add_argument("--cache", type=Path, help="keep (and reuse) the draws' measurement files here")
+    parser.add_argument("--classes", nargs="+", default=ROTATION, choices=CLASSES, metavar="CLASS",
+                        help=f"classes in turn (default: the 13 before twist; known: {', '.join(CLASSES)})")
+    parser.add_argument("--seeds", type=int, nargs="+", help="these seeds instead of seed + first … + n − 1")
     parser.add_argument("--from-json", type=Path, nargs="+", help="only print the report of these saved rows")
     args = parser.parse_args()
     if args.from_json:
-        latest = {row["seed"]: row for path in args.from_json for row in json.loads(path.read_text())}
+        latest = {(row["label"], row["seed"]): row for path in args.from_json for row in json.loads(path.read_text())}
         print(report(sorted(latest.values(), key=lambda row: row["seed"])))
         return
     rows = json.loads(args.json.read_text()) if args.json and args.json.is_file() else []   # resume
-    done = {row["seed"] for row in rows}
+    done = {(row["label"], row["seed"]) for row in rows}
+    seeds = args.seeds or [args.seed + k for k in range(args.first, args.first + args.n)]
     with tempfile.TemporaryDirectory() as tmp:
         workdir = args.cache or Path(tmp)
         workdir.mkdir(parents=True, exist_ok=True)
-        for k in range(args.first, args.first + args.n):
-            if args.seed + k in done:
+        for seed in seeds:
+            label = args.classes[(seed - args.seed) % len(args.classes)]
+            if (label, seed) in done:
                 continue
-            rows.append(run_one(k, args.seed, workdir, args.elements))
+            rows.append(run_one(label, seed, workdir, args.elements))
             r = rows[-1]
-            print(f"{k:4d} {r['label']:>28} → {r['named']:<18} effect/noise {r['effect_rms_m'] / r['noise_m']:.2f} "
+            print(f"{seed:5d} {r['label']:>28} → {r['named']:<18} effect/noise {r['effect_rms_m'] / r['noise_m']:.2f} "
                   f"bend {r['bend']:.2f} ({r['cpu_s']:.1f} s)", flush=True)
             if args.json:
                 args.json.write_text(json.dumps(rows, indent=1, default=float))

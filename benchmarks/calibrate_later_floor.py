@@ -7,7 +7,7 @@ Run: .venv/bin/python benchmarks/calibrate_later_floor.py [--classes follicle st
      (rows of benchmarks/bench_diagnose_truth2.py are read as well). A run given an existing --json
      resumes.
 
-Draw k has class CLASSES[k mod 13] and seed seed + k, as in bench_diagnose_truth2.py; the first n
+Draw k has class ROTATION[k mod 13] and seed seed + k, as in bench_diagnose_truth2.py; the first n
 draws of each class in ``--classes`` (single causes) are diagnosed. On a draw whose first named
 cause is its own, the later round's two folds (:mod:`pipeline.diagnosis.later_causes`) give each
 candidate's κ_c = √max(0, e₀² − e_c²)/A on top of that right cause
@@ -27,10 +27,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.bench_diagnose_truth2 import run_one  # noqa: E402
+from benchmarks.bench_diagnose_truth2 import ROTATION, run_one  # noqa: E402
 from benchmarks.calibrate_floor import absorbed_fractions  # noqa: E402
 from pipeline.diagnosis.candidates import ABSORBS  # noqa: E402
-from tests.truth2.draws import CLASSES  # noqa: E402
 
 FOLDS = ("first_fold", "second_fold")
 
@@ -76,12 +75,12 @@ def main():
         return
     rows = _saved([args.json])
     done = {row["seed"] for row in rows}
-    draws = sorted(CLASSES.index(c) + len(CLASSES) * j for c in args.classes for j in range(args.n))
+    draws = sorted(ROTATION.index(c) + len(ROTATION) * j for c in args.classes for j in range(args.n))
     with tempfile.TemporaryDirectory() as tmp:
         for k in draws:
             if args.seed + k in done:
                 continue
-            rows.append(run_one(k, args.seed, Path(tmp), 40))
+            rows.append(run_one(ROTATION[k % len(ROTATION)], args.seed + k, Path(tmp), 40))
             r = rows[-1]
             print(f"{r['seed']} {r['label']:>18} → {', '.join(r['causes']) or r['named']}", flush=True)
             if args.json:

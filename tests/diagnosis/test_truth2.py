@@ -59,3 +59,86 @@ def test_later_round_gains_are_read_only_behind_the_draws_own_cause():
     assert later_absorbed({**row, "causes": ["stiffness_gradient", "follicle"]}) == []
     assert later_absorbed({**row, "expected": ["follicle", "drag"], "causes": ["follicle", "drag"]}) == []
     assert later_absorbed({**row, "decision": {"rounds": []}}) == []
+
+
+def _release_and_whisk(whisker: Whisker):
+    """A short draw of ``whisker``: an oblique release and a tilted whisk, three tracked points."""
+    from tests.truth2.draws import Cameras, Draw, Release, Whisk
+
+    trials = (Release("release", 0.6, 0.06, np.radians(40)), Whisk("whisk", np.radians(20), 0.02, np.radians(30)))
+    return Draw("none", 0, whisker, trials, Cameras((0.3, 0.6, 0.9), 2000.0, 15e-6, 30e-6, 0, duration_s=0.04), {})
+
+
+def test_rigid_torsion_changes_the_tracked_points_far_below_the_noise():
+    """G/E = RIGID_G_OVER_E is rigid: ten times stiffer moves the tracked points of a curved whisker
+    (A·S 0.4, out-of-plane release and whisk) by < 1 µm RMS (the least tracking σ drawn: 15 µm) and
+    < 2 % of what the isotropic torsion does there; on a straight whisker torsion changes nothing."""
+    from benchmarks.bench_diagnose_truth2 import _rms_m
+    from tests.truth2.beam import POISSON_G_OVER_E, RIGID_G_OVER_E
+    from tests.truth2.draws import clean_positions
+
+    def points(curvature, g_over_e):
+        return clean_positions(_release_and_whisk(replace(WHISKER, curvature_per_m=curvature, g_over_e=g_over_e,
+                                                          elements=16)))
+
+    curved = {ge: points(0.4 / 0.03, ge) for ge in (POISSON_G_OVER_E, RIGID_G_OVER_E, 10 * RIGID_G_OVER_E)}
+    torsion = _rms_m(curved[POISSON_G_OVER_E], curved[RIGID_G_OVER_E])
+    beyond = _rms_m(curved[RIGID_G_OVER_E], curved[10 * RIGID_G_OVER_E])
+    assert torsion > 15e-6 and beyond < 1e-6 and beyond < 0.02 * torsion
+    assert _rms_m(points(0.0, POISSON_G_OVER_E), points(0.0, RIGID_G_OVER_E)) < 1e-12
+
+
+def test_torsion_of_the_classes():
+    """"none" is rigid in torsion, "twist" draws G/E in 0.2–0.5 on a curved whisker and expects
+    twist (truth under the diagnosis' name), the other classes keep the isotropic G = E/2.6; the
+    draw's other random numbers do not depend on the torsion."""
+    from tests.truth2.beam import POISSON_G_OVER_E, RIGID_G_OVER_E
+    from tests.truth2.draws import KEY_PARAMETER, draw
+
+    for seed in range(7200, 7205):
+        case = draw("twist", seed)
+        assert 0.2 <= case.whisker.g_over_e <= 0.5 and case.whisker.curvature_per_m > 0
+        assert case.expected == {"twist"} and case.truth[KEY_PARAMETER["twist"]] == case.whisker.g_over_e
+        none, gravity = draw("none", seed), draw("gravity", seed)
+        assert none.whisker.g_over_e == RIGID_G_OVER_E and none.expected == frozenset()
+        assert gravity.whisker.g_over_e == POISSON_G_OVER_E
+        assert replace(none.whisker, g_over_e=POISSON_G_OVER_E) == replace(gravity.whisker, gravity_m_s2=0.0)
+
+
+def test_twist_counts_as_right_only_where_the_truth_twists():
+    from benchmarks.bench_diagnose_truth2 import _right
+    from tests.truth2.beam import POISSON_G_OVER_E, RIGID_G_OVER_E
+
+    row = {"named": "twist", "causes": ["twist"], "expected": [], "curved": True, "g_over_e": RIGID_G_OVER_E}
+    assert not _right(row)
+    assert _right({**row, "g_over_e": POISSON_G_OVER_E})
+    assert _right({k: v for k, v in row.items() if k != "g_over_e"})       # rows saved before session 23
+    twist = {**row, "expected": ["twist"], "g_over_e": 0.3}
+    assert _right(twist) and not _right({**twist, "named": "none", "causes": []})
+    assert not _right({**twist, "causes": ["twist", "drag"]})
+
+
+@pytest.mark.parametrize("g_over_e", [0.2, 40.0])
+def test_out_of_plane_tip_load_on_a_curved_beam_matches_castigliano(g_over_e):
+    """Static z deflection of a uniform curved cantilever (A·S 0.5) under a tip force along z:
+    Castigliano's δ/P = ∫ (M_b²/EI + T²/GJ) ds per unit load, M_b and T the parts of
+    (r_tip − r(s)) × ẑ across and along the tangent (twist takes 19 % of δ at G/E 0.2, 0.1 % at
+    the rigid 40); the frame's bending–twist coupling of the curved whisker within 0.05 %."""
+    from tests.truth2.beam import rest_curve, static
+
+    w = replace(WHISKER, tip_radius_m=WHISKER.base_radius_m, curvature_per_m=0.5 / 0.03, g_over_e=g_over_e)
+    beam = build(w)
+    load = np.zeros(6 * len(beam.nodes))
+    load[-4] = 1.0                                         # z force on the tip node
+    u = np.zeros_like(load)
+    u[beam.free] = static(beam, beam.restrict(load))
+    s, r = rest_curve(replace(w, elements=20000))
+    tangent = np.gradient(r, s, axis=0)
+    tangent /= np.linalg.norm(tangent, axis=1)[:, None]
+    moment = np.cross(r[-1] - r, [0.0, 0.0, 1.0])
+    torque = np.sum(moment * tangent, axis=1)
+    bending = np.linalg.norm(moment - torque[:, None] * tangent, axis=1)
+    inertia = np.pi * w.base_radius_m ** 4 / 4
+    bending_rigidity, torsional_rigidity = w.youngs_modulus_pa * inertia, g_over_e * w.youngs_modulus_pa * 2 * inertia
+    compliance = bending ** 2 / bending_rigidity + torque ** 2 / torsional_rigidity
+    assert u[-4] == pytest.approx(np.trapezoid(compliance, s), rel=5e-4)

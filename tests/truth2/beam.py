@@ -4,9 +4,10 @@ displacements in the frame of the driven base (second truth generator, issue 25)
 Deliberately unlike ``pipeline.model`` (a rigid-link chain) and ``tests.truth`` (a planar
 discrete rod): ``elements`` straight two-node frame elements (6 DOF per node: translations
 and small rotations in the generator's own frame, :data:`FLIP` away from the documented rest
-frame), cubic Hermite bending in both planes, linear axial stretch and twist (G = E/2.6),
-consistent mass; section and material integrated over each element by Gauss quadrature
-(E(s)·I(s), ρ(s)·A(s) vary inside an element). The base node is clamped, or held by a
+frame), cubic Hermite bending in both planes, linear axial stretch and twist (G =
+``g_over_e``·E, the isotropic E/2.6 unless a draw sets it), consistent mass; section and
+material integrated over each element by Gauss quadrature (E(s)·I(s), ρ(s)·A(s) vary inside
+an element). The base node is clamped, or held by a
 rotational spring-dashpot about both transverse axes (compliant follicle).
 
 Equations (base frame turning at θ(t) about a fixed unit axis n, displacements u small):
@@ -36,7 +37,8 @@ from scipy.spatial.transform import Rotation
 
 DENSITY_BASE_KG_M3 = 1260.0     # Yang et al. 2019 regional means, linear along the (untrimmed) arc
 DENSITY_TIP_KG_M3 = 1690.0
-POISSON_G_OVER_E = 1 / 2.6
+POISSON_G_OVER_E = 1 / 2.6      # isotropic, ν = 0.3
+RIGID_G_OVER_E = 40.0           # ≈ 100 × isotropic: rigid to ≪ the tracking noise (docs/measurements.md)
 LAWS = ("kelvin_voigt", "rayleigh", "modal", "eq3")
 PAPER_LINKS = 20
 FLIP = np.diag([1.0, -1.0, -1.0])          # generator frame ↔ documented rest frame (rotation by π about x)
@@ -70,6 +72,7 @@ class Whisker:
     length_scale: float = 1.0
     follicle: tuple[float, float] | None = None     # (k_f N·m/rad, c_f N·m·s/rad)
     drag_linear: float = 0.0           # N·s/m² on the normal velocity
+    g_over_e: float = POISSON_G_OVER_E  # shear / Young's modulus (torsion); RIGID_G_OVER_E: no twist
     gravity_m_s2: float = 0.0
     gravity_direction: tuple[float, float, float] = (0.0, 0.0, -1.0)   # generator frame
     elements: int = 40
@@ -225,7 +228,7 @@ def _element_matrices(w: Whisker, e: Element) -> tuple[np.ndarray, np.ndarray]:
         k += wt * e.length * modulus * area * np.outer(axial, axial)
         twist = np.zeros(12)
         twist[[3, 9]] = -1 / e.length, 1 / e.length
-        k += wt * e.length * POISSON_G_OVER_E * modulus * 2 * inertia * np.outer(twist, twist)
+        k += wt * e.length * w.g_over_e * modulus * 2 * inertia * np.outer(twist, twist)
         n = _shape(xi, e.length)
         m += wt * e.length * rho * area * n.T @ n
         spin = np.zeros(12)
