@@ -1,5 +1,6 @@
 """Queries on a triangle mesh (metres): distances, rays and area-uniform points (Open3D's
-RaycastingScene, one thread), and which faces lie near given points (a k-d tree of face centroids)."""
+RaycastingScene, one thread, from its compiled module alone: :mod:`pipeline.scenes.open3d_core`),
+and which faces lie near given points (a k-d tree of face centroids)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,8 @@ from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
+
+from pipeline.scenes.open3d_core import open3d_core
 
 if TYPE_CHECKING:
     from pipeline.scenes.distance_bounds import DistanceBounds
@@ -19,10 +22,7 @@ class SurfaceQueries:
     """Distances to, rays against and area-uniform points on one triangle mesh (metres)."""
 
     def __init__(self, vertices_m: np.ndarray, faces: np.ndarray):
-        # imported here, not at the top: ≈0.44 CPU-s on a trial's start-up
-        import open3d as o3d
-
-        self._o3d = o3d
+        o3d = self._o3d = open3d_core()     # loaded here, not on import: ≈0.3 CPU-s of a trial's start-up
         vertices = np.asarray(vertices_m, np.float64)
         faces = np.asarray(faces, np.int64)
         self.scene = o3d.t.geometry.RaycastingScene()
