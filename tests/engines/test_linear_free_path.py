@@ -15,7 +15,7 @@ from pipeline.engines.linear.free import (LINEAR_PATH_MARGIN_M, MAX_BEND, bend, 
                                          whisker_frames)
 from pipeline.engines.linear.modal import _state_matrix, discretise, modal
 from pipeline.engines.linear.rotating import com_hessian, rotating_matrices
-from pipeline.engines.linear.wrench import _hessian, _second
+from pipeline.engines.linear.wrench import _hessian
 from pipeline.model.array import build_array
 from pipeline.model.effects.registry import model_parts
 from pipeline.model.kinematics import Pose, sinusoidal_whisk
@@ -139,30 +139,24 @@ def test_running_integral_is_scipys_cumulative_trapezoid_to_the_bit():
                               cumulative_trapezoid(values, times, axis=0, initial=0.0))
 
 
-def test_a_chain_keeps_its_com_hessian_only_until_both_users_have_theirs():
-    """The rotating matrices and the wrench's copy (its columns that are not zero) are what a
-    worker keeps of the centre-of-mass Hessian; the Hessian itself goes once both are cached."""
+def test_a_chain_keeps_its_com_hessian_only_until_the_wrench_has_its_copy():
+    """The rotating matrices and the wrench's copy (the Hessian's columns that are not all zero,
+    about half) are what a worker keeps of the centre-of-mass Hessian; the Hessian itself goes
+    once the wrench has its copy, from which the wrench's matrix is rebuilt exactly."""
     whisker = build_array(model_rat().select("RA1"), *model_parts(ModelConfig())).whiskers[0]
     lin = linearise(whisker.physics)
     second = com_hessian(lin)
     rotating_matrices(lin)
     assert "com_hessian" in lin.cache                 # the wrench has not taken its copy yet
-    kept, columns = _hessian(lin)
-    assert "com_hessian" not in lin.cache and not np.shares_memory(columns, second)    # a copy: second is freed
-    full = np.transpose(second, (2, 0, 3, 1)).reshape(second.shape[2], -1)
-    assert np.array_equal(columns, full[:, kept]) and not full[:, ~kept].any()
-    assert columns.nbytes < 0.6 * full.nbytes
-
-
-def test_the_wrench_s_second_derivative_terms_are_the_full_hessian_s_to_the_bit():
-    """Leaving the Hessian's zero columns out of the product changes no bit of its terms
-    (the product with the full matrix, as before)."""
-    whisker = build_array(model_rat().select("RA1"), *model_parts(ModelConfig())).whiskers[0]
-    lin = linearise(whisker.physics)
-    second = com_hessian(lin)
-    full = np.transpose(second, (2, 0, 3, 1)).reshape(second.shape[2], -1)
-    rng = np.random.default_rng(3)
-    for t in (1, 7, 126):
-        x, y = rng.normal(size=(2, t, lin.n))
-        expected = np.einsum("tlai,ti->tla", (x @ full).reshape(t, -1, 3, lin.n), y)
-        assert _second(_hessian(lin), x, y).tobytes() == expected.tobytes()
+    transposed = _hessian(lin)
+    assert "com_hessian" not in lin.cache and not np.shares_memory(transposed, second)    # a copy: second is freed
+    assert np.array_equal(transposed, np.transpose(second, (2, 0, 3, 1)).reshape(second.shape[2], -1))
+    kept = sum(part.nbytes for part in lin.cache["wrench_hessian"])
+    assert kept < 0.6 * transposed.nbytes
+    assert np.array_equal(_hessian(lin), transposed)
+    other = linearise(whisker.physics)                # a drive that needs the rotating matrices only later
+    _hessian(other)
+    assert "com_hessian" not in other.cache
+    for k, matrices in enumerate(rotating_matrices(other)):
+        assert np.array_equal(matrices, rotating_matrices(lin)[k])
+    assert "com_hessian" not in other.cache

@@ -73,28 +73,29 @@ def base_wrench(lin: LinearWhisker, q: np.ndarray, shape: tuple[np.ndarray, np.n
     return np.concatenate([force, moment], axis=1)
 
 
-def _hessian(lin: LinearWhisker) -> tuple[np.ndarray, np.ndarray]:
-    """The links' centre-of-mass Hessian (:func:`.rotating.com_hessian`) for :func:`_second` as
-    the matrix [n, L·3·n] (j; l, a, i) with its columns of zeros left out: (a mask [L·3·n] of
-    the columns kept, the kept columns [n, C]). Joint i moves link l only from its first link
-    on, so half the columns are zero: 11 MB less for an array, held by a worker all run."""
+def _hessian(lin: LinearWhisker) -> np.ndarray:
+    """[n, L·3·n] the links' centre-of-mass Hessian (:func:`.rotating.com_hessian`) for
+    :func:`_second`, laid out for one matrix product, rebuilt for each call from what ``lin``
+    keeps: its columns that are not all zero (joint i moves link l only from its first link on,
+    so half of them are). A worker keeps 11 MB instead of 23 MB for an array; the product itself
+    is the full matrix's, the same to the bit (a product without the zero columns is not, for
+    some sizes)."""
     if "wrench_hessian" not in lin.cache:
         second = com_hessian(lin)                                              # [L, i, j, 3]
         full = np.transpose(second, (2, 0, 3, 1)).reshape(second.shape[2], -1)
         kept = full.any(axis=0)
         lin.cache["wrench_hessian"] = (kept, np.ascontiguousarray(full[:, kept]))
         drop_com_hessian(lin)
-    return lin.cache["wrench_hessian"]
+    kept, columns = lin.cache["wrench_hessian"]
+    full = np.zeros((len(columns), len(kept)))
+    full[:, kept] = columns
+    return full
 
 
-def _second(hessian: tuple[np.ndarray, np.ndarray], x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """[T, L, 3] Σ_ij ∂²c/∂q_i∂q_j·x_j·y_i for joint vectors x, y [T, n] (``hessian`` of
-    :func:`_hessian`: the columns it leaves out give zeros)."""
-    kept, columns = hessian
+def _second(hessian: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """[T, L, 3] Σ_ij ∂²c/∂q_i∂q_j·x_j·y_i for joint vectors x, y [T, n]."""
     t, n = x.shape
-    products = np.zeros((t, len(kept)))
-    products[:, kept] = x @ columns
-    return np.einsum("tlai,ti->tla", products.reshape(t, -1, 3, n), y)
+    return np.einsum("tlai,ti->tla", (x @ hessian).reshape(t, -1, 3, n), y)
 
 
 def _apply(jacobian: np.ndarray, values: np.ndarray) -> np.ndarray:
