@@ -52,22 +52,20 @@ def com_hessian(lin: LinearWhisker) -> np.ndarray:
 
 def rotating_matrices(lin: LinearWhisker) -> tuple[np.ndarray, np.ndarray]:
     """(K_basis [9, n, n]: K_rot per unit α_x, α_y, α_z, p_1 … p_6; G_basis [3, n, n]: G per unit
-    ω_x, ω_y, ω_z), N·m per rad and per rad/s (module docstring); cached on ``lin``."""
-    if "rotating" not in lin.cache:
-        chain, layout = lin.physics.chain, lin.dofs
-        _, com, _ = link_frames(chain)
-        links = np.arange(chain.links)
-        jv = joint_jacobian(layout, com, links)                                  # [L, 3, n]
-        m = chain.link_mass_kg
-        per_unit = np.concatenate([skew(np.eye(3)), _pair_matrices()])         # [9, 3, 3]: α_b, p_k
-        direct = np.einsum("l,lai,kab,lbj->kij", m, jv, per_unit, jv, optimize=True)
-        second = com_hessian(lin)
-        rest_acceleration = np.einsum("kab,lb->kla", per_unit, com)             # [9, L, 3]
-        geometric = np.einsum("l,kla,lija->kij", m, rest_acceleration, second, optimize=True)
-        stiffness = direct + geometric
-        lin.cache["rotating"] = (stiffness, 2 * direct[:3])
-        drop_com_hessian(lin)
-    return lin.cache["rotating"]
+    ω_x, ω_y, ω_z), N·m per rad and per rad/s (module docstring). Not cached: its user keeps
+    their modal projection (:class:`~pipeline.engines.linear.modal.RotatingLoads`)."""
+    chain, layout = lin.physics.chain, lin.dofs
+    _, com, _ = link_frames(chain)
+    links = np.arange(chain.links)
+    jv = joint_jacobian(layout, com, links)                                      # [L, 3, n]
+    m = chain.link_mass_kg
+    per_unit = np.concatenate([skew(np.eye(3)), _pair_matrices()])             # [9, 3, 3]: α_b, p_k
+    direct = np.einsum("l,lai,kab,lbj->kij", m, jv, per_unit, jv, optimize=True)
+    second = com_hessian(lin)
+    rest_acceleration = np.einsum("kab,lb->kla", per_unit, com)                 # [9, L, 3]
+    geometric = np.einsum("l,kla,lija->kij", m, rest_acceleration, second, optimize=True)
+    drop_com_hessian(lin)
+    return direct + geometric, 2 * direct[:3]
 
 
 def drop_com_hessian(lin: LinearWhisker) -> None:
