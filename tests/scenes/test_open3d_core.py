@@ -14,9 +14,9 @@ from tests.conftest import REPO
 
 _PACKAGE = importlib.util.find_spec("open3d")
 # open3d 0.19's wheels keep the extension in a subfolder: the package is imported whole there
-pytestmark = pytest.mark.skipif(
-    _PACKAGE is None or importlib.machinery.PathFinder.find_spec("open3d.pybind", _PACKAGE.submodule_search_locations) is None,
-    reason="this open3d has no top-level compiled module")
+_EXTENSION = _PACKAGE and importlib.machinery.PathFinder.find_spec("open3d.pybind",
+                                                                  _PACKAGE.submodule_search_locations)
+pytestmark = pytest.mark.skipif(not _EXTENSION, reason="this open3d has no top-level compiled module")
 
 GUI = ("open3d.visualization", "plotly", "dash", "IPython", "flask", "ipywidgets")
 
