@@ -17,7 +17,7 @@ from functools import cached_property
 import numpy as np
 
 from pipeline.model.rotations import z_onto
-from pipeline.scenes.surface import FaceIndex, SurfaceQueries
+from pipeline.scenes.surface import FaceBounds, FaceIndex, SurfaceQueries
 
 SINGLE_PRECISION_M = 1e-6   # taken off a single-precision distance: float32 spaces 3·10⁻⁸ m apart at 0.3 m
 
@@ -157,14 +157,19 @@ class TriangleMesh:
         return trimesh.Trimesh(self.vertices_m, self.faces, process=False).vertex_normals
 
     @cached_property
+    def face_bounds(self) -> FaceBounds:
+        """The distance-bound grid over the faces, shared by :attr:`surface` and :attr:`face_index`."""
+        return FaceBounds(self.vertices_m, self.faces)
+
+    @cached_property
     def surface(self) -> SurfaceQueries:
         """Distance and ray queries (built on first use)."""
-        return SurfaceQueries(self.vertices_m, self.faces)
+        return SurfaceQueries(self.vertices_m, self.faces, self.face_bounds)
 
     @cached_property
     def face_index(self) -> FaceIndex:
         """Which faces lie near given points (built on first use)."""
-        return FaceIndex(self.vertices_m, self.faces)
+        return FaceIndex(self.vertices_m, self.faces, self.face_bounds)
 
     def lower_distance_m(self, points_m: np.ndarray, beyond_m: float = np.inf) -> np.ndarray:
         """[P] a lower bound of each point's distance (m) to the mesh at t = 0; one above

@@ -1,5 +1,6 @@
 """Queries on a triangle mesh (metres): distances, rays and area-uniform points (Open3D's
-RaycastingScene, one thread), and which faces lie near given points (a k-d tree of face centroids)."""
+RaycastingScene, one thread, from its compiled module alone: :mod:`pipeline.scenes.open3d_core`),
+and which faces lie near given points (a k-d tree of face centroids)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pipeline.scenes.open3d_core import open3d_core
+
 if TYPE_CHECKING:
     from pipeline.scenes.distance_bounds import DistanceBounds
 
@@ -15,14 +18,30 @@ BOUNDS_VOXEL_M = 1e-3    # voxel of the grid that tells segments too far from th
 SEGMENT_PAD_M = 1e-4     # a segment is cast unless it is this much shorter than its start's bound
 
 
+class FaceBounds:
+    """The distance-bound grid over a triangle mesh's faces' bounding boxes (m), built on first
+    use: one per mesh, shared by its :class:`SurfaceQueries` and :class:`FaceIndex` (1–1.6 MB
+    for each of the example scans, which a worker held twice)."""
+
+    def __init__(self, vertices_m: np.ndarray, faces: np.ndarray):
+        self._vertices, self._faces = vertices_m, faces
+
+    @cached_property
+    def grid(self) -> DistanceBounds:
+        """Lower bounds of points' distances to the faces' bounding boxes."""
+        # imported here, not at the top: numba (and with it scipy) ≈0.3 CPU-s on a trial's start-up
+        from pipeline.scenes.distance_bounds import DistanceBounds
+
+        corners = np.asarray(self._vertices, float)[np.asarray(self._faces)]       # [F, 3, 3]
+        return DistanceBounds(corners.min(axis=1), corners.max(axis=1), BOUNDS_VOXEL_M)
+
+
 class SurfaceQueries:
     """Distances to, rays against and area-uniform points on one triangle mesh (metres)."""
 
-    def __init__(self, vertices_m: np.ndarray, faces: np.ndarray):
-        # imported here, not at the top: ≈0.44 CPU-s on a trial's start-up
-        import open3d as o3d
-
-        self._o3d = o3d
+    def __init__(self, vertices_m: np.ndarray, faces: np.ndarray, bounds: FaceBounds | None = None):
+        """``bounds``: the mesh's :class:`FaceBounds` when it has one already (shared, not rebuilt)."""
+        o3d = self._o3d = open3d_core()     # loaded here, not on import: ≈0.3 CPU-s of a trial's start-up
         vertices = np.asarray(vertices_m, np.float64)
         faces = np.asarray(faces, np.int64)
         self.scene = o3d.t.geometry.RaycastingScene()
@@ -32,6 +51,7 @@ class SurfaceQueries:
         normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
         self._vertices, self._faces = vertices, faces     # not the corners: 72 B per face for a run
         self._cumulative_area = np.cumsum(0.5 * np.linalg.norm(normals, axis=1))
+        self._bounds = FaceBounds(vertices, faces) if bounds is None else bounds
 
     def distance(self, points: np.ndarray) -> np.ndarray:
         """[n] unsigned distance from each point to the surface."""
@@ -56,14 +76,10 @@ class SurfaceQueries:
         hits = self.scene.cast_rays(self._o3d.core.Tensor(rays.astype(np.float32)), nthreads=1)
         return hits["t_hit"].numpy().astype(float), hits["primitive_normals"].numpy().astype(float)
 
-    @cached_property
+    @property
     def bounds(self) -> DistanceBounds:
-        """Lower bounds of points' distances to the faces' bounding boxes (built on first use)."""
-        # imported here, not at the top: numba (and with it scipy) ≈0.3 CPU-s on a trial's start-up
-        from pipeline.scenes.distance_bounds import DistanceBounds
-
-        corners = self._vertices[self._faces]
-        return DistanceBounds(corners.min(axis=1), corners.max(axis=1), BOUNDS_VOXEL_M)
+        """Lower bounds of points' distances to the faces' bounding boxes (:class:`FaceBounds`)."""
+        return self._bounds.grid
 
     def segment_hits(self, starts: np.ndarray, ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Rays from ``starts`` toward ``ends`` [..., 3]: (t [...] in units of the segment, as
@@ -99,12 +115,13 @@ class SurfaceQueries:
 class FaceIndex:
     """Face centroids and bounding radii of a triangle mesh (m) with a k-d tree over the centroids."""
 
-    def __init__(self, vertices_m: np.ndarray, faces: np.ndarray):
+    def __init__(self, vertices_m: np.ndarray, faces: np.ndarray, bounds: FaceBounds | None = None):
+        """``bounds``: the mesh's :class:`FaceBounds` when it has one already (shared, not rebuilt)."""
         # imported here, not at the top: ≈0.21 CPU-s on a trial's start-up
         from scipy.spatial import cKDTree
 
         corners = np.asarray(vertices_m, float)[np.asarray(faces)]          # [F, 3, 3]
-        self._lower, self._upper = corners.min(axis=1), corners.max(axis=1)
+        self._bounds = FaceBounds(vertices_m, faces) if bounds is None else bounds
         self.centroids = corners.mean(axis=1)
         self.radii = np.linalg.norm(corners - self.centroids[:, None], axis=2).max(axis=1)
         self.tree = cKDTree(self.centroids)
@@ -123,13 +140,10 @@ class FaceIndex:
                 gaps[k] = gap.min()
         return faces_near, gaps
 
-    @cached_property
+    @property
     def bounds(self) -> DistanceBounds:
-        """Lower bounds of points' distances to the faces' bounding boxes (built on first use)."""
-        # imported here, not at the top: numba (and with it scipy) ≈0.3 CPU-s on a trial's start-up
-        from pipeline.scenes.distance_bounds import DistanceBounds
-
-        return DistanceBounds(self._lower, self._upper, BOUNDS_VOXEL_M)
+        """Lower bounds of points' distances to the faces' bounding boxes (:class:`FaceBounds`)."""
+        return self._bounds.grid
 
     def lower_distance_m(self, points_m: np.ndarray, beyond_m: float = np.inf) -> np.ndarray:
         """[P] a lower bound of each point's distance to the mesh; one above ``beyond_m`` may be

@@ -15,7 +15,7 @@ from pipeline.engines.linear.free import (LINEAR_PATH_MARGIN_M, MAX_BEND, bend, 
                                          whisker_frames)
 from pipeline.engines.linear.modal import _state_matrix, discretise, modal
 from pipeline.engines.linear.rotating import com_hessian, rotating_matrices
-from pipeline.engines.linear.wrench import _hessian
+from pipeline.engines.linear.wrench import _hessian, _second
 from pipeline.model.array import build_array
 from pipeline.model.effects.registry import model_parts
 from pipeline.model.kinematics import Pose, sinusoidal_whisk
@@ -139,9 +139,11 @@ def test_running_integral_is_scipys_cumulative_trapezoid_to_the_bit():
                               cumulative_trapezoid(values, times, axis=0, initial=0.0))
 
 
-def test_a_chain_keeps_its_com_hessian_only_until_both_users_have_theirs():
-    """The rotating matrices and the wrench's transposed copy are what a worker keeps of the
-    centre-of-mass Hessian (22 MB for the array); the Hessian itself goes once both are cached."""
+def test_a_chain_keeps_its_com_hessian_only_until_the_wrench_has_its_copy():
+    """The rotating matrices' modal projection and the wrench's copy (the Hessian's entries i ≤ j
+    of the joints that move each link, ≈ 1/6) are what a worker keeps of the centre-of-mass
+    Hessian; the Hessian itself goes once the wrench has its copy, from which the wrench's
+    matrix is rebuilt exactly."""
     whisker = build_array(model_rat().select("RA1"), *model_parts(ModelConfig())).whiskers[0]
     lin = linearise(whisker.physics)
     second = com_hessian(lin)
@@ -149,4 +151,19 @@ def test_a_chain_keeps_its_com_hessian_only_until_both_users_have_theirs():
     assert "com_hessian" in lin.cache                 # the wrench has not taken its copy yet
     transposed = _hessian(lin)
     assert "com_hessian" not in lin.cache and not np.shares_memory(transposed, second)    # a copy: second is freed
-    assert np.array_equal(transposed, np.transpose(second, (2, 0, 3, 1)).reshape(second.shape[2], -1))
+    original = np.transpose(second, (2, 0, 3, 1)).reshape(second.shape[2], -1)
+    assert np.array_equal(transposed, original)
+    assert lin.cache["wrench_hessian"].nbytes < 0.25 * transposed.nbytes
+    assert np.array_equal(_hessian(lin), transposed)
+    other = linearise(whisker.physics)                # a drive that needs the rotating matrices only later
+    _hessian(other)
+    assert "com_hessian" not in other.cache and "rotating" not in other.cache
+    rng = np.random.default_rng(3)
+    with threadpool_limits(limits=1, user_api="blas"):        # as the free path runs
+        for t in (1, 7, 126, 251):                            # the wrench's terms: the full matrix's to the bit
+            x, y = rng.normal(size=(2, t, lin.n))
+            expected = np.einsum("tlai,ti->tla", (x @ original).reshape(t, -1, 3, lin.n), y)
+            assert _second(_hessian(lin), x, y).tobytes() == expected.tobytes()
+    for k, matrices in enumerate(rotating_matrices(other)):
+        assert np.array_equal(matrices, rotating_matrices(lin)[k])
+    assert "com_hessian" not in other.cache

@@ -157,6 +157,19 @@ def test_face_index_bound_with_a_cutoff_is_the_plain_tree_query(sampler):
         assert np.array_equal(found, plain) and np.isfinite(found).any() and np.isinf(found).any()
 
 
+def test_a_mesh_s_surface_and_face_index_share_one_grid_of_the_faces_boxes():
+    """One distance-bound grid per mesh (a worker held two, 1–1.6 MB each per scan), the same as
+    one built alone for either."""
+    from pipeline.scenes.surface import FaceIndex
+
+    sheet = bumpy_sheet()
+    assert sheet.surface.bounds is sheet.face_index.bounds
+    alone = FaceIndex(sheet.vertices_m, sheet.faces).bounds
+    corners = sheet.vertices_m[sheet.faces]
+    direct = DistanceBounds(corners.min(axis=1), corners.max(axis=1), alone.voxel_m)
+    assert np.array_equal(alone.grid, sheet.surface.bounds.grid) and np.array_equal(alone.grid, direct.grid)
+
+
 def test_a_moved_pose_keeps_its_orientation_and_rotation():
     from pipeline.model.kinematics import Pose
 

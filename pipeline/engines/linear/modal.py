@@ -199,12 +199,13 @@ class RotatingLoads:
 
     def __init__(self, lin: LinearWhisker, mod: Modal, motion, alpha: np.ndarray):
         n = len(mod.omega)
-        if "rotating_modal" not in lin.cache:
-            stiffness, gyroscopic = (mod.shapes.T @ matrices @ mod.shapes for matrices in rotating_matrices(lin))
-            blocks = np.zeros((len(stiffness) + len(gyroscopic), n, 2 * n))       # acting on [η − gΩ, η̇ − gω]
-            blocks[:len(stiffness), :, :n], blocks[len(stiffness):, :, n:] = stiffness, gyroscopic
-            lin.cache["rotating_modal"] = blocks.reshape(-1, 2 * n)
-        self.blocks, self.n = lin.cache["rotating_modal"], n
+        if "rotating_modal" not in lin.cache:        # Φᵀ·K_basis·Φ [9, n, n] and Φᵀ·G_basis·Φ [3, n, n]
+            lin.cache["rotating_modal"] = tuple(mod.shapes.T @ matrices @ mod.shapes
+                                                for matrices in rotating_matrices(lin))
+        stiffness, gyroscopic = lin.cache["rotating_modal"]       # kept without the blocks' zero halves
+        blocks = np.zeros((len(stiffness) + len(gyroscopic), n, 2 * n))       # acting on [η − gΩ, η̇ − gω]
+        blocks[:len(stiffness), :, :n], blocks[len(stiffness):, :, n:] = stiffness, gyroscopic
+        self.blocks, self.n = blocks.reshape(-1, 2 * n), n
         w, g = motion.omega, mod.participation
         self.weights = -np.hstack([alpha, np.stack([w[:, a] * w[:, b] for a, b in PAIRS], axis=1), w])  # [S, 12]
         self.scale = np.concatenate([1.0 / mod.omega, np.ones(n)])
