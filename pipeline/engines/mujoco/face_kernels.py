@@ -17,6 +17,7 @@ from pipeline.engines.triangle_grid import near_box, nearest_face, segment_point
 # a link's axis this much (mm) beyond its radius from a face's plane is not tested against the face: the
 # exact test's rounding (≈ 1e-13 mm at the scans' coordinates) lies far below it, so the candidates are the same
 PLANE_SLACK_MM = 1e-9
+SPECULATIVE_MM = 0.01   # a link this far from the scan (mm) gets a speculative contact (step_kernels)
 
 
 @numba.njit(cache=True)
@@ -58,7 +59,7 @@ def scan_candidates(geom_contype: np.ndarray, link_geoms: np.ndarray, link_bodie
     for link in range(len(link_geoms)):
         if geom_contype[link_geoms[link]] == 0:
             continue
-        body, radius = link_bodies[link], link_radii[link]
+        body, radius = link_bodies[link], link_radii[link] + SPECULATIVE_MM
         for j in range(3):
             a[j] = xpos[body, j]
             b[j] = a[j] + xmat[body, 3 * j] * link_lengths[link]
@@ -145,7 +146,7 @@ def scan_contacts(axis: np.ndarray, link_of: np.ndarray, node: np.ndarray, slots
             kept[i], gaps[i] = False, np.inf
             continue
         qx, qy, qz = closest_on_triangle(px, py, pz, corners[face], normals[face])
-        kept[i], nx, ny, nz, gaps[i] = one_sided_contact(px, py, pz, qx, qy, qz, normals[face], radius, 0.0, depth)
+        kept[i], nx, ny, nz, gaps[i] = one_sided_contact(px, py, pz, qx, qy, qz, normals[face], radius, SPECULATIVE_MM, depth)
         if node[i]:                                            # a node: only where its axis crossed
             kept[i] = kept[i] and gaps[i] < -radius
         found[i, 0], found[i, 1], found[i, 2] = nx, ny, nz

@@ -67,6 +67,9 @@ class ScanContacts:
         self.link_lengths_mm = link_lengths_mm
         self.link_radii_mm = np.maximum(link_radii_mm, SCAN_RADIUS_MIN_MM)     # read against the scan
         self.template = _template(model, anchor)
+        time_constant, dmax = float(model.geom_solref[anchor][0]), float(model.geom_solimp[anchor][1])
+        self.law = (1.0 / (dmax * time_constant) ** 2, 2.0 / (dmax * time_constant), time_constant,
+                    np.array(model.geom_solimp[anchor], float))    # k, b, τ, solimp (step_kernels.speculative_distance)
         self.template_address = contact_address(self.template)
         self._arguments: dict[int, tuple] = {}      # per MjData (kept): it and the compiled step's arguments
 
@@ -88,9 +91,10 @@ class ScanContacts:
         step: views of their memory, :class:`~pipeline.engines.mujoco.native.RawData`)."""
         if id(d) not in self._arguments:
             raw = RawData(m, d)
-            scan = (m.geom_contype, self.link_geoms, self.link_bodies, self.link_lengths_mm, self.link_radii_mm,
-                    d.xpos, d.xmat, self.grid.centres, self.grid.radii, DUPLICATE_MM, ONE_SIDED_DEPTH_MM,
-                    *self.grid.arrays(), self.scratch)
+            search = (m.geom_contype, self.link_geoms, self.link_bodies, self.link_lengths_mm, self.link_radii_mm,
+                      d.xpos, d.xmat, self.grid.centres, self.grid.radii, DUPLICATE_MM, ONE_SIDED_DEPTH_MM,
+                      *self.grid.arrays(), self.scratch)
+            scan = (search, (d.qvel, np.empty(3 * m.nv), np.empty(6), raw.model64, *self.law))
             self._arguments[id(d)] = d, (function_addresses(), m._address, d._address, raw.header, raw.pointers,
                                          raw.option, raw.rows64, raw.rows32, raw.fields, self.template_address,
                                          self.anchor, scan)
