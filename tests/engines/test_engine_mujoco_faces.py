@@ -116,11 +116,13 @@ _EFFECTIVE_METRIC.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ct
 
 def _bindings_step(faces: ScanContacts, m: mujoco.MjModel, d: mujoco.MjData, scan: tuple) -> None:
     """The scan's step through the Python bindings: the sequence of MuJoCo's functions the
-    compiled step calls (``scan``: the search's arguments, for ``d``)."""
+    compiled step calls (``scan``: the search's arguments, for ``d``), the speculative contacts'
+    margins from ``mj_jac`` and their reading after the step from ``mj_contactForce``."""
     mujoco.mj_checkPos(m, d)
     mujoco.mj_checkVel(m, d)
     mujoco.mj_fwdPosition(m, d)
     links, middle, toward_link, gaps = face_kernels.scan_search(*scan)
+    first = None
     if len(links):
         metric = d.efm_active
         mujoco.mj_collision(m, d)
@@ -130,6 +132,15 @@ def _bindings_step(faces: ScanContacts, m: mujoco.MjModel, d: mujoco.MjData, sca
         c = d.contact
         face_kernels.fill_contacts(first, links, middle, toward_link, gaps, faces.link_geoms, faces.anchor, c.geom,
                                    c.frame, c.pos, c.dist)
+        jacp = np.empty((3, m.nv))
+        for i in np.flatnonzero(gaps > 0.0):
+            mujoco.mj_jac(m, d, jacp, None, middle[i], faces.link_bodies[links[i]])
+            velocity = [sum(float(jacp[j, k] * d.qvel[k]) for k in range(m.nv)) for j in range(3)]   # the kernel's order
+            separating = 0.0
+            for j in range(3):
+                separating += toward_link[i, j] * velocity[j]
+            r = step_kernels.speculative_distance(gaps[i], separating, m.opt.timestep, *faces.law)
+            d.contact[first + i].includemargin = gaps[i] - r
         for stage in (mujoco.mj_makeConstraint, mujoco.mj_island, mujoco.mj_projectConstraint, mujoco.mj_transmission):
             stage(m, d)
         _EFFECTIVE_METRIC(m._address, d._address, int(metric != 0), 1)
@@ -140,31 +151,39 @@ def _bindings_step(faces: ScanContacts, m: mujoco.MjModel, d: mujoco.MjData, sca
     m.opt.disableflags = flags | mujoco.mjtDisableBit.mjDSBL_EULERDAMP
     mujoco.mj_Euler(m, d)
     m.opt.disableflags = flags
+    force = np.empty(6)
+    for i in np.flatnonzero(gaps > 0.0) if first is not None else ():
+        mujoco.mj_contactForce(m, d, first + i, force)
+        if force[0] > 0.0:
+            d.contact[first + i].dist = 0.0
 
 
 def test_the_compiled_scan_step_is_the_bindings_sequence(monkeypatch):
     """RD3 and RB3 pressed into the folded sheet: every scan step taken in Python (the steps
     while a whisker touches, the sub-steps) equals, bit for bit, the same MuJoCo functions called
-    through the bindings (the scan's contacts appended after the collision again, the position
-    stage from there with the effective metric's flag the stage had set)."""
+    through the bindings (the scan's contacts appended after the collision again, their
+    speculative margins, the position stage from there with the effective metric's flag the
+    stage had set, the speculative contacts that held their link read as touching)."""
     step, compared = ScanContacts.step, []
 
     def both(self, m, d):
         e = copy.copy(d)
-        scan = list(self.arguments(m, d)[-1])
+        scan = list(self.arguments(m, d)[-1][0])
         scan[5:7] = e.xpos, e.xmat
         step(self, m, d)
         _bindings_step(self, m, e, tuple(scan))
-        compared.append(e.ncon)
+        compared.append((e.ncon, int(np.count_nonzero(e.contact.includemargin))))
         assert d.ncon == e.ncon
         for field in ("qpos", "qvel", "qacc", "qacc_warmstart", "sensordata"):
             assert np.array_equal(getattr(d, field), getattr(e, field)), field
         assert np.array_equal(d.contact.pos, e.contact.pos) and np.array_equal(d.contact.frame, e.contact.frame)
+        assert np.array_equal(d.contact.dist, e.contact.dist)
+        assert np.array_equal(d.contact.includemargin, e.contact.includemargin)
 
     monkeypatch.setattr(ScanContacts, "step", both)
     monkeypatch.setattr(ContactLossSubsteps, "compiled", False)      # the sub-steps step through ScanContacts.step
     out = _whisk(0.03)
-    assert out.contact.any() and sum(n > 0 for n in compared) > 50
+    assert out.contact.any() and sum(n > 0 for n, _ in compared) > 25 and sum(s for _, s in compared) > 10
 
 
 def test_the_compiled_sub_steps_are_the_bindings_loop(monkeypatch):
@@ -252,13 +271,14 @@ def test_the_scan_search_s_candidates_are_those_of_every_triangle():
         contype, geoms, np.arange(links), lengths, radii, xpos, xmat, grid.centres, grid.radii, *grid.arrays(),
         np.empty(len(corners), np.int64))
     expected_axis, expected_link, expected_node = [], [], []
+    reach = radii + face_kernels.SPECULATIVE_MM                  # speculative contacts: that far apart
     for link in np.flatnonzero(contype[geoms]):
         a, b = xpos[link], xpos[link] + xmat[link, 0::3] * lengths[link]
         touched = [segment_triangle(*a, *b, corners[f], normals[f]) for f in range(len(corners))]
         for squared, s in touched:
-            if squared <= radii[link] ** 2:
+            if squared <= reach[link] ** 2:
                 expected_axis.append(a + s * (b - a)), expected_link.append(link), expected_node.append(False)
-        assert slots[link] == sum(squared <= radii[link] ** 2 for squared, _ in touched)
+        assert slots[link] == sum(squared <= reach[link] ** 2 for squared, _ in touched)
         if slots[link]:
             expected_axis += [a, b]
             expected_link += [link, link]
@@ -267,3 +287,28 @@ def test_the_scan_search_s_candidates_are_those_of_every_triangle():
     np.testing.assert_array_equal(link_of, expected_link)
     np.testing.assert_array_equal(node, expected_node)
     np.testing.assert_allclose(axis, np.reshape(expected_axis, (-1, 3)), rtol=0, atol=1e-12)
+
+
+def test_a_speculative_contact_asks_for_the_acceleration_that_lands_its_link_on_the_surface(monkeypatch):
+    """RD3 and RB3 whisk into the folded sheet at the default and half step: every scan contact
+    found apart from the surface (gap g > 0, separating at MuJoCo's own v = J·q̇) gets MuJoCo's
+    reference acceleration −(g/h + v)/h, the one that puts its point on the surface at the
+    step's end (step_kernels.speculative_distance inverts MuJoCo 4's reference, which takes the
+    contact's spring and damper at the step's end)."""
+    step, rows = ScanContacts.step, []
+
+    def checked(self, m, d):
+        step(self, m, d)
+        h = m.opt.timestep
+        for i in range(d.ncon):
+            a = d.contact[i].efc_address
+            if d.contact[i].geom[1] == self.anchor and a >= 0 and d.efc_pos[a] > 0.0:
+                rows.append((d.efc_aref[a], -(d.efc_pos[a] / h + d.efc_vel[a]) / h))
+
+    monkeypatch.setattr(ScanContacts, "step", checked)
+    monkeypatch.setattr(ContactLossSubsteps, "compiled", False)
+    for options in ({}, {"dt_s": 5e-5, "f1_tolerance": 0.005}):
+        assert _whisk(0.03, **options).contact.any()
+    aref, landing = np.array(rows).T
+    assert len(rows) > 20
+    np.testing.assert_allclose(aref, landing, rtol=1e-6, atol=1e-9 * np.abs(landing).max())
