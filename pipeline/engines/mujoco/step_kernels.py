@@ -85,8 +85,9 @@ def _call_force(typingctx, function, model, data, index, result):
 def scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan) -> bool:
     """One step of the discrete integrator with the scan's contacts added
     (:meth:`~pipeline.engines.mujoco.faces.ScanContacts.step`; ``scan``: its search's arrays and
-    constants, :func:`~pipeline.engines.mujoco.face_kernels.scan_search`'s arguments). False if
-    MuJoCo's contact buffer is full."""
+    constants, :func:`~pipeline.engines.mujoco.face_kernels.scan_search`'s arguments, then what
+    the speculative contacts need: :func:`_speculative_margins`'s last arguments from ``qvel``).
+    False if MuJoCo's contact buffer is full."""
     _call(fn[CHECK_POS], m, d)
     _call(fn[CHECK_VEL], m, d)
     _call(fn[FWD_POSITION], m, d)
