@@ -135,7 +135,7 @@ def _bindings_step(faces: ScanContacts, m: mujoco.MjModel, d: mujoco.MjData, sca
         jacp = np.empty((3, m.nv))
         for i in np.flatnonzero(gaps > 0.0):
             mujoco.mj_jac(m, d, jacp, None, middle[i], faces.link_bodies[links[i]])
-            velocity = [sum(float(jacp[j, k] * d.qvel[k]) for k in range(m.nv)) for j in range(3)]   # the kernel's order
+            velocity = [sum(float(jacp[j, k] * d.qvel[k]) for k in range(m.nv)) for j in range(3)]   # kernel's order
             separating = 0.0
             for j in range(3):
                 separating += toward_link[i, j] * velocity[j]

@@ -150,7 +150,8 @@ def scan_contacts(axis: np.ndarray, link_of: np.ndarray, node: np.ndarray, slots
             kept[i], gaps[i] = False, np.inf
             continue
         qx, qy, qz = closest_on_triangle(px, py, pz, corners[face], normals[face])
-        kept[i], nx, ny, nz, gaps[i] = one_sided_contact(px, py, pz, qx, qy, qz, normals[face], radius, SPECULATIVE_MM, depth)
+        kept[i], nx, ny, nz, gaps[i] = one_sided_contact(px, py, pz, qx, qy, qz, normals[face], radius, SPECULATIVE_MM,
+                                                         depth)
         if node[i]:                                            # a node: only where its axis crossed
             kept[i] = kept[i] and gaps[i] < -radius
         found[i, 0], found[i, 1], found[i, 2] = nx, ny, nz

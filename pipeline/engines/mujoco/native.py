@@ -5,7 +5,8 @@ The functions are looked up by name in the bindings' own extension module, which
 library, and passed to compiled code as addresses. The fields are read in place: ``mjData``'s
 contact count and effective-metric flag as int32 words of its header, the contact list's
 address as a word of its pointer block, ``mjOption.disableflags`` as an int32 word of
-``mjModel``, and the contacts themselves as rows of the arena (:class:`RawData`). Where each lies
+``mjModel`` (and ``mjOption.timestep`` as a float64 word), and the contacts themselves as rows
+of the arena (:class:`RawData`). Where each lies
 is found once per process on a small model with one contact (:func:`layout`): each field is set
 through the bindings and found where the struct's memory changed, and the contact's fields from
 the bindings' own views, so nothing is copied from a header by hand.
@@ -116,9 +117,9 @@ def layout() -> Layout:
     base = contact.dist.ctypes.data
     if d.ncon != 1 or pointers[pointer] != base or pointers[2] != d.qpos.ctypes.data:
         raise RuntimeError("MuJoCo's struct layout was not recognised")
-    margin = contact.includemargin[0] if np.ndim(contact.includemargin) else contact.includemargin
-    margin_at = _changed_word(np.ctypeslib.as_array((ctypes.c_double * (contact.dist.strides[0] // 8)).from_address(base)),
-                              lambda v: setattr(d.contact[0], "includemargin", v))
+    margin = float(contact.includemargin[0])
+    contact_words = np.ctypeslib.as_array((ctypes.c_double * (contact.dist.strides[0] // 8)).from_address(base))
+    margin_at = _changed_word(contact_words, lambda v: setattr(d.contact[0], "includemargin", v))
     d.contact[0].includemargin = margin
     return Layout(ncon_at, efm_at, bad_at, time_at, flags_at, header_bytes, pointer, contact.dist.strides[0], 0,
                   (contact.pos.ctypes.data - base) // 8, (contact.frame.ctypes.data - base) // 8,
@@ -148,8 +149,8 @@ class RawData:
         self.rows32 = np.lib.stride_tricks.as_strided(words32, (2 * n64 - 2 * w64 + 1, 2 * w64), (4, 4))
         self.model64 = np.ctypeslib.as_array((ctypes.c_double * (at.timestep + 1)).from_address(m._address))
         self.fields = np.array([at.ncon, at.efm_active, at.disableflags, at.contact_pointer, w64, at.dist, at.pos,
-                                at.frame, at.geom, at.exclude, at.bad_acceleration, at.time, at.includemargin, at.timestep],
-                               np.int64)
+                                at.frame, at.geom, at.exclude, at.bad_acceleration, at.time, at.includemargin,
+                                at.timestep], np.int64)
 
 
 def contact_address(contact: mujoco.MjContact) -> int:

@@ -27,7 +27,8 @@ from pipeline.engines.mujoco.contact_kernels import step_contacts
 from pipeline.engines.mujoco.face_kernels import fill_contacts, scan_search
 
 (CHECK_POS, CHECK_VEL, FWD_POSITION, COLLISION, ADD_CONTACT, MAKE_CONSTRAINT, ISLAND, PROJECT_CONSTRAINT,
- TRANSMISSION, EFF_BUILD, SENSOR_POS, FORWARD_SKIP, CHECK_ACC, EULER, KINEMATICS, JAC, CONTACT_FORCE) = range(17)  # native.FUNCTIONS
+ TRANSMISSION, EFF_BUILD, SENSOR_POS, FORWARD_SKIP, CHECK_ACC, EULER, KINEMATICS, JAC,
+ CONTACT_FORCE) = range(17)                                                                      # native.FUNCTIONS
 (NCON, EFM_ACTIVE, DISABLEFLAGS, CONTACT_POINTER, CONTACT_WORDS, DIST, POS, FRAME, GEOM, EXCLUDE,
  BAD_ACCELERATION, TIME, INCLUDEMARGIN, TIMESTEP) = range(14)                                    # RawData.fields
 STAGE_POS = int(mujoco.mjtStage.mjSTAGE_POS)
@@ -106,8 +107,8 @@ def scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, templa
         fill_contacts(first, links, middle, toward_link, gaps, scan[0][1], anchor, geom,
                       contacts[:, fields[FRAME]:fields[FRAME] + 9], contacts[:, fields[POS]:fields[POS] + 3],
                       contacts[:, fields[DIST]])
-        _speculative_margins(fn, m, d, first, links, middle, toward_link, gaps, scan[0][2], contacts[:, fields[INCLUDEMARGIN]],
-                             fields, *scan[1])
+        _speculative_margins(fn, m, d, first, links, middle, toward_link, gaps, scan[0][2],
+                             contacts[:, fields[INCLUDEMARGIN]], fields, *scan[1])
         _call(fn[MAKE_CONSTRAINT], m, d)
         _call(fn[ISLAND], m, d)
         _call(fn[PROJECT_CONSTRAINT], m, d)
