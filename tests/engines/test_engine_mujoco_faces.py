@@ -9,6 +9,7 @@ import ctypes
 import mujoco
 import numpy as np
 
+from pipeline.config.material import MaterialConfig
 from pipeline.config.physics import EngineConfig, ModelConfig
 from pipeline.engines.mujoco import world as engine
 from pipeline.engines.mujoco import face_kernels, step_kernels
@@ -28,9 +29,11 @@ from test_engine_bullet_contact import folded_sheet
 SHEET = Scene("folded-sheet", (beside_right_array(folded_sheet(), 0.023),))
 
 
-def _whisk(duration_s: float, **engine_options):
+def _whisk(duration_s: float, gravity: bool = False, **engine_options):
+    """RD3 and RB3 whisking into the folded sheet; with ``gravity`` a load on the links, so that every
+    step is taken in the world's Python loop (through ScanContacts.step), not in compiled runs."""
     config = ModelConfig(engine=EngineConfig(**({"name": "mujoco"} | engine_options), jam_refinements=0,
-                                             contact_friction=0.5))
+                                             contact_friction=0.5), material=MaterialConfig(gravity=gravity))
     return run_trial(config, SHEET, Pose(), duration_s, "RD3,RB3")
 
 
@@ -182,7 +185,7 @@ def test_the_compiled_scan_step_is_the_bindings_sequence(monkeypatch):
 
     monkeypatch.setattr(ScanContacts, "step", both)
     monkeypatch.setattr(ContactLossSubsteps, "compiled", False)      # the sub-steps step through ScanContacts.step
-    out = _whisk(0.03)
+    out = _whisk(0.03, gravity=True)
     assert out.contact.any() and sum(n > 0 for n, _ in compared) > 25 and sum(s for _, s in compared) > 10
 
 
@@ -193,11 +196,11 @@ def test_the_compiled_sub_steps_are_the_bindings_loop(monkeypatch):
     calls = []
     run = step_kernels.run_substeps
     monkeypatch.setattr(step_kernels, "run_substeps", lambda *args: (calls.append(1), run(*args))[1])
-    compiled = _whisk(0.03)
+    compiled = _whisk(0.06)         # 60 ms: the speculative contacts leave few contact losses before
     assert calls and compiled.contact.any()
     monkeypatch.setattr(ContactLossSubsteps, "compiled", False)
     taken = len(calls)
-    bindings = _whisk(0.03)
+    bindings = _whisk(0.06)
     assert len(calls) == taken                                       # the bindings' loop this time
     for name in ("base_wrench", "node_positions_m", "contact", "point_of_contact"):
         assert np.array_equal(getattr(compiled, name), getattr(bindings, name), equal_nan=True), name
@@ -308,7 +311,7 @@ def test_a_speculative_contact_asks_for_the_acceleration_that_lands_its_link_on_
     monkeypatch.setattr(ScanContacts, "step", checked)
     monkeypatch.setattr(ContactLossSubsteps, "compiled", False)
     for options in ({}, {"dt_s": 5e-5, "f1_tolerance": 0.005}):
-        assert _whisk(0.03, **options).contact.any()
+        assert _whisk(0.03, gravity=True, **options).contact.any()
     aref, landing = np.array(rows).T
     assert len(rows) > 20
     np.testing.assert_allclose(aref, landing, rtol=1e-6, atol=1e-9 * np.abs(landing).max())

@@ -244,8 +244,10 @@ def speculative_distance(gap: float, separating: float, h: float, stiffness: flo
     k, b = stiffness / (scale * scale), damping / scale
     wanted = (1.0 + h * b) * (gap + h * separating) / (h * h) - b * separating     # k'·(r − gap)
     r = gap + wanted / (k * solimp[1])
-    for _ in range(2):                                       # d depends on r (solimp's width)
-        r = gap + wanted / (k * impedance(r, solimp))
+    for _ in range(20):                                      # d depends on r within solimp's width
+        previous, r = r, gap + wanted / (k * impedance(r, solimp))
+        if abs(r - previous) <= 1e-12 * abs(r):
+            break
     return r
 
 
