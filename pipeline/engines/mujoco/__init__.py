@@ -79,7 +79,7 @@ base force 15–25 % of |F| off a frictional elastica); MuJoCo's no-slip pass
 after the main one) removes it: ≤ 4.1 % (benchmarks/bench_contact_statics.py), at no measured
 cost. The cone (benchmarks/bench_contact_friction.py) costs +9 % CPU per dataset trial. In the
 step, on scans (24 dataset trials, every step halved, benchmarks/bench_statistics.py): peak |M|
-median / P90 change 0.1 / 1.0 %, peak F_t 0.3 / 2.5 % (0.6 / 3.6 % and 1.5 / 9.2 % before the
+median / P90 change 0.1 / 1.0 %, peak F_t 0.3 / 2.6 % (0.6 / 3.6 % and 1.5 / 9.2 % before the
 scans' speculative contacts, Triangle meshes below). A tip sticking and slipping on a faceted
 surface let go at a step-dependent instant where its axis went through the faces (read with a
 scan radius of at least 30 µm since session 18, Triangle meshes below;
