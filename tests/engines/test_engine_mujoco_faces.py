@@ -42,8 +42,10 @@ def test_a_link_pressed_into_an_edge_of_a_folded_sheet_slides_out_at_any_step(mo
     prisms per face, links pressed in near an edge were held between two faces' side walls
     while their base moment climbed: peak |M| 3.8 and 6.5× Bullet's (which reads the
     triangles), and halving the step changed it by 61–66 %. Read as the triangles, no link is
-    ever pressed by two opposed contacts, and the peaks are within 30 % of Bullet's and of
-    themselves at half the step."""
+    ever pressed by two opposed contacts, and the peaks are within 30 % of Bullet's. With the
+    speculative contacts (no tip losing its contact at the surface for a step while pressed),
+    peak |M| and |F_t| at half the step are within 5 % of the default step's (without them:
+    10.5 % and 15.2 %)."""
     opposed = []
     read = ContactLossSubsteps._contacts
 
@@ -63,7 +65,10 @@ def test_a_link_pressed_into_an_edge_of_a_folded_sheet_slides_out_at_any_step(mo
     bullet = _whisk(0.06, name="bullet")
     peak, peak_half, peak_bullet = (np.linalg.norm(out.base_wrench[..., 3:], axis=-1).max(axis=0)
                                     for out in (default, half, bullet))
-    assert np.abs(peak_half / peak - 1).max() < 0.3
+    transverse, transverse_half = (np.where(out.contact.any(axis=2), np.hypot(*out.base_wrench[..., 1:3].T).T,
+                                            0.0).max(axis=0) for out in (default, half))
+    assert np.abs(peak_half / peak - 1).max() < 0.05
+    assert np.abs(transverse_half / transverse - 1).max() < 0.05
     assert np.abs(peak / peak_bullet - 1).max() < 0.3
 
 
