@@ -34,6 +34,9 @@ def test_the_fields_read_in_memory_are_those_the_bindings_show():
     ints = raw.rows32[2 * start:2 * (start + d.ncon * words):2 * words]
     assert np.array_equal(ints[:, at.geom:at.geom + 2], contact.geom)
     assert np.array_equal(ints[:, at.exclude], contact.exclude)
+    assert np.array_equal(rows[:, at.includemargin], contact.includemargin)
+    m.opt.timestep = 0.00123
+    assert raw.model64[at.timestep] == 0.00123
 
 
 def test_a_contact_s_address_and_the_functions_are_found():

@@ -79,7 +79,8 @@ base force 15–25 % of |F| off a frictional elastica); MuJoCo's no-slip pass
 after the main one) removes it: ≤ 4.1 % (benchmarks/bench_contact_statics.py), at no measured
 cost. The cone (benchmarks/bench_contact_friction.py) costs +9 % CPU per dataset trial. In the
 step, on scans (24 dataset trials, every step halved, benchmarks/bench_statistics.py): peak |M|
-median / P90 change 0.5 / 4.1 %, peak F_t 1.4 / 9.4 %. A tip sticking and slipping on a faceted
+median / P90 change 0.1 / 1.0 %, peak F_t 0.3 / 2.6 % (0.6 / 3.6 % and 1.5 / 9.2 % before the
+scans' speculative contacts, Triangle meshes below). A tip sticking and slipping on a faceted
 surface let go at a step-dependent instant where its axis went through the faces (read with a
 scan radius of at least 30 µm since session 18, Triangle meshes below;
 benchmarks/bench_stick_slip.py, docs/model.md §2). Projected Gauss–Seidel solver, up to
@@ -102,7 +103,11 @@ a uniform grid (:mod:`pipeline.engines.triangle_grid`, built with the model); ea
 MuJoCo's own collision (pegs, boxes), every capsule of a link that may collide is tested against
 the triangles near it, and its contacts are read one-sided as Bullet reads them
 (:mod:`pipeline.engines.one_sided`: nearest face, edge or vertex; a crossed axis pushed back out
-along the face normal), so no link is squeezed between two faces; a link is read with a radius of at least
+along the face normal), so no link is squeezed between two faces; a link within 30 µm of the
+surface gets a speculative contact that lands it on the surface at the step's end if it would
+cross it (:mod:`~pipeline.engines.mujoco.faces`; without it a sliding tip lost its contact at
+the surface for a step and plunged 10–50 µm in, and peak F_t did not converge in the step);
+a link is read with a radius of at least
 :data:`~pipeline.engines.mujoco.faces.SCAN_RADIUS_MIN_MM` (the soft contact sinks a tip at
 whisking speed deeper than its own radius). They are appended to MuJoCo's
 contact list (``mj_addContact``; geom 1 an anchor geom of the scan on the world body that

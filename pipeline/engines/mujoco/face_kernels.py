@@ -17,6 +17,10 @@ from pipeline.engines.triangle_grid import near_box, nearest_face, segment_point
 # a link's axis this much (mm) beyond its radius from a face's plane is not tested against the face: the
 # exact test's rounding (≈ 1e-13 mm at the scans' coordinates) lies far below it, so the candidates are the same
 PLANE_SLACK_MM = 1e-9
+# a link's axis within its radius and this much (mm) of a face gets a (speculative) contact: what a link closing
+# at 0.3 m/s covers in the coarsest step (10⁻⁴ s); the dataset's peaks move ≤ 1.3 % (P90) from 30 to 50 µm
+# (docs/model.md, issue 24, session 23)
+SPECULATIVE_MM = 0.03
 
 
 @numba.njit(cache=True)
@@ -45,8 +49,9 @@ def scan_candidates(geom_contype: np.ndarray, link_geoms: np.ndarray, link_bodie
     ``link_lengths``, ``link_radii`` per link) whose geom collides (``geom_contype`` not 0;
     ``xpos`` [nbody, 3], ``xmat`` [nbody, 9] the bodies' frames) against the grid's triangles
     (bounding spheres ``centres`` [F, 3], ``radii`` [F]): (candidates [K, 3], their links [K],
-    whether each is a node [K], slots [L]). Per triangle a link's capsule touches (its axis within
-    the radius), the axis point nearest the triangle, a slot of the link; then the proximal and
+    whether each is a node [K], slots [L]). Per triangle a link's capsule touches or nearly touches
+    (its axis within the radius and :data:`SPECULATIVE_MM`), the axis point nearest the triangle, a
+    slot of the link; then the proximal and
     the distal node of each link with a slot. A link's triangles are taken in the order of their
     indices, whatever the grid's cells (a world's grid spans the faces of all its whiskers).
     Nothing is allocated per link (the step's search runs every step)."""
@@ -58,7 +63,7 @@ def scan_candidates(geom_contype: np.ndarray, link_geoms: np.ndarray, link_bodie
     for link in range(len(link_geoms)):
         if geom_contype[link_geoms[link]] == 0:
             continue
-        body, radius = link_bodies[link], link_radii[link]
+        body, radius = link_bodies[link], link_radii[link] + SPECULATIVE_MM
         for j in range(3):
             a[j] = xpos[body, j]
             b[j] = a[j] + xmat[body, 3 * j] * link_lengths[link]
@@ -130,7 +135,8 @@ def scan_contacts(axis: np.ndarray, link_of: np.ndarray, node: np.ndarray, slots
                   scratch: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The contacts of the candidates (:func:`scan_candidates`): each reads its one-sided
     contact with its nearest face (within the larger of its radius and ``depth``), kept where it
-    penetrates (a node: where its axis crossed the surface); deepest first per link, a candidate
+    penetrates or its gap is at most :data:`SPECULATIVE_MM` (a node: where its axis crossed the
+    surface); deepest first per link, a candidate
     within ``duplicate`` of a kept one or with a normal opposing its is dropped, and a link keeps
     at most its ``slots``. Returns (the kept candidates' links [C], points midway between the
     surfaces [C, 3], unit normals toward the link [C, 3], gaps [C]), by link, deepest first."""
@@ -145,7 +151,8 @@ def scan_contacts(axis: np.ndarray, link_of: np.ndarray, node: np.ndarray, slots
             kept[i], gaps[i] = False, np.inf
             continue
         qx, qy, qz = closest_on_triangle(px, py, pz, corners[face], normals[face])
-        kept[i], nx, ny, nz, gaps[i] = one_sided_contact(px, py, pz, qx, qy, qz, normals[face], radius, 0.0, depth)
+        kept[i], nx, ny, nz, gaps[i] = one_sided_contact(px, py, pz, qx, qy, qz, normals[face], radius, SPECULATIVE_MM,
+                                                         depth)
         if node[i]:                                            # a node: only where its axis crossed
             kept[i] = kept[i] and gaps[i] < -radius
         found[i, 0], found[i, 1], found[i, 2] = nx, ny, nz

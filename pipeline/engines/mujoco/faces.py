@@ -5,18 +5,31 @@ are built (:meth:`ScanContacts.step`).
 
 The scan's faces (those the world's whiskers can reach) sit in a uniform grid
 (:mod:`pipeline.engines.triangle_grid`, built with the model). Per step, for each link that may
-collide (its geom's ``contype``), each triangle its capsule touches (the axis within the radius)
+collide (its geom's ``contype``), each triangle its capsule touches or nearly touches (the axis
+within the radius and :data:`~pipeline.engines.mujoco.face_kernels.SPECULATIVE_MM`)
 gives the link a contact slot and a candidate, the axis point nearest the triangle; a link with
 slots adds its two nodes as candidates. Each candidate reads its contact with the surface
 (nearest face, edge or vertex within the larger of the radius and
 :data:`~pipeline.engines.one_sided.ONE_SIDED_DEPTH_MM`; a crossed axis pushed back out along the
-face normal), kept where it penetrates (gap ≤ 0; a node only where its axis crossed). Deepest
+face normal), kept where it penetrates or lies within ``SPECULATIVE_MM`` of the surface (a node
+only where its axis crossed). Deepest
 first, a candidate within :data:`DUPLICATE_MM` of a kept one of the same link (two faces read at
 their shared edge), or whose normal opposes one (a link between two faces: the deeper pushes it
 out), is dropped; a link keeps at most its slots. Each kept candidate becomes one MuJoCo contact
 (``mj_addContact``; geom 0 the link's capsule, geom 1 the scan's anchor geom on the world body,
 the contact law of every geom: package docstring, Contacts) at the point midway between the
 surfaces. The arithmetic is compiled (:mod:`pipeline.engines.mujoco.face_kernels`).
+
+A contact found apart from the surface (gap g > 0) is speculative, as MuJoCo's own speculative
+contacts with primitives: its margin makes the soft contact's reference acceleration the one that
+puts its point on the surface at the step's end, −(g/h + v)/h with v its separating speed
+(:func:`~pipeline.engines.mujoco.step_kernels.speculative_distance`), so the solve pushes only a
+link that would otherwise cross the surface within the step, and stops it there. After the step,
+one whose normal force came out positive held its link on the surface and reads as touching
+(distance 0). Without them, a link whose soft contact had pushed it back to the surface (or that
+the friction cone lifted while sliding) lost its contact for a step, its load drove it 10–50 µm into
+the scan in that step, and the sliding tips chattered, more at coarser steps (docs/model.md,
+"Issue 24, session 23").
 Internal units mm.
 
 A link thinner than :data:`SCAN_RADIUS_MIN_MM` is read against the scan with that radius (the
@@ -67,6 +80,9 @@ class ScanContacts:
         self.link_lengths_mm = link_lengths_mm
         self.link_radii_mm = np.maximum(link_radii_mm, SCAN_RADIUS_MIN_MM)     # read against the scan
         self.template = _template(model, anchor)
+        time_constant, dmax = float(model.geom_solref[anchor][0]), float(model.geom_solimp[anchor][1])
+        self.law = (1.0 / (dmax * time_constant) ** 2, 2.0 / (dmax * time_constant), time_constant,
+                    np.array(model.geom_solimp[anchor], float))    # k, b, τ, solimp (step_kernels.speculative_distance)
         self.template_address = contact_address(self.template)
         self._arguments: dict[int, tuple] = {}      # per MjData (kept): it and the compiled step's arguments
 
@@ -88,9 +104,10 @@ class ScanContacts:
         step: views of their memory, :class:`~pipeline.engines.mujoco.native.RawData`)."""
         if id(d) not in self._arguments:
             raw = RawData(m, d)
-            scan = (m.geom_contype, self.link_geoms, self.link_bodies, self.link_lengths_mm, self.link_radii_mm,
-                    d.xpos, d.xmat, self.grid.centres, self.grid.radii, DUPLICATE_MM, ONE_SIDED_DEPTH_MM,
-                    *self.grid.arrays(), self.scratch)
+            search = (m.geom_contype, self.link_geoms, self.link_bodies, self.link_lengths_mm, self.link_radii_mm,
+                      d.xpos, d.xmat, self.grid.centres, self.grid.radii, DUPLICATE_MM, ONE_SIDED_DEPTH_MM,
+                      *self.grid.arrays(), self.scratch)
+            scan = (search, (d.qvel, np.empty(3 * m.nv), np.empty(6), raw.model64, *self.law))
             self._arguments[id(d)] = d, (function_addresses(), m._address, d._address, raw.header, raw.pointers,
                                          raw.option, raw.rows64, raw.rows32, raw.fields, self.template_address,
                                          self.anchor, scan)

@@ -5,7 +5,8 @@ The functions are looked up by name in the bindings' own extension module, which
 library, and passed to compiled code as addresses. The fields are read in place: ``mjData``'s
 contact count and effective-metric flag as int32 words of its header, the contact list's
 address as a word of its pointer block, ``mjOption.disableflags`` as an int32 word of
-``mjModel``, and the contacts themselves as rows of the arena (:class:`RawData`). Where each lies
+``mjModel`` (and ``mjOption.timestep`` as a float64 word), and the contacts themselves as rows
+of the arena (:class:`RawData`). Where each lies
 is found once per process on a small model with one contact (:func:`layout`): each field is set
 through the bindings and found where the struct's memory changed, and the contact's fields from
 the bindings' own views, so nothing is copied from a header by hand.
@@ -22,7 +23,7 @@ import numpy as np
 
 FUNCTIONS = ("mj_checkPos", "mj_checkVel", "mj_fwdPosition", "mj_collision", "mj_addContact", "mj_makeConstraint",
              "mj_island", "mj_projectConstraint", "mj_transmission", "mj_effBuild", "mj_sensorPos", "mj_forwardSkip",
-             "mj_checkAcc", "mj_Euler", "mj_kinematics")
+             "mj_checkAcc", "mj_Euler", "mj_kinematics", "mj_jac", "mj_contactForce")
 """The C functions compiled code calls, in the order of :func:`function_addresses`."""
 
 _PROBE_XML = """<mujoco><worldbody><geom type="plane" size="1 1 0.1"/>
@@ -42,7 +43,8 @@ class Layout:
     the bad-acceleration warning's count; ``time``: a float64 word index) and ``mjModel`` (``opt.disableflags``), the header's
     length in bytes (up to ``buffer``), the word index of the contact pointer in the pointer block
     that starts there, and an mjContact's size (bytes) and fields (``dist``, ``pos``, ``frame``:
-    float64 words; ``geom``, ``exclude``: int32 words)."""
+    float64 words; ``geom``, ``exclude``: int32 words; ``includemargin``: a float64 word), and
+    ``timestep``: a float64 word index into ``mjModel``."""
 
     ncon: int
     efm_active: int
@@ -57,6 +59,8 @@ class Layout:
     frame: int
     geom: int
     exclude: int
+    includemargin: int
+    timestep: int
 
 
 def _int32_view(address: int, count: int) -> np.ndarray:
@@ -99,6 +103,10 @@ def layout() -> Layout:
     flags_at = _changed_word(_int32_view(m._address, option // 4 + 64),
                              lambda v: setattr(m.opt, "disableflags", v))
     m.opt.disableflags = flags
+    step = m.opt.timestep
+    timestep_at = _changed_word(np.ctypeslib.as_array((ctypes.c_double * (option // 8 + 8)).from_address(m._address)),
+                                lambda v: setattr(m.opt, "timestep", v))
+    m.opt.timestep = step
     # imported here, not at the top: 15 ms, and only scan worlds need it
     from mujoco.introspect import structs
 
@@ -109,9 +117,14 @@ def layout() -> Layout:
     base = contact.dist.ctypes.data
     if d.ncon != 1 or pointers[pointer] != base or pointers[2] != d.qpos.ctypes.data:
         raise RuntimeError("MuJoCo's struct layout was not recognised")
+    margin = float(contact.includemargin[0])
+    contact_words = np.ctypeslib.as_array((ctypes.c_double * (contact.dist.strides[0] // 8)).from_address(base))
+    margin_at = _changed_word(contact_words, lambda v: setattr(d.contact[0], "includemargin", v))
+    d.contact[0].includemargin = margin
     return Layout(ncon_at, efm_at, bad_at, time_at, flags_at, header_bytes, pointer, contact.dist.strides[0], 0,
                   (contact.pos.ctypes.data - base) // 8, (contact.frame.ctypes.data - base) // 8,
-                  (contact.geom.ctypes.data - base) // 4, (contact.vert.ctypes.data - base) // 4 + 2)
+                  (contact.geom.ctypes.data - base) // 4, (contact.vert.ctypes.data - base) // 4 + 2, margin_at,
+                  timestep_at)
 
 
 class RawData:
@@ -134,8 +147,10 @@ class RawData:
         self.rows64 = np.lib.stride_tricks.as_strided(words, (n64 - w64 + 1, w64), (8, 8))
         words32 = words.view(np.int32)
         self.rows32 = np.lib.stride_tricks.as_strided(words32, (2 * n64 - 2 * w64 + 1, 2 * w64), (4, 4))
+        self.model64 = np.ctypeslib.as_array((ctypes.c_double * (at.timestep + 1)).from_address(m._address))
         self.fields = np.array([at.ncon, at.efm_active, at.disableflags, at.contact_pointer, w64, at.dist, at.pos,
-                                at.frame, at.geom, at.exclude, at.bad_acceleration, at.time], np.int64)
+                                at.frame, at.geom, at.exclude, at.bad_acceleration, at.time, at.includemargin,
+                                at.timestep], np.int64)
 
 
 def contact_address(contact: mujoco.MjContact) -> int:

@@ -27,9 +27,10 @@ from pipeline.engines.mujoco.contact_kernels import step_contacts
 from pipeline.engines.mujoco.face_kernels import fill_contacts, scan_search
 
 (CHECK_POS, CHECK_VEL, FWD_POSITION, COLLISION, ADD_CONTACT, MAKE_CONSTRAINT, ISLAND, PROJECT_CONSTRAINT,
- TRANSMISSION, EFF_BUILD, SENSOR_POS, FORWARD_SKIP, CHECK_ACC, EULER, KINEMATICS) = range(15)   # native.FUNCTIONS
+ TRANSMISSION, EFF_BUILD, SENSOR_POS, FORWARD_SKIP, CHECK_ACC, EULER, KINEMATICS, JAC,
+ CONTACT_FORCE) = range(17)                                                                      # native.FUNCTIONS
 (NCON, EFM_ACTIVE, DISABLEFLAGS, CONTACT_POINTER, CONTACT_WORDS, DIST, POS, FRAME, GEOM, EXCLUDE,
- BAD_ACCELERATION, TIME) = range(12)                                                             # RawData.fields
+ BAD_ACCELERATION, TIME, INCLUDEMARGIN, TIMESTEP) = range(14)                                    # RawData.fields
 STAGE_POS = int(mujoco.mjtStage.mjSTAGE_POS)
 NO_EULER_DAMPING = int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
 
@@ -68,16 +69,30 @@ def _call_add(typingctx, function, model, data, contact):
     return types.int32(function, model, data, contact), _codegen(_I32, [_I64, _I64, _I64])
 
 
+@intrinsic
+def _call_jac(typingctx, function, model, data, jacp, jacr, point, body):
+    """``mj_jac(m, d, jacp, jacr, point, body)``: addresses, and the body as a C int."""
+    return (types.void(function, model, data, jacp, jacr, point, body),
+            _codegen(ir.VoidType(), [_I64, _I64, _I64, _I64, _I64, _I32]))
+
+
+@intrinsic
+def _call_force(typingctx, function, model, data, index, result):
+    """``mj_contactForce(m, d, index, result)``: the contact's index as a C int, the result's address."""
+    return types.void(function, model, data, index, result), _codegen(ir.VoidType(), [_I64, _I64, _I32, _I64])
+
+
 @numba.njit(cache=True)
 def scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan) -> bool:
     """One step of the discrete integrator with the scan's contacts added
     (:meth:`~pipeline.engines.mujoco.faces.ScanContacts.step`; ``scan``: its search's arrays and
-    constants, :func:`~pipeline.engines.mujoco.face_kernels.scan_search`'s arguments). False if
-    MuJoCo's contact buffer is full."""
+    constants, :func:`~pipeline.engines.mujoco.face_kernels.scan_search`'s arguments, then what
+    the speculative contacts need: :func:`_speculative_margins`'s last arguments from ``qvel``).
+    False if MuJoCo's contact buffer is full."""
     _call(fn[CHECK_POS], m, d)
     _call(fn[CHECK_VEL], m, d)
     _call(fn[FWD_POSITION], m, d)
-    links, middle, toward_link, gaps = scan_search(*scan)
+    links, middle, toward_link, gaps = scan_search(*scan[0])
     if len(links):
         metric = header[fields[EFM_ACTIVE]]
         _call(fn[COLLISION], m, d)          # again: its contacts end the arena, those added follow them
@@ -89,9 +104,11 @@ def scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, templa
         row = (pointers[fields[CONTACT_POINTER]] - pointers[1]) // 8
         contacts = rows64[row:row + count * words:words]
         geom = rows32[2 * row:2 * (row + count * words):2 * words, fields[GEOM]:fields[GEOM] + 2]
-        fill_contacts(first, links, middle, toward_link, gaps, scan[1], anchor, geom,
+        fill_contacts(first, links, middle, toward_link, gaps, scan[0][1], anchor, geom,
                       contacts[:, fields[FRAME]:fields[FRAME] + 9], contacts[:, fields[POS]:fields[POS] + 3],
                       contacts[:, fields[DIST]])
+        _speculative_margins(fn, m, d, first, links, middle, toward_link, gaps, scan[0][2],
+                             contacts[:, fields[INCLUDEMARGIN]], fields, *scan[1])
         _call(fn[MAKE_CONSTRAINT], m, d)
         _call(fn[ISLAND], m, d)
         _call(fn[PROJECT_CONSTRAINT], m, d)
@@ -104,7 +121,23 @@ def scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, templa
     option[fields[DISABLEFLAGS]] = flags | NO_EULER_DAMPING
     _call(fn[EULER], m, d)
     option[fields[DISABLEFLAGS]] = flags
+    if len(links):
+        _landed(fn, m, d, header[fields[NCON]] - len(links), gaps, rows64, pointers, fields, scan[1][2])
     return True
+
+
+@numba.njit(cache=True)
+def _landed(fn, m, d, first, gaps, rows64, pointers, fields, result) -> None:
+    """The step's speculative scan contacts (gap > 0, rows ``first`` on) whose normal force the
+    solve made positive held their link on the surface: their distance reads 0 (touching) for
+    what reads the step's contacts (contact flags, the contact-loss test)."""
+    row = (pointers[fields[CONTACT_POINTER]] - pointers[1]) // 8
+    words = fields[CONTACT_WORDS]
+    for c in range(len(gaps)):
+        if gaps[c] > 0.0:
+            _call_force(fn[CONTACT_FORCE], m, d, first + c, result.ctypes.data)
+            if result[0] > 0.0:
+                rows64[row + (first + c) * words, fields[DIST]] = 0.0
 
 
 @numba.njit(cache=True)
@@ -172,6 +205,69 @@ def _no_contacts():
 
 
 @numba.njit(cache=True)
+def _speculative_margins(fn, m, d, first, links, middle, toward_link, gaps, link_bodies, margin, fields, qvel, jacp,
+                         point, model64, stiffness, damping, time_constant, solimp) -> None:
+    """Each scan contact still apart (gap > 0, row ``first + c``) gets the ``margin`` that makes the
+    soft contact's reference acceleration the one that lands its link on the surface at the
+    step's end (:func:`speculative_distance`); the link's velocity at the point is ``mj_jac`` times
+    ``qvel``."""
+    h = model64[fields[TIMESTEP]]
+    nv = len(qvel)
+    for c in range(len(links)):
+        if gaps[c] <= 0.0:
+            continue
+        for j in range(3):
+            point[j] = middle[c, j]
+        _call_jac(fn[JAC], m, d, jacp.ctypes.data, 0, point.ctypes.data, link_bodies[links[c]])
+        separating = 0.0
+        for j in range(3):
+            v = 0.0
+            for k in range(nv):
+                v += jacp[j * nv + k] * qvel[k]
+            separating += toward_link[c, j] * v
+        margin[first + c] = gaps[c] - speculative_distance(gaps[c], separating, h, stiffness, damping,
+                                                           time_constant, solimp)
+
+
+@numba.njit(cache=True)
+def speculative_distance(gap: float, separating: float, h: float, stiffness: float, damping: float,
+                         time_constant: float, solimp: np.ndarray) -> float:
+    """The distance r (mm) that makes MuJoCo's soft contact ask for the normal acceleration
+    a* = −(gap/h + v)/h, which brings a point ``gap`` (mm) from the surface, separating at
+    v = ``separating`` (mm/s), onto it at the step's end (v' = v + h·a*, gap + h·v' = 0).
+    MuJoCo 4's reference with the discrete integrator is its spring and damper taken at the
+    step's end, a_ref = (−b·v − k'·r − h·k'·v) / (1 + h·b + h²·k') with k' = k·d(r) (measured to
+    rounding on the scan contacts' rows), so r = gap + ((1 + h·b)·(gap + h·v)/h² − b·v) / k';
+    ``stiffness`` k = 1/(d_max·τ)² and ``damping`` b = 2/(d_max·τ) (1/s², 1/s) for the contact's
+    time constant τ, at least 2h as MuJoCo takes it, d(r) the impedance of ``solimp``."""
+    scale = max(time_constant, 2.0 * h) / time_constant          # MuJoCo's safe time constant
+    k, b = stiffness / (scale * scale), damping / scale
+    wanted = (1.0 + h * b) * (gap + h * separating) / (h * h) - b * separating     # k'·(r − gap)
+    r = gap + wanted / (k * solimp[1])
+    for _ in range(20):                                      # d depends on r within solimp's width
+        previous, r = r, gap + wanted / (k * impedance(r, solimp))
+        if abs(r - previous) <= 1e-12 * abs(r):
+            break
+    return r
+
+
+@numba.njit(cache=True)
+def impedance(r: float, solimp: np.ndarray) -> float:
+    """MuJoCo's impedance d(r) of ``solimp`` (d0, d_max, width, midpoint, power) at distance r."""
+    d0, dmax, width, mid, power = solimp[0], solimp[1], solimp[2], solimp[3], solimp[4]
+    x = abs(r) / width
+    if x >= 1.0 or width <= 1e-15:
+        y = 1.0
+    elif power == 1.0:
+        y = x
+    elif x <= mid:
+        y = x ** power / mid ** (power - 1.0)
+    else:
+        y = 1.0 - (1.0 - x) ** power / (1.0 - mid) ** (power - 1.0)
+    return min(max(d0 + y * (dmax - d0), 1e-4), 0.9999)
+
+
+@numba.njit(cache=True)
 def run_steps(spp, h, targets, qpos, qvel, qfrc, kinematic, armature, spring_rate, sensors_on, sensors_off, loss,
               touched, fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan, first, last,
               touching, carried):
@@ -192,7 +288,7 @@ def run_steps(spp, h, targets, qpos, qvel, qfrc, kinematic, armature, spring_rat
     ``carried`` after it; its contacts as the flags take them and the members hit; the contacts of
     the steps before it as the flags take them, stacked, and how many each step had)."""
     start_qpos, start_qvel, start_warm, warmstart = loss[0:4]
-    xpos, xmat = scan[5], scan[6]
+    xpos, xmat = scan[0][5], scan[0][6]
     n_members = len(touching)
     lost = np.zeros(n_members, np.bool_)
     stacked = _no_contacts()
@@ -276,7 +372,7 @@ def run_substeps(count, h, start, targets, qpos, qvel, qfrc, kinematic, armature
     Returns (False if MuJoCo's contact buffer filled; the penetrating contacts of each whisker's
     last sub-step that had any; the sub-steps' contacts as the flags take them, stacked, and how
     many each sub-step had)."""
-    xpos, xmat = scan[5], scan[6]
+    xpos, xmat = scan[0][5], scan[0][6]
     latest = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)),
               np.zeros(0))
     stacked = _no_contacts()
