@@ -11,8 +11,9 @@ it, rigidly or on the hinges at the base point (the compliant follicle's, link 0
 every further link is a body with the hinges of its node (:mod:`pipeline.model.joints`: z, y
 and, with twist, x; MuJoCo composes a body's hinges in order, each about an axis of the frame
 the previous ones left, as the layout does) at its proximal node, the rest bend built into the
-body's orientation so that the springs rest at q = 0. k_n and c_n are MuJoCo's native joint ``stiffness`` and ``damping``; masses, centres of mass and principal inertias
-are the chain's; each link collides as a capsule between its nodes.
+body's orientation so that the springs rest at q = 0. k_n and c_n are MuJoCo's native joint
+``stiffness`` and ``damping``; masses, centres of mass and principal inertias are the chain's;
+each link collides as a capsule between its nodes.
 
 Integration. ``integrator="discrete"`` solves each step in the metric M + h·D + h²·K, which
 makes joint springs and dampers implicit, contacts included. Its right-hand side is backward
