@@ -37,7 +37,7 @@ _LOCAL = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]), "z": n
 class Joint:
     """One spring joint: a hinge with torque τ = −k·q − c·q̇ (N·m) about its axis."""
 
-    label: str                     # 'follicle_z', 'z3', 'y3', 'x3', ...
+    label: str                     # 'follicle_z', 'x0', 'z3', 'y3', 'x3', ...
     node: int                      # 0: the follicle at the base point; j: bending node j
     local_axis: str                # 'x', 'y' or 'z' of the frame it turns (module docstring)
     rest_frame: np.ndarray         # [3, 3] that frame at rest, in the whisker frame
