@@ -21,8 +21,8 @@ A backend implements :meth:`Engine.make_world` and :class:`World` (build the joi
 :mod:`pipeline.model.joints`, apply the loads of :mod:`pipeline.model.effects.loads`, step, read).
 
 Free joints. Besides the three driven base joints, a whisker has the spring joints of its
-:class:`~pipeline.model.joints.JointLayout` (follicle z, y if compliant; z, y and, with twist,
-x per bending node); ``initial_joint_angles_rad`` are given in that order.
+:class:`~pipeline.model.joints.JointLayout` (follicle z, y if compliant, and with twist link 0's
+x; z, y and, with twist, x per bending node); ``initial_joint_angles_rad`` are given in that order.
 
 A moving head (``head_motion``, :mod:`pipeline.model.head_motion`): the worlds place the head
 frame at the trajectory's pose every step and add its inertial load to every whisker's; the

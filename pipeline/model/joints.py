@@ -1,19 +1,21 @@
 """The joint layout of one whisker: every spring joint an engine must build, in one order.
 
 Coordinates (rad, 0 at the rest shape), from the base out: the compliant follicle's ``follicle_z``
-and ``follicle_y`` (only when the follicle is compliant), then at each bending node j = 1..N−1
-``z{j}``, ``y{j}`` and, with twist, ``x{j}``. A joint turns every link from ``first_link`` on.
+and ``follicle_y`` (only when the follicle is compliant) and, with twist, link 0's ``x0`` at the
+base point, then at each bending node j = 1..N−1 ``z{j}``, ``y{j}`` and, with twist, ``x{j}``.
+A joint turns every link from ``first_link`` on.
 
 Frames. Link l's frame has x along the link (proximal → distal node) and, at rest, the
 orientation Rz(α_l) in the whisker frame (α_l the link's direction in the x–y plane). The
 joints of a node compose intrinsically, each about an axis of the frame the previous ones
 left::
 
-    link 0:    R_0 = Rz(q_fz)·Ry(q_fy)·Rz(α_0)          (whisker frame; rigid follicle: Rz(α_0))
+    link 0:    R_0 = Rz(q_fz)·Ry(q_fy)·Rz(α_0)·Rx(q_x0)  (whisker frame; rigid follicle: no
+                                                      Rz·Ry; without twist: no Rx)
     link j:    R_j = R_{j−1}·Rz(β_j)·Rz(q_zj)·Ry(q_yj)·Rx(q_xj)
 
 β_j = α_j − α_{j−1} the rest bend at node j. So the follicle's local axes are the whisker
-frame's z and y, and a bending joint's local axes are its link's z, y, x. ``axis_m`` is the
+frame's z and y, and a bending or twist joint's local axes are its link's z, y, x. ``axis_m`` is the
 axis at rest in the whisker frame, ``pivot_m`` the node it turns about; both engines and the
 linearised chain of :mod:`pipeline.engines.linear.chain` are built from this table.
 """
@@ -26,6 +28,8 @@ import numpy as np
 
 from pipeline.model.rotations import axis_rotation, rot_z, rotation_zyx
 
+# the joints at the base point (node 0), in their order of composition
+BASE_LABELS = ("follicle_z", "follicle_y", "x0")
 _LOCAL = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}
 
 
@@ -33,7 +37,7 @@ _LOCAL = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]), "z": n
 class Joint:
     """One spring joint: a hinge with torque τ = −k·q − c·q̇ (N·m) about its axis."""
 
-    label: str                     # 'follicle_z', 'z3', 'y3', 'x3', ...
+    label: str                     # 'follicle_z', 'x0', 'z3', 'y3', 'x3', ...
     node: int                      # 0: the follicle at the base point; j: bending node j
     local_axis: str                # 'x', 'y' or 'z' of the frame it turns (module docstring)
     rest_frame: np.ndarray         # [3, 3] that frame at rest, in the whisker frame
@@ -92,6 +96,17 @@ class JointLayout:
         """The joints of ``node`` in their order of composition."""
         return [j for j in self.joints if j.node == node]
 
+    @property
+    def follicle(self) -> list[Joint]:
+        """The compliant follicle's joints (about the whisker frame's z and y at the base point),
+        in their order of composition; none for a rigid follicle."""
+        return [j for j in self.at_node(0) if j.label.startswith("follicle_")]
+
+    @property
+    def base_twist(self) -> Joint | None:
+        """Link 0's twist joint ``x0`` (after the follicle's), or None without twist."""
+        return next((j for j in self.at_node(0) if j.label == "x0"), None)
+
     def axis_in_link(self, joint: Joint) -> np.ndarray:
         """[3] the joint's axis in the rest frame of its first link (for engines that put a
         node's joints on the body of the link they move)."""
@@ -110,12 +125,14 @@ def joint_layout(physics) -> JointLayout:
         for axis in "zy":
             joints.append(Joint(f"follicle_{axis}", 0, axis, np.eye(3), chain.nodes_m[0], 0,
                                 physics.follicle.k_f, physics.follicle.c_f))
+    if twist is not None:
+        joints.append(Joint("x0", 0, "x", frames[0], chain.nodes_m[0], 0, twist[0][0], twist[1][0]))
     for j in range(1, chain.links):
         k, c = chain.stiffness_nm_per_rad[j - 1], chain.damping_nms_per_rad[j - 1]
         joints.append(Joint(f"z{j}", j, "z", frames[j], chain.nodes_m[j], j, k, c))
         joints.append(Joint(f"y{j}", j, "y", frames[j], chain.nodes_m[j], j, k, c))
         if twist is not None:
-            joints.append(Joint(f"x{j}", j, "x", frames[j], chain.nodes_m[j], j, twist[0][j - 1], twist[1][j - 1]))
+            joints.append(Joint(f"x{j}", j, "x", frames[j], chain.nodes_m[j], j, twist[0][j], twist[1][j]))
     return JointLayout(tuple(joints), frames)
 
 
@@ -154,6 +171,8 @@ def _forward(labels: tuple[str, ...], q: np.ndarray, first_angle_rad, rest_bend_
     frames = np.zeros((rows, links, 3, 3))
     nodes = np.zeros((rows, links + 1, 3))
     frame = rotation_zyx(angle("follicle_z"), angle("follicle_y"), zero) @ axis_rotation(2, first_angle_rad)
+    if "x0" in column:
+        frame = frame @ axis_rotation(0, angle("x0"))
     for link in range(links):
         if link > 0:
             frame = frame @ rotation_zyx(rest_bend_rad[link - 1] + angle(f"z{link}"), angle(f"y{link}"),

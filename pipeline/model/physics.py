@@ -30,7 +30,7 @@ class WhiskerPhysics:
 
     ``chain``: links, masses, joint stiffness k_n and damping c_n (both bending axes).
     ``follicle``: compliant follicle (k_f, c_f about base y and z) or ``None`` (rigid).
-    ``twist``: a twist joint per bending node (:class:`~pipeline.model.effects.twist.Twist`)
+    ``twist``: a twist joint per link (:class:`~pipeline.model.effects.twist.Twist`)
     or ``None`` (the paper). ``loads``: the per-link loads
     (:class:`~pipeline.model.effects.loads.Load`), summed in this order.
     """

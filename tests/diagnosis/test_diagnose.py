@@ -51,8 +51,11 @@ def test_each_extension_changes_what_its_equation_says():
     assert [load.linear for load in with_("drag", linear=2e-4).loads] == [2e-4]
     assert with_("gravity").gravity_m_s2 == 9.81
     twist = with_("twist", g_over_e=0.4)
-    twist_joints = [j.stiffness_nm_per_rad for j in twist.layout.joints if j.local_axis == "x"]
-    np.testing.assert_allclose(twist_joints, 0.8 * base.chain.stiffness_nm_per_rad)
+    twist_joints = np.array([j.stiffness_nm_per_rad for j in twist.layout.joints if j.local_axis == "x"])
+    # one per link (tests/model/test_twist.py): 2·(G/E)·k_n over the taper's mean (I_n/I) on link n
+    r = base.chain.node_radii_m
+    np.testing.assert_allclose(twist_joints[1:], 0.8 * base.chain.stiffness_nm_per_rad
+                               * 3 * r[2:] ** 3 / (r[1:-1] * (r[1:-1] ** 2 + r[1:-1] * r[2:] + r[2:] ** 2)))
     # the damping model sees the final chain: eq. 3 has c ∝ √(distal mass), so 4× density doubles c
     heavy = with_("density", scale=4.0)
     np.testing.assert_allclose(heavy.chain.damping_nms_per_rad, 2 * base.chain.damping_nms_per_rad, rtol=1e-9)

@@ -11,6 +11,7 @@ from pipeline.engines import create_engine
 from pipeline.engines.stepping import first_frequency_hz
 from pipeline.errors import SimulationError, UserError
 from pipeline.model.array import build_array, single_whisker
+from pipeline.model.effects.registry import make_effect
 from pipeline.model.kinematics import Pose, sinusoidal_whisk, still
 from pipeline.model.morphology import model_rat
 from pipeline.model.whisker import WhiskerGeometry
@@ -76,14 +77,17 @@ def test_bent_start_held_by_its_tip_force_stays_put(engine, bent):
     assert drift < 0.01 * deflection                  # measured: 1.3·10⁻⁷ of it on both
 
 
+@pytest.mark.parametrize("twist", [False, True])
 @pytest.mark.parametrize("follicle", ["rigid", "compliant"])
 @pytest.mark.parametrize("engine", ENGINES)
-def test_first_sample_is_the_bent_shape_held_by_the_base(engine, follicle):
+def test_first_sample_is_the_bent_shape_held_by_the_base(engine, follicle, twist):
     """10 µs after the start the nodes are the chain's exact kinematics of the angles (the joint
-    order and signs of both engines), and the follicle holds the static base moment −x_tip × F."""
+    order and signs of both engines, with twist link 0's x0 after the follicle's joints), and
+    the follicle holds the static base moment −x_tip × F (the base sensor turned back through
+    every hinge at the base point)."""
     material = MaterialConfig(youngs_modulus_gpa=5.0, damping_ratio=0.05, follicle={
         "kind": follicle, "stiffness_nm_per_rad": 1e-5, "damping_nms_per_rad": 1e-8})
-    array = single_whisker(CURVED, material)
+    array = single_whisker(CURVED, material, extensions=(make_effect("twist", g_over_e=0.1),) if twist else ())
     lin = _chain(array.whiskers[0])
     q = static_angles(lin, TIP_FORCE_N)
     nodes = _nodes(lin, q)
@@ -91,6 +95,9 @@ def test_first_sample_is_the_bent_shape_held_by_the_base(engine, follicle):
         out = sim.run(empty(), Pose(), still(1e-5), 1e-5, initial_joint_angles_rad=q)
     deflection = np.abs(nodes - _nodes(lin, np.zeros(lin.n))).max()
     assert np.abs(out.node_positions_m[0, 0] - nodes).max() < 1e-3 * deflection        # measured 2·10⁻⁴
+    if twist:                     # link 0's twist (1.3 mrad) moves the nodes by 10× the tolerance
+        untwisted = _nodes(lin, np.where(np.array(lin.dofs.labels) == "x0", 0.0, q))
+        assert np.abs(untwisted - nodes).max() > 5e-3 * deflection                      # measured 1.0–1.2 %
     moment = -np.cross(nodes[-1], TIP_FORCE_N)
     error = np.linalg.norm(out.base_wrench[0, 0, 3:] - moment) / np.linalg.norm(moment)
     assert error < 0.03                                                                # measured 0.1–0.25 %
@@ -215,3 +222,27 @@ def test_engine_simulator_release_agrees_between_engines():
     bullet, mujoco = (EngineSimulator(name).simulate(physics, prepared)[0] for name in ENGINES)
     amplitude = np.abs(bullet[:, -1] - bullet[-1, -1]).max()
     assert np.sqrt(np.mean(np.sum((bullet - mujoco) ** 2, axis=-1))) < 1e-3 * amplitude   # measured 6·10⁻⁷
+
+
+@pytest.mark.parametrize("follicle", ["rigid", "compliant"])
+@pytest.mark.parametrize("engine", ENGINES)
+def test_base_moment_is_turned_back_through_link_0s_twist(engine, follicle):
+    """A soft twist (G/E 0.004: link 0 twists by 14 mrad) held by a tip force: the base moment
+    is −x_tip × F in the whisker frame (the sensor's reading turned back through x0 as well)."""
+    from scipy.optimize import fsolve
+    material = MaterialConfig(youngs_modulus_gpa=5.0, damping_ratio=0.05, follicle={
+        "kind": follicle, "stiffness_nm_per_rad": 1e-5, "damping_nms_per_rad": 1e-8})
+    array = single_whisker(CURVED, material, extensions=(make_effect("twist", g_over_e=0.004),))
+    lin, force = _chain(array.whiskers[0]), 0.5 * TIP_FORCE_N
+
+    def unbalanced(q, step=1e-7):                    # K·q − J(q)ᵀ·F, J by central differences
+        tips = lin.points(q + step * np.vstack([np.eye(lin.n), -np.eye(lin.n)]), np.array([1.0]))[:, 0]
+        return lin.stiffness @ q - (tips[:lin.n] - tips[lin.n:]) @ force / (2 * step)
+
+    q = fsolve(unbalanced, np.zeros(lin.n), xtol=1e-9)
+    assert q[lin.dofs.labels.index("x0")] > 0.01
+    with create_engine(_config(engine, material, **FIRST_SAMPLE), array) as sim:
+        out = sim.run(empty(), Pose(), still(1e-5), 1e-5, initial_joint_angles_rad=q)
+    moment = -np.cross(_nodes(lin, q)[-1], force)
+    error = np.linalg.norm(out.base_wrench[0, 0, 3:] - moment) / np.linalg.norm(moment)
+    assert error < 5e-3                  # measured 0.13–0.21 %; not turned back through x0: 1.3 %

@@ -3,7 +3,8 @@
 Layout of the multibody (fixed base at the whisker's base point, head orientation): three
 driven revolute joints (Z, Y, X Euler angles of the follicle), then the spring joints of the
 whisker's :class:`~pipeline.model.joints.JointLayout`: the compliant follicle's hinges (if
-any) on massless links, a fixed joint to link 1 (where the base wrench is taken), then per
+any) on massless links, a fixed joint to link 1 (where the base wrench is taken; with twist,
+link 0's twist joint ``x0`` about its own x), then per
 bending node one revolute joint per hinge of the node, all on massless links but the last,
 which carries the next whisker link. The implicit step is described in
 :mod:`pipeline.engines.bullet`; loads (:mod:`pipeline.model.effects.loads`) enter it as generalised
@@ -84,8 +85,9 @@ class BulletWhisker:
         self.base_link = roll                                  # the driven base frame (follicle)
         layout = model.layout
         parent, rotation = roll, model.frame_offset
-        self.follicle_axes = [_AXIS_INDEX[j.local_axis] for j in layout.at_node(0)]
-        for joint in layout.at_node(0):                     # compliant follicle
+        self.follicle_axes = [_AXIS_INDEX[j.local_axis] for j in layout.follicle]
+        self.base_twist = layout.base_twist is not None
+        for joint in layout.follicle:                       # compliant follicle
             parent = links.add(parent, p.JOINT_REVOLUTE, joint.unit_axis, rotation=rotation)
             rotation = np.eye(3)
         link1_rotation = rotation @ rot_z(chain.link_angles_rad[0])
@@ -100,8 +102,9 @@ class BulletWhisker:
             body_args = dict(mass=chain.link_mass_kg[i] * U.MASS,
                              inertia=(chain.link_inertia_kg_m2[i] * U.INERTIA).tolist(),
                              shape=shape, com=(chain.link_com_m[i] * U.LENGTH, 0, 0))
-            if i == 0:
-                link = links.add(parent, p.JOINT_FIXED, (0, 0, 1), rotation=link1_rotation,
+            if i == 0:                                  # rigid, or on link 0's twist joint
+                link = links.add(parent, p.JOINT_REVOLUTE if self.base_twist else p.JOINT_FIXED,
+                                 (1, 0, 0) if self.base_twist else (0, 0, 1), rotation=link1_rotation,
                                  **body_args)
                 self.sensor_joint = link
             else:
@@ -383,7 +386,8 @@ class BulletWhisker:
         wrench = follicle_wrench(rotations, self._link_offsets, self._local_axes, self._dof_links, v, accel,
                                  self._body_links, self.link_com, self._link_mass, self._link_inertia, self.sensor_joint,
                                  points - base, forces, torques, self.link1_angle, self._follicle_axes,
-                                 np.asarray(q[3:3 + len(self.follicle_axes)], float))
+                                 np.asarray(q[3:3 + len(self.follicle_axes)], float),
+                                 float(q[3 + len(self.follicle_axes)]) if self.base_twist else 0.0)
         return np.concatenate([wrench[:3] / U.FORCE, wrench[3:] / U.TORQUE])
 
     def link_nodes(self, links) -> np.ndarray:

@@ -125,15 +125,16 @@ def follicle_wrench(rotations: np.ndarray, offsets: np.ndarray, local_axes: np.n
                     rates: np.ndarray, accelerations: np.ndarray, bodies: np.ndarray, com_x: np.ndarray,
                     mass: np.ndarray, inertia: np.ndarray, base: int, points: np.ndarray, forces: np.ndarray,
                     torques: np.ndarray, link1_angle: float, follicle_axes: np.ndarray,
-                    follicle_angles: np.ndarray) -> np.ndarray:
+                    follicle_angles: np.ndarray, base_twist: float) -> np.ndarray:
     """:func:`chain_wrench` [6] in the whisker frame, from the chain's link frames.
 
     ``rotations`` [L, 3, 3] the L links' frames, ``offsets`` [L, 3] each link's origin in
     its parent's frame; ``dofs`` [D] the chain indices of the revolute joints, ``rates`` and
     ``accelerations`` [D] theirs; ``com_x`` [B] each whisker link's centre of mass on its frame's x
     axis; ``points`` [E, 3] relative to link 0's origin; the whisker frame is link ``base``'s turned
-    by −``link1_angle`` about z, then by the follicle joints' ``follicle_angles`` about
-    ``follicle_axes`` (x, y, z: 0, 1, 2; the last first). Other arguments as :func:`chain_wrench`.
+    by −``base_twist`` about x (link 0's twist joint; 0 without), −``link1_angle`` about z, then
+    by the follicle joints' ``follicle_angles`` about ``follicle_axes`` (x, y, z: 0, 1, 2; the
+    last first). Other arguments as :func:`chain_wrench`.
     The origins are
     chained from the offsets (Bullet's link positions are off by up to 10⁻⁵ relative), so that the
     wrench does not depend on where the base is."""
@@ -146,7 +147,7 @@ def follicle_wrench(rotations: np.ndarray, offsets: np.ndarray, local_axes: np.n
     joint_rates[dofs], joint_accelerations[dofs] = rates, accelerations
     world = chain_wrench(origins, rotations, local_axes, joint_rates, joint_accelerations, bodies, com, mass, inertia,
                          base, points, forces, torques)
-    rotation = _turned(2, link1_angle, rotations[base].T.copy())           # world → link 1 → whisker
+    rotation = _turned(2, link1_angle, _turned(0, base_twist, rotations[base].T.copy()))  # world → link 1 → whisker
     for k in range(len(follicle_axes) - 1, -1, -1):
         rotation = _turned(follicle_axes[k], follicle_angles[k], rotation)
     wrench = np.zeros(6)

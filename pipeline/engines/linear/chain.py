@@ -1,9 +1,10 @@
 """The whisker chain linearised about its rest shape, in 3D, in the frame of the driven base.
 
 Degrees of freedom (generalised coordinates q, rad): the spring joints of the whisker's
-:class:`~pipeline.model.joints.JointLayout` (follicle z, y if compliant; then z, y and, with
-twist, x per bending node), the joints every engine builds, so positions agree to first order
-and the forward kinematics of :meth:`LinearWhisker.points` is exact for given q.
+:class:`~pipeline.model.joints.JointLayout` (follicle z, y if compliant, and with twist link 0's
+x; then z, y and, with twist, x per bending node), the joints every engine builds, so
+positions agree to first order and the forward kinematics of :meth:`LinearWhisker.points` is
+exact for given q.
 
 Equations of motion in the base frame, which rotates with body angular velocity ω(t) and
 acceleration α = ω̇ about the pinned base point, linearised in q (not in the base motion):

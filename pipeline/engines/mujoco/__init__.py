@@ -7,13 +7,13 @@ anything below 10⁻¹⁵). A still head is a mocap body per whisker, each at th
 (Independence below), or, when it moves (a head trajectory that moves, or a closed-loop
 session), one body on kinematic joints (Moving head below). Under it, per whisker,
 a follicle body at the base point carries the three driven hinges Z, Y, X; link 1 hangs from
-it, rigidly or on the compliant follicle's hinges; every further link is a body with the
-hinges of its node (:mod:`pipeline.model.joints`: z, y and, with twist, x; MuJoCo composes a
-body's hinges in order, each about an axis of the frame the previous ones left, as the layout
-does) at its proximal node, the rest bend built into the body's orientation so that the
-springs rest at q = 0. k_n and c_n are MuJoCo's
-native joint ``stiffness`` and ``damping``; masses, centres of mass and principal inertias
-are the chain's; each link collides as a capsule between its nodes.
+it, rigidly or on the hinges at the base point (the compliant follicle's, link 0's twist);
+every further link is a body with the hinges of its node (:mod:`pipeline.model.joints`: z, y
+and, with twist, x; MuJoCo composes a body's hinges in order, each about an axis of the frame
+the previous ones left, as the layout does) at its proximal node, the rest bend built into the
+body's orientation so that the springs rest at q = 0. k_n and c_n are MuJoCo's native joint
+``stiffness`` and ``damping``; masses, centres of mass and principal inertias are the chain's;
+each link collides as a capsule between its nodes.
 
 Integration. ``integrator="discrete"`` solves each step in the metric M + h·D + h²·K, which
 makes joint springs and dampers implicit, contacts included. Its right-hand side is backward
@@ -56,9 +56,9 @@ Base wrench. ``force`` and ``torque`` sensors on a site at link 1's proximal nod
 wrench the follicle exerts on the whisker about the base point (MuJoCo's ``cfrc_int`` after
 the constraint solve: inertia, springs, contacts and applied forces included). The site is
 oriented as the whisker frame, so with a rigid follicle the reading is in the whisker frame;
-with a compliant one it is rotated back through the follicle hinges. Sensors and node
-positions describe the state at the start of a step, so sample k is read after the step
-that starts at t_k (one extra step at the end of a trial).
+with hinges at the base point (a compliant follicle's, link 0's twist) it is rotated back
+through them. Sensors and node positions describe the state at the start of a step, so
+sample k is read after the step that starts at t_k (one extra step at the end of a trial).
 
 Contacts. Soft constraints, critically damped (inelastic), with a time constant fixed in
 seconds (:data:`CONTACT_TIME_CONSTANT_S`, two of the default coarsest steps; never below two

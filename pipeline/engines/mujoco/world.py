@@ -27,6 +27,7 @@ from pipeline.engines.stepping import damping_folds
 from pipeline.errors import SimulationError
 from pipeline.model.array import WhiskerModel
 from pipeline.model.head_motion import HeadMotion
+from pipeline.model.joints import BASE_LABELS
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.model.rotations import quat_wxyz
 from pipeline.scenes.obstacles import Scene, TriangleMesh
@@ -90,15 +91,19 @@ class MujocoWorld(World):
         self.n_driven = len(driven)
         self.obstacle_velocity = (np.concatenate([p.velocity_mm_s for p in moving]) if moving
                                   else np.zeros(0))
-        # the follicle hinges, the base sensor turns with them: per (position in a whisker's
-        # sequence, axis index) the members that have one there and its qpos addresses
-        hinges: dict[tuple[int, int], list] = {}
+        # the hinges at the base point, the base sensor turns with them: per hinge (in their
+        # order of composition) the members that have it, its qpos addresses and rest frames
+        hinges: dict[str, list] = {}
         for member, k in enumerate(members):
-            for position, j in enumerate(self.whiskers[k].layout.at_node(0)):
-                hinges.setdefault((position, "xyz".index(j.local_axis)), []).append(
-                    (member, m.jnt_qposadr[named(joint, f"w{k}/{j.label}")]))
-        self.follicle = FollicleTurns(
-            [(axis, *map(np.array, zip(*rows))) for (_, axis), rows in sorted(hinges.items())], len(members))
+            for j in self.whiskers[k].layout.at_node(0):
+                hinges.setdefault(j.label, []).append((member, m.jnt_qposadr[named(joint, f"w{k}/{j.label}")], j))
+        turns = []
+        for label in (label for label in BASE_LABELS if label in hinges):
+            member, qpos, base = zip(*hinges[label])
+            frames = np.array([j.rest_frame for j in base])
+            turns.append(("xyz".index(base[0].local_axis), np.array(member), np.array(qpos),
+                          None if np.array_equal(frames, np.broadcast_to(np.eye(3), frames.shape)) else frames))
+        self.follicle = FollicleTurns(turns, len(members))
         self.link_bodies = np.array([[named(body, f"w{k}/l{i}") for i in range(self.links)]
                                      for k in members])
         self.link_lengths_mm = np.array([self.whiskers[k].chain.link_lengths_m for k in members]) * U.LENGTH
