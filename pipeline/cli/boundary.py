@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import errno
+import os
 import sys
 import traceback
 
-import click
 import typer
 
 from pipeline.cli import termination
@@ -15,16 +15,22 @@ from pipeline.cli.output import one_line
 from pipeline.errors import SimulationError, UserError
 
 
+# BLAS libraries that read these start one thread per core when loaded, and the extra threads spin
+# for a while: ≈0.03–0.08 CPU-s at numpy's import on 2 cores, for nothing, since every fit and
+# linear path here runs on ~100×100 matrices where one thread is faster (pipeline.diagnosis.threads).
+# Set before any command imports numpy, unless the user set them; dask workers inherit them.
+ONE_BLAS_THREAD = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
 def _click_errors() -> tuple[tuple[type, ...], tuple[type, ...], tuple[type, ...]]:
-    """(usage errors, aborts, exits) of the installed click and of the copy bundled with typer."""
-    errors = [click.ClickException]
-    aborts, exits = [click.exceptions.Abort, typer.Abort], [click.exceptions.Exit, typer.Exit]
+    """(usage errors, aborts, exits) of the click that typer runs: its bundled copy if it has one
+    (then the installed click, ≈0.01 CPU-s to import, is not needed), else the installed click."""
     try:
-        from typer._click.exceptions import ClickException as BundledClickException
-        errors.append(BundledClickException)
+        from typer._click.exceptions import ClickException
+        return (ClickException,), (typer.Abort,), (typer.Exit,)
     except ImportError:          # typer versions that use the installed click
-        pass
-    return tuple(errors), tuple(aborts), tuple(exits)
+        import click
+        return (click.ClickException,), (click.exceptions.Abort, typer.Abort), (click.exceptions.Exit, typer.Exit)
 
 
 def main() -> None:
@@ -36,6 +42,8 @@ def main() -> None:
     else is a bug and keeps its traceback. ``--debug`` shows the traceback of every error.
     """
     debug = "--debug" in sys.argv[1:]
+    for name in ONE_BLAS_THREAD:
+        os.environ.setdefault(name, "1")
     termination.install()
     usage_errors, aborts, exits = _click_errors()
     try:

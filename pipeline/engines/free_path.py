@@ -55,17 +55,20 @@ simulate has no body in Bullet's world, pipeline/engines/bullet/); ``auto`` give
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pipeline.config.physics import EngineConfig
 from pipeline.engines.common import CLEARANCE_MARGIN_M, FreeMotion
-from pipeline.engines.linear.free import LinearFreePath
 from pipeline.engines.mirror import joint_signs, mirrored, twins
 from pipeline.model.array import ArrayModel
 from pipeline.model.kinematics import Pose, ProtractionDrive
 from pipeline.scenes.library import empty
 from pipeline.scenes.obstacles import Scene
+
+if TYPE_CHECKING:      # the linear chain is imported when a path asks for it (start-up, tests/cli/test_startup.py)
+    from pipeline.engines.linear.free import LinearFreePath
 
 # the coarse path's longest step (s) per engine; shorter whiskers refine from it. Bullet has none:
 # its coarse runs missed 1 % (RA0's Mz: 1.40 % at 9 Hz with 2.5e-4 s, 1.60 % at 12 Hz with 2e-4 s)
@@ -165,6 +168,8 @@ class FreePath:
         if choice == "auto":                 # the drives are not known here (pipeline simulate resolves it)
             choice = auto_path(config.name, array.material.damping_model)
         if choice == "linear":
+            # imported here, not at the top: ≈0.03 CPU-s of start-up for engines that take another path
+            from pipeline.engines.linear.free import LinearFreePath
             return LinearFreePath(array, config.output_rate_hz)
         longest = {"coarse": (FREE_DT_S.get(config.name),),
                    "extrapolated": EXTRAPOLATED_DT_S.get(config.name, (None,))}.get(choice, (None,))

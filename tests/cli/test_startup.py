@@ -6,6 +6,7 @@ The check runs in a fresh interpreter and lists what was imported by the time th
 """
 
 import json
+import os
 import subprocess
 import sys
 
@@ -49,3 +50,29 @@ def test_a_short_trial_loads_no_heavy_module(engine, needed):
     assert {name.split(".")[0] for name in loaded_heavy_modules(body)} == needed
     table = loaded_heavy_modules(body.replace(", '--json']", "]"))
     assert {name.split(".")[0] for name in table} == needed | {"rich"}, table
+
+
+_BLAS_THREADS_AT_EXIT = """
+import atexit, json, runpy, sys
+def report():
+    from threadpoolctl import threadpool_info
+    threads = sorted({pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"})
+    sys.stderr.write("\\nBLAS " + json.dumps(threads) + "\\n")
+atexit.register(report)
+sys.argv = ['pipeline', 'trial', '--whiskers', 'RC1', '--duration-s', '0.001', '--engine', 'mujoco', '--json']
+runpy.run_module('pipeline.cli', run_name='__main__')
+"""
+
+
+@pytest.mark.parametrize("asked, expected", [(None, [1]), ("2", [2])])
+def test_the_command_line_runs_blas_on_one_thread_unless_asked(asked, expected):
+    """numpy's OpenBLAS would start a spinning thread per core at import (pipeline.cli.boundary);
+    a user's own OPENBLAS_NUM_THREADS wins."""
+    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+    if asked is not None:
+        env["OPENBLAS_NUM_THREADS"] = asked
+    done = subprocess.run([sys.executable, "-c", _BLAS_THREADS_AT_EXIT], capture_output=True, text=True,
+                          cwd=REPO, env=env, timeout=120)
+    lines = [line for line in done.stderr.splitlines() if line.startswith("BLAS ")]
+    assert lines, done.stderr
+    assert json.loads(lines[-1][len("BLAS "):]) == expected
