@@ -5,7 +5,9 @@ step, from the state MuJoCo has just computed for it: in its control callback (`
 called by ``mj_step`` after the position and velocity stages, before the forces are summed), so
 that no step recomputes its kinematics for them. The callback is MuJoCo's, one per process: it is
 set only while a step runs (``with`` :class:`LinkLoads`; ``MjSpec.compile`` fails while a Python
-callback is set). Internal units mm–mg–s, loads in SI."""
+callback is set). A world with a scan whose only load is mass-proportional damping has its
+compiled scan step add that force at the same point of the step instead, without the callback
+(:attr:`~pipeline.engines.mujoco.faces.ScanContacts.damping`). Internal units mm–mg–s, loads in SI."""
 
 from __future__ import annotations
 
