@@ -15,6 +15,7 @@ from pipeline.engines.mujoco import world as engine
 from pipeline.engines.mujoco import face_kernels, step_kernels
 from pipeline.engines.mujoco.face_kernels import contact_frame
 from pipeline.engines.mujoco.faces import GRID_CELL_MM, ScanContacts, triangles_mm
+from pipeline.engines.mujoco.loads import LinkLoads
 from pipeline.engines.mujoco.substeps import ContactLossSubsteps
 from pipeline.engines.triangle_grid import TriangleGrid, near_box, nearest_face, segment_triangle
 from pipeline.engines.one_sided import OneSidedMesh
@@ -29,11 +30,13 @@ from test_engine_bullet_contact import folded_sheet
 SHEET = Scene("folded-sheet", (beside_right_array(folded_sheet(), 0.023),))
 
 
-def _whisk(duration_s: float, gravity: bool = False, **engine_options):
+def _whisk(duration_s: float, gravity: bool = False, preset: str | None = None, **engine_options):
     """RD3 and RB3 whisking into the folded sheet; with ``gravity`` a load on the links, so that every
-    step is taken in the world's Python loop (through ScanContacts.step), not in compiled runs."""
+    step is taken in the world's Python loop (through ScanContacts.step), not in compiled runs;
+    ``preset``: the material's."""
     config = ModelConfig(engine=EngineConfig(**({"name": "mujoco"} | engine_options), jam_refinements=0,
-                                             contact_friction=0.5), material=MaterialConfig(gravity=gravity))
+                                             contact_friction=0.5),
+                         material=MaterialConfig(gravity=gravity, **({"preset": preset} if preset else {})))
     return run_trial(config, SHEET, Pose(), duration_s, "RD3,RB3")
 
 
@@ -176,7 +179,7 @@ def test_the_compiled_scan_step_is_the_bindings_sequence(monkeypatch):
 
     def both(self, m, d):
         e = copy.copy(d)
-        scan = list(self.arguments(m, d)[-1][0])
+        scan = list(self.arguments(m, d)[-2][0])
         scan[5:7] = e.xpos, e.xmat
         step(self, m, d)
         _bindings_step(self, m, e, tuple(scan))
@@ -209,6 +212,31 @@ def test_the_compiled_sub_steps_are_the_bindings_loop(monkeypatch):
     assert len(calls) == taken                                       # the bindings' loop this time
     for name in ("base_wrench", "node_positions_m", "contact", "point_of_contact"):
         assert np.array_equal(getattr(compiled, name), getattr(bindings, name), equal_nan=True), name
+
+
+def test_mass_damping_in_the_compiled_steps_is_the_control_callback_s(monkeypatch):
+    """Rayleigh damping (α·M a link load): RD3 and RB3 pressed into the folded sheet with α·M's
+    joint force added by the compiled steps and sub-steps (between MuJoCo's velocity and
+    actuation stages) give, bit for bit, the trial whose every step is taken in Python with it
+    added by MuJoCo's control callback (LinkLoads), the base sensors' correction included."""
+    calls = {"run_steps": 0, "run_substeps": 0, "callback": 0}
+    for name in ("run_steps", "run_substeps"):
+        monkeypatch.setattr(step_kernels, name, lambda *args, _f=getattr(step_kernels, name), _n=name:
+                            (calls.__setitem__(_n, calls[_n] + 1), _f(*args))[1])
+    apply = LinkLoads.apply
+    monkeypatch.setattr(LinkLoads, "apply", lambda self, m, d: (calls.__setitem__("callback", calls["callback"] + 1),
+                                                                apply(self, m, d))[1])
+    compiled = _whisk(0.04, preset="untrimmed_rayleigh")
+    assert calls["run_steps"] > 10 and calls["run_substeps"] > 0 and calls["callback"] == 0
+    assert compiled.contact.any(axis=(0, 2)).all()
+    monkeypatch.setattr(LinkLoads, "only_mass_damping", property(lambda self: False))
+    before = dict(calls)
+    callback = _whisk(0.04, preset="untrimmed_rayleigh")
+    assert calls["run_steps"] == before["run_steps"] and calls["callback"] >= 400    # every step
+    for name in ("base_wrench", "node_positions_m", "contact", "point_of_contact"):
+        assert np.array_equal(getattr(compiled, name), getattr(callback, name), equal_nan=True), name
+    kelvin_voigt = _whisk(0.04)                 # the damping changes the trial: the test can fail
+    assert not np.array_equal(compiled.base_wrench, kelvin_voigt.base_wrench)
 
 
 def _sheet_grid() -> TriangleGrid:

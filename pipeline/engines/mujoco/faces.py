@@ -85,6 +85,10 @@ class ScanContacts:
                     np.array(model.geom_solimp[anchor], float))    # k, b, τ, solimp (step_kernels.speculative_distance)
         self.template_address = contact_address(self.template)
         self._arguments: dict[int, tuple] = {}      # per MjData (kept): it and the compiled step's arguments
+        self.damping = None
+        """The mass-proportional damping the compiled step applies (a
+        :class:`~pipeline.engines.mujoco.loads.LinkLoads` with nothing else to apply), or None:
+        none, or applied by MuJoCo's control callback."""
 
     def step(self, m, d) -> None:
         """One ``mj_step`` of the discrete integrator with the scan's contacts added (bit-identical
@@ -94,14 +98,15 @@ class ScanContacts:
         those added follow them, :func:`~pipeline.engines.mujoco.face_kernels.fill_contacts`)
         and the position stage from there (the constraints, islands, projections, transmissions
         and the effective metric with the activity flag the stage had set), then the rest of the
-        step and the discrete integrator's update (v += h·a, q += h·v, without Euler damping:
+        step (with :attr:`damping`'s force) and the discrete integrator's update (v += h·a, q += h·v, without Euler damping:
         the metric has D)."""
         if not self.kernels.scan_step(*self.arguments(m, d)):
             raise MemoryError("MuJoCo's contact buffer is full")
 
     def arguments(self, m, d) -> tuple:
         """The compiled step's arguments for the model ``m`` and its data ``d`` (made at its first
-        step: views of their memory, :class:`~pipeline.engines.mujoco.native.RawData`)."""
+        step: views of their memory, :class:`~pipeline.engines.mujoco.native.RawData`), the last
+        :attr:`damping`'s for ``d``."""
         if id(d) not in self._arguments:
             raw = RawData(m, d)
             search = (m.geom_contype, self.link_geoms, self.link_bodies, self.link_lengths_mm, self.link_radii_mm,
@@ -111,7 +116,8 @@ class ScanContacts:
             self._arguments[id(d)] = d, (function_addresses(), m._address, d._address, raw.header, raw.pointers,
                                          raw.option, raw.rows64, raw.rows32, raw.fields, self.template_address,
                                          self.anchor, scan)
-        return self._arguments[id(d)][1]
+        damping = None if self.damping is None else self.damping.joint_force_arguments(d)
+        return *self._arguments[id(d)][1], damping
 
 
 def triangles_mm(mesh: TriangleMesh, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

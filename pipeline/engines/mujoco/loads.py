@@ -5,7 +5,9 @@ step, from the state MuJoCo has just computed for it: in its control callback (`
 called by ``mj_step`` after the position and velocity stages, before the forces are summed), so
 that no step recomputes its kinematics for them. The callback is MuJoCo's, one per process: it is
 set only while a step runs (``with`` :class:`LinkLoads`; ``MjSpec.compile`` fails while a Python
-callback is set). Internal units mm–mg–s, loads in SI."""
+callback is set). A world with a scan whose only load is mass-proportional damping has its
+compiled scan step add that force at the same point of the step instead, without the callback
+(:attr:`~pipeline.engines.mujoco.faces.ScanContacts.damping`). Internal units mm–mg–s, loads in SI."""
 
 from __future__ import annotations
 
@@ -65,11 +67,28 @@ class LinkLoads:
     def __exit__(self, *exc) -> None:
         if self.callback is not None:
             mujoco.set_mjcb_control(None)
-        m, d = self.model, self.data
-        if d is not None and not m.opt.disableflags & SENSOR_OFF:
+        if self.data is not None:
+            self.correct_sensors(self.data)
+        self.data = None
+
+    @property
+    def only_mass_damping(self) -> bool:
+        """Whether the loads are mass-proportional damping alone (of some members), which compiled
+        code can apply (:meth:`joint_force_arguments`, :meth:`correct_sensors`) without the callback."""
+        return self.damping is not None and not self.others and not len(self.zeroed)
+
+    def joint_force_arguments(self, d: mujoco.MjData) -> tuple:
+        """:func:`~pipeline.engines.mass_damping.mujoco_joint_forces`' arguments for ``d`` (views
+        of its arrays: valid at any state)."""
+        return (*self.damping, d.cvel, d.xpos, d.xipos, d.ximat, d.subtree_com, *self.tree, d.xaxis, d.xanchor,
+                d.qfrc_passive, d.xfrc_applied)
+
+    def correct_sensors(self, d: mujoco.MjData) -> None:
+        """The base sensors of the step ``d`` has just taken with the damping's joint force,
+        corrected for it (class docstring) when that step read them."""
+        if not self.model.opt.disableflags & SENSOR_OFF:
             self.kernels.mujoco_sensor_correction(*self.damping, d.cvel, d.xpos, d.xipos, d.ximat, d.subtree_com,
                                                   *self.sensors, d.site_xpos, d.site_xmat, d.sensordata)
-        self.data = None
 
     def _control(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
         if m is self.model:
@@ -79,8 +98,7 @@ class LinkLoads:
         """The loads at ``d``'s state (after MuJoCo's velocity stage: positions, ``cvel``); the
         first MjData a step applies them to is the one whose sensors :meth:`__exit__` corrects."""
         if self.damping is not None:
-            self.kernels.mujoco_joint_forces(*self.damping, d.cvel, d.xpos, d.xipos, d.ximat, d.subtree_com, *self.tree, d.xaxis,
-                                d.xanchor, d.qfrc_passive, d.xfrc_applied)
+            self.kernels.mujoco_joint_forces(*self.joint_force_arguments(d))
             if self.data is None:
                 self.data = d
         if len(self.zeroed):

@@ -23,7 +23,8 @@ import numpy as np
 
 FUNCTIONS = ("mj_checkPos", "mj_checkVel", "mj_fwdPosition", "mj_collision", "mj_addContact", "mj_makeConstraint",
              "mj_island", "mj_projectConstraint", "mj_transmission", "mj_effBuild", "mj_sensorPos", "mj_forwardSkip",
-             "mj_checkAcc", "mj_Euler", "mj_kinematics", "mj_jac", "mj_contactForce")
+             "mj_checkAcc", "mj_Euler", "mj_kinematics", "mj_jac", "mj_contactForce", "mj_fwdVelocity",
+             "mj_sensorVel")
 """The C functions compiled code calls, in the order of :func:`function_addresses`."""
 
 _PROBE_XML = """<mujoco><worldbody><geom type="plane" size="1 1 0.1"/>

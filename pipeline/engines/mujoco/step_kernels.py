@@ -23,15 +23,16 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
+from pipeline.engines.mass_damping import mujoco_joint_forces
 from pipeline.engines.mujoco.contact_kernels import step_contacts
 from pipeline.engines.mujoco.face_kernels import fill_contacts, scan_search
 
 (CHECK_POS, CHECK_VEL, FWD_POSITION, COLLISION, ADD_CONTACT, MAKE_CONSTRAINT, ISLAND, PROJECT_CONSTRAINT,
  TRANSMISSION, EFF_BUILD, SENSOR_POS, FORWARD_SKIP, CHECK_ACC, EULER, KINEMATICS, JAC,
- CONTACT_FORCE) = range(17)                                                                      # native.FUNCTIONS
+ CONTACT_FORCE, FWD_VELOCITY, SENSOR_VEL) = range(19)                                                                      # native.FUNCTIONS
 (NCON, EFM_ACTIVE, DISABLEFLAGS, CONTACT_POINTER, CONTACT_WORDS, DIST, POS, FRAME, GEOM, EXCLUDE,
  BAD_ACCELERATION, TIME, INCLUDEMARGIN, TIMESTEP) = range(14)                                    # RawData.fields
-STAGE_POS = int(mujoco.mjtStage.mjSTAGE_POS)
+STAGE_POS, STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_POS), int(mujoco.mjtStage.mjSTAGE_VEL)
 NO_EULER_DAMPING = int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
 
 
@@ -83,11 +84,15 @@ def _call_force(typingctx, function, model, data, index, result):
 
 
 @numba.njit(cache=True)
-def scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan) -> bool:
+def scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan, damping) -> bool:
     """One step of the discrete integrator with the scan's contacts added
     (:meth:`~pipeline.engines.mujoco.faces.ScanContacts.step`; ``scan``: its search's arrays and
     constants, :func:`~pipeline.engines.mujoco.face_kernels.scan_search`'s arguments, then what
     the speculative contacts need: :func:`_speculative_margins`'s last arguments from ``qvel``).
+    ``damping``: None, or the mass-proportional damping's
+    :func:`~pipeline.engines.mass_damping.mujoco_joint_forces` arguments for ``d``, its force
+    added to ``qfrc_passive`` between the velocity stage and the actuation stage, where MuJoCo
+    calls its control callback (:class:`~pipeline.engines.mujoco.loads.LinkLoads`).
     False if MuJoCo's contact buffer is full."""
     _call(fn[CHECK_POS], m, d)
     _call(fn[CHECK_VEL], m, d)
@@ -115,7 +120,13 @@ def scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, templa
         _call(fn[TRANSMISSION], m, d)
         _call_flags(fn[EFF_BUILD], m, d, 1 if metric != 0 else 0, 1)
     _call(fn[SENSOR_POS], m, d)
-    _call_flags(fn[FORWARD_SKIP], m, d, STAGE_POS, 0)
+    if damping is None:
+        _call_flags(fn[FORWARD_SKIP], m, d, STAGE_POS, 0)
+    else:                                       # mj_forwardSkip's velocity stage, then the callback's force
+        _call(fn[FWD_VELOCITY], m, d)
+        _call(fn[SENSOR_VEL], m, d)
+        mujoco_joint_forces(*damping)
+        _call_flags(fn[FORWARD_SKIP], m, d, STAGE_VEL, 0)
     _call(fn[CHECK_ACC], m, d)
     flags = option[fields[DISABLEFLAGS]]        # the discrete integrator's update (the metric has D)
     option[fields[DISABLEFLAGS]] = flags | NO_EULER_DAMPING
@@ -269,8 +280,8 @@ def impedance(r: float, solimp: np.ndarray) -> float:
 
 @numba.njit(cache=True)
 def run_steps(spp, h, targets, qpos, qvel, qfrc, kinematic, armature, spring_rate, sensors_on, sensors_off, loss,
-              touched, fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan, first, last,
-              touching, carried):
+              touched, fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan, damping, first,
+              last, touching, carried):
     """Steps ``first`` … of a trial (at most to ``last``) as the world takes them, stopping after
     the first that records a sample (``spp`` steps per sample), meets a bad acceleration or on
     which a whisker that lost its contact sinks (:mod:`pipeline.engines.mujoco.substeps`).
@@ -315,7 +326,7 @@ def run_steps(spp, h, targets, qpos, qvel, qfrc, kinematic, armature, spring_rat
             start_qvel[:] = qvel
             start_warm[:] = warmstart
             start_time = time[fields[TIME]]
-        if not scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan):
+        if not scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan, damping):
             return (-1, lost, start_time, touching, carried, read, hit, stacked_links[:0], stacked_points[:0],
                     stacked_proximal[:0], stacked_distal[:0], counts[:0])
         ncon = header[fields[NCON]]
@@ -359,7 +370,7 @@ def _replaced(old, new, members):
 
 @numba.njit(cache=True)
 def run_substeps(count, h, start, targets, qpos, qvel, qfrc, kinematic, armature, spring_rate, maps, touched,
-                 fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan):
+                 fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan, damping):
     """The ``count`` sub-steps of h (each its own scan step, :func:`scan_step`) of a step taken again
     on the scratch data (:meth:`~pipeline.engines.mujoco.substeps.ContactLossSubsteps._substeps`'
     loop, operation for operation): the driven joints pulled onto the targets interpolated linearly
@@ -386,7 +397,7 @@ def run_substeps(count, h, start, targets, qpos, qvel, qfrc, kinematic, armature
             k = kinematic[j]
             goal = start[j] + (targets[j] - start[j]) * fraction
             qfrc[k] = armature[j] * (((goal - qpos[k]) / h - qvel[k]) / h)
-        if not scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan):
+        if not scan_step(fn, m, d, header, pointers, option, rows64, rows32, fields, template, anchor, scan, damping):
             return False, latest, stacked[0][:0], stacked[1][:0], stacked[2][:0], stacked[3][:0], counts
         pressed, read, _ = _step_contacts(header, pointers, rows64, rows32, fields, xpos, xmat, maps)
         has = np.zeros(len(touched), np.bool_)

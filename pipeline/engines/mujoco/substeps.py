@@ -24,7 +24,8 @@ another's sub-steps (Independence, :mod:`pipeline.engines.mujoco`).
 In a sub-step the driven joints land on the step's targets interpolated linearly from where
 the step started, the springs are treated as in a step of h/n (the damping fold D − (h/n)·K,
 or the explicit (h/n)·K·v force, package docstring, Integration), the link loads are those of
-the step's start, the sensors are off and only the links of the whiskers sub-stepped collide
+the step's start (mass-proportional damping, a joint force, is taken at each sub-step's state),
+the sensors are off and only the links of the whiskers sub-stepped collide
 (the others' sub-steps are not used). What the step records (sensors and node positions
 describe its start) is the full step's. Internal units mm–mg–s.
 """

@@ -272,8 +272,8 @@ class MujocoWorld(World):
 
         The kinematic targets of every step are computed before the loop (rows rewritten when a
         base holds), the sensors are switched only on the steps that record. With a scan (and
-        without Python loads or holds), the steps between those that record are taken in compiled
-        runs (:func:`~pipeline.engines.mujoco.step_kernels.run_steps`), the same operations as the
+        without holds or loads other than mass-proportional damping, which the compiled step
+        applies), the steps between those that record are taken in compiled runs (:func:`~pipeline.engines.mujoco.step_kernels.run_steps`), the same operations as the
         loop's; Python takes over to record, on a bad acceleration and for the sub-steps."""
         m, d, h, spp = self.model, self.data, self.dt_s, self.steps_per_sample
         offset, theta_rate = self._reset(setup.pose, setup.drive, setup.initial, setup.initial_rates, setup.head)
@@ -294,7 +294,11 @@ class MujocoWorld(World):
         substeps.reset()
         link_loads = LinkLoads(m, self.link_bodies, [self.whiskers[k].chain for k in self.members], setup.loads, loaded)
         run = None          # the same steps compiled, up to one with something for Python (step_kernels)
-        if self.faces is not None and link_loads.callback is None and not setup.hold_on_contact:
+        compiled = self.faces is not None and not setup.hold_on_contact
+        damped = compiled and link_loads.only_mass_damping      # applied by the compiled step, not the callback
+        if self.faces is not None:
+            self.faces.damping = link_loads if damped else None
+        if compiled and (link_loads.callback is None or damped):
             run = functools.partial(self.faces.kernels.run_steps, spp, h, targets, qpos, qvel, qfrc, kinematic,
                                     armature, spring_rate, sensors_on, sensors_off, substeps.loss_arrays(d),
                                     result.touched, *self.faces.arguments(m, d))
@@ -312,6 +316,8 @@ class MujocoWorld(World):
                 if lost.any():
                     substeps.take_again(d, targets[step], touching, lost, start_time)
                 sample, due = divmod(step, spp)
+                if damped and due == 0 and sample > 0:     # as on leaving ``with link_loads``
+                    link_loads.correct_sensors(d)
             else:
                 np.multiply(spring_rate, qvel, out=qfrc)
                 qfrc[kinematic] = armature * (((targets[step] - qpos[kinematic]) / h - qvel[kinematic]) / h)
