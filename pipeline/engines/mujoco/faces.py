@@ -98,8 +98,8 @@ class ScanContacts:
         those added follow them, :func:`~pipeline.engines.mujoco.face_kernels.fill_contacts`)
         and the position stage from there (the constraints, islands, projections, transmissions
         and the effective metric with the activity flag the stage had set), then the rest of the
-        step (with :attr:`damping`'s force) and the discrete integrator's update (v += h·a, q += h·v, without Euler damping:
-        the metric has D)."""
+        step (with :attr:`damping`'s force) and the discrete integrator's update (v += h·a,
+        q += h·v, without Euler damping: the metric has D)."""
         if not self.kernels.scan_step(*self.arguments(m, d)):
             raise MemoryError("MuJoCo's contact buffer is full")
 

@@ -29,7 +29,7 @@ from pipeline.engines.mujoco.face_kernels import fill_contacts, scan_search
 
 (CHECK_POS, CHECK_VEL, FWD_POSITION, COLLISION, ADD_CONTACT, MAKE_CONSTRAINT, ISLAND, PROJECT_CONSTRAINT,
  TRANSMISSION, EFF_BUILD, SENSOR_POS, FORWARD_SKIP, CHECK_ACC, EULER, KINEMATICS, JAC,
- CONTACT_FORCE, FWD_VELOCITY, SENSOR_VEL) = range(19)                                                                      # native.FUNCTIONS
+ CONTACT_FORCE, FWD_VELOCITY, SENSOR_VEL) = range(19)                                          # native.FUNCTIONS
 (NCON, EFM_ACTIVE, DISABLEFLAGS, CONTACT_POINTER, CONTACT_WORDS, DIST, POS, FRAME, GEOM, EXCLUDE,
  BAD_ACCELERATION, TIME, INCLUDEMARGIN, TIMESTEP) = range(14)                                    # RawData.fields
 STAGE_POS, STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_POS), int(mujoco.mjtStage.mjSTAGE_VEL)

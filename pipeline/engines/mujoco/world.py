@@ -273,7 +273,8 @@ class MujocoWorld(World):
         The kinematic targets of every step are computed before the loop (rows rewritten when a
         base holds), the sensors are switched only on the steps that record. With a scan (and
         without holds or loads other than mass-proportional damping, which the compiled step
-        applies), the steps between those that record are taken in compiled runs (:func:`~pipeline.engines.mujoco.step_kernels.run_steps`), the same operations as the
+        applies), the steps between those that record are taken in compiled runs
+        (:func:`~pipeline.engines.mujoco.step_kernels.run_steps`), the same operations as the
         loop's; Python takes over to record, on a bad acceleration and for the sub-steps."""
         m, d, h, spp = self.model, self.data, self.dt_s, self.steps_per_sample
         offset, theta_rate = self._reset(setup.pose, setup.drive, setup.initial, setup.initial_rates, setup.head)
