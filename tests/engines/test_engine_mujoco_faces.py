@@ -214,7 +214,7 @@ def test_the_compiled_sub_steps_are_the_bindings_loop(monkeypatch):
         assert np.array_equal(getattr(compiled, name), getattr(bindings, name), equal_nan=True), name
 
 
-def test_mass_damping_in_the_compiled_steps_is_the_control_callback_s(monkeypatch):
+def test_mass_damping_in_the_compiled_steps_equals_the_control_callback(monkeypatch):
     """Rayleigh damping (α·M a link load): RD3 and RB3 pressed into the folded sheet with α·M's
     joint force added by the compiled steps and sub-steps (between MuJoCo's velocity and
     actuation stages) give, bit for bit, the trial whose every step is taken in Python with it
