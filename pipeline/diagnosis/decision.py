@@ -23,6 +23,12 @@ held-out error e_c, ΔBIC and n·ln(RSS_c/RSS₀) on its training trials, and it
   ``EXPLAINED_MIN``, or no significant excess left, e_c² − σ̂² − f² within ``SIGNIFICANT``
   standard errors (an excess that is itself within the noise has no share to take); none
   such → "unexplained".
+- A pair after "unexplained" (:func:`pair_leader`, :func:`pair_passes`): two effects can each be
+  too weak to pass alone while the other is left out. The candidate that leads on the held-out
+  trials (z beyond its floor > ``Z_MIN``, lowest e_c) is then the start of a later round; the
+  pair is named when it passes the first round's tests together: the leader's ΔBIC plus the
+  second's on top of it (the same training trials) < −``BIC_MIN``, and the pair's held-out error
+  explains the first round's excess as a single cause must.
 """
 
 from __future__ import annotations
@@ -110,3 +116,30 @@ def decide(evidence: dict, floor_fraction: float = None, explained_min: float = 
                      f"noise {noise * 1e3:.4f} mm and model-error floor {floor * 1e3:.4f} mm): "
                      "a second effect may be present")
     return best["name"], shares
+
+
+def pair_leader(evidence: dict, floor_fraction: float = None) -> str | None:
+    """The candidate a pair starts from when :func:`decide` says "unexplained": the lowest
+    held-out error among those with z beyond their floor > ``Z_MIN``, whatever their training
+    test and share (None when no candidate has such z)."""
+    z_beyond = beyond_floor(evidence, floor_fraction)
+    ahead = [c for c in evidence["candidates"] if z_beyond[c["name"]] > Z_MIN]
+    return min(ahead, key=lambda c: c["heldout_m"])["name"] if ahead else None
+
+
+def pair_passes(evidence: dict, leader: str, pair_round: dict, second: str, floor_fraction: float = None) -> bool:
+    """Does the pair (``leader`` of the first round's ``evidence``, ``second`` named in the round on
+    top of it, whose ``first_fold`` holds the first round's held-out half) pass the first round's
+    tests together: ΔBIC_leader + ΔBIC_second|leader < −``BIC_MIN`` on the training trials, and
+    the pair's held-out error takes ≥ ``EXPLAINED_MIN`` of the first round's excess or leaves
+    none that is significant."""
+    floor_fraction = FLOOR_FRACTION if floor_fraction is None else floor_fraction
+    first = next(c for c in evidence["candidates"] if c["name"] == leader)
+    pair = next(c for c in pair_round["first_fold"]["candidates"] if c["name"] == second)
+    if first["bic_delta"] + pair["bic_delta"] >= -BIC_MIN:
+        return False
+    e0, noise, n = evidence["baseline_m"], evidence["noise_m"], evidence["values"]
+    floor = floor_fraction * evidence["amplitude_m"]
+    excess = e0 ** 2 - noise ** 2 - floor ** 2
+    share = (e0 ** 2 - pair["heldout_m"] ** 2) / excess if excess > 0 else 1.0
+    return share >= EXPLAINED_MIN or significance(pair["heldout_m"], noise, floor, n) <= SIGNIFICANT

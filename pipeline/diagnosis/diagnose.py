@@ -22,7 +22,8 @@ Time series (positions of tracked points):
    density change from a change of E (eq. 3: only E/ρ sets the time scale): every diagnosis
    says so.
 5b. Several causes (:mod:`.later_causes`): forward selection, each later round decided on both
-   halves held out in turn, at a z threshold that counts every candidate tried. Data scored
+   halves held out in turn, at a z threshold that counts every candidate tried; after an
+   "unexplained" first round, one pair (the held-out leader and a round on top of it). Data scored
    with the nonlinear correction stop after the first round (a note says so). ``causes``
    lists the causes in the order named; the model refitted in step 6 holds all of them.
 6. The named model (or the baseline) is refitted on all trials for its parameters; their
@@ -58,7 +59,7 @@ from pipeline.diagnosis.decision import FLOOR_FRACTION, beyond_floor, decide
 from pipeline.diagnosis.deflection import amplitude, bend
 from pipeline.diagnosis.discretisation import with_modulus_discretisation
 from pipeline.diagnosis.fitting import Fit, block_sandwich_sd, fit, matched_start
-from pipeline.diagnosis.later_causes import forward_selection
+from pipeline.diagnosis.later_causes import forward_selection, pair_after_unexplained
 from pipeline.diagnosis.nonlinear import correct
 from pipeline.diagnosis.objective import RESIDUAL_UNIT_M, TrajectoryObjective
 from pipeline.diagnosis.parameters import BASELINE_NAMES, ModelSpec
@@ -168,6 +169,12 @@ def _diagnose(measurement, material, candidates) -> Diagnosis:
         notes.append("the data need the nonlinear correction: only one cause is looked for")
     elif named:
         named, causes, rounds = forward_selection(session, named, chosen, len(scores), noise)
+    elif cause == "unexplained" and not simulators:
+        named, causes, rounds = pair_after_unexplained(session, scores, chosen, evidence, noise)
+        if named:
+            cause = causes[0]
+            notes.append(f"no candidate explains the misfit alone: {causes[0]} and {causes[1]} pass the first "
+                         "round's tests together")
     evidence["rounds"] = rounds
     if len(causes) > 1:
         notes.append(f"{len(causes)} causes named, in order: {', '.join(causes)} (each on top of the ones before)")

@@ -22,6 +22,11 @@ round on one (:mod:`.decision`):
   only (a follicle behind a fitted stiffness gradient: held out z 23 with no training gain). ``first_fold`` and
   ``second_fold`` in the evidence are each fold alone, fold 1 as the first round scores it.
 
+A first round that ends "unexplained" (no candidate passes its tests alone) tries one pair
+(:func:`pair_after_unexplained`): a round on top of the candidate that leads on the held-out
+trials, the pair named when it passes the first round's tests together
+(:func:`~.decision.pair_passes`); the forward selection then goes on from the pair.
+
 Many candidates tried: the z threshold of a later round is :func:`~.decision.family_z` over
 every candidate tried so far (Bonferroni on the one-sided tail of ``Z_MIN``, which the first
 round's candidates set); a fold-2 refit is part of the same test (one combined z per candidate),
@@ -38,7 +43,7 @@ import numpy as np
 from pipeline.diagnosis.candidate_fits import (FINAL_ITERATIONS, CandidateScore, Session, evidence_of,
                                                fit_candidates, paired_z)
 from pipeline.diagnosis.candidates import DAMPING_LAWS, Candidate
-from pipeline.diagnosis.decision import beyond_floor, decide, family_z
+from pipeline.diagnosis.decision import beyond_floor, decide, family_z, pair_leader, pair_passes
 from pipeline.diagnosis.deflection import amplitude
 from pipeline.diagnosis.fitting import fit
 
@@ -46,12 +51,14 @@ MAX_CAUSES = 3              # rounds of the forward selection
 
 
 def forward_selection(session: Session, named: CandidateScore, chosen: list[Candidate], first_round: int,
-                      noise: float) -> tuple[CandidateScore, list[str], list[dict]]:
-    """The causes after the first one (``named``, from ``first_round`` candidates): (the last
-    named cause's score, every cause in the order named, each round's evidence)."""
-    causes, rounds, tried = [named.name], [], first_round
+                      noise: float, causes: list[str] | None = None,
+                      tried: int | None = None) -> tuple[CandidateScore, list[str], list[dict]]:
+    """The causes after the first one (``named``, from ``first_round`` candidates), or after
+    ``causes`` already named with ``tried`` candidates tried: (the last named cause's score,
+    every cause in the order named, each round's evidence)."""
+    causes, rounds, tried = list(causes or [named.name]), [], tried or first_round
     while len(causes) < MAX_CAUSES:
-        rest = [c for c in chosen if c.name not in causes and not (c.law and set(causes) & set(DAMPING_LAWS))]
+        rest = _rest(chosen, causes)
         tried += len(rest)
         found, evidence = next_cause(session, named, rest, noise, family_z(tried, first_round))
         rounds.append(evidence)
@@ -60,6 +67,32 @@ def forward_selection(session: Session, named: CandidateScore, chosen: list[Cand
         named = found
         causes.append(found.name)
     return named, causes, rounds
+
+
+def pair_after_unexplained(session: Session, scores: list[CandidateScore], chosen: list[Candidate],
+                           evidence: dict, noise: float) -> tuple[CandidateScore | None, list[str], list[dict]]:
+    """After a first round (``scores``, its ``evidence``) that ends "unexplained": the round on top
+    of its leader (:func:`~.decision.pair_leader`) at the family threshold; (the last named
+    cause's score, every cause named, each round's evidence), nothing named when the pair
+    fails the first round's tests (:func:`~.decision.pair_passes`)."""
+    leader = next((s for s in scores if s.name == pair_leader(evidence)), None)
+    if leader is None:
+        return None, [], []
+    rest = _rest(chosen, [leader.name])
+    tried = len(scores) + len(rest)
+    found, pair_round = next_cause(session, leader, rest, noise, family_z(tried, len(scores)))
+    passes = found is not None and pair_passes(evidence, leader.name, pair_round, found.name)
+    pair_round.update(pair_after_unexplained=True, pair_passes=passes)
+    if not passes:
+        return None, [], [pair_round]
+    named, causes, rounds = forward_selection(session, found, chosen, len(scores), noise,
+                                              [leader.name, found.name], tried)
+    return named, causes, [pair_round] + rounds
+
+
+def _rest(chosen: list[Candidate], causes: list[str]) -> list[Candidate]:
+    """The candidates a round on top of ``causes`` tries (one damping law at most)."""
+    return [c for c in chosen if c.name not in causes and not (c.law and set(causes) & set(DAMPING_LAWS))]
 
 
 def next_cause(session: Session, named: CandidateScore, rest: list[Candidate], noise: float,

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from pipeline.diagnosis.decision import Z_MIN, decide, family_z
+from pipeline.diagnosis.decision import Z_MIN, decide, family_z, pair_leader, pair_passes
 
 
 def test_threshold_grows_with_the_candidates_tried():
@@ -118,3 +118,35 @@ def test_a_later_round_is_decided_on_the_held_out_trials():
     assert decide(evidence, z_min=z_min)[0] == "none"
     evidence["candidates"][0]["fit_delta"] = 0.3
     assert decide(evidence, z_min=z_min, later=True)[0] == "none"
+
+
+def _first_round_7054() -> dict:
+    """First round of truth2 7054 (a stiffness gradient γ 1.22 on a curved whisker that twists):
+    twist leads on the held-out trials (z 22) but misses the training test (ΔBIC −8.8 > −10), the
+    gradient passes it but not its floor (z 2.8 beyond it)."""
+    return {"baseline_m": 86.67e-6, "noise_m": 80.37e-6, "amplitude_m": 2.558e-4, "values": 11385,
+            "candidates": [{"name": "stiffness_gradient", "heldout_m": 86.26e-6, "bic_delta": -155.1,
+                            "fit_delta": -164.4, "z": 2.84, "absorbs": 0.0027},
+                           {"name": "twist", "heldout_m": 82.82e-6, "bic_delta": -8.81,
+                            "fit_delta": -18.2, "z": 22.24, "absorbs": 0.0002}]}
+
+
+def _pair_round(heldout_m: float = 81.18e-6, bic_delta: float = -166.2) -> dict:
+    """The round on top of twist (its first fold: the first round's held-out half)."""
+    return {"first_fold": {"candidates": [{"name": "stiffness_gradient", "heldout_m": heldout_m,
+                                           "bic_delta": bic_delta}]}}
+
+
+def test_a_pair_is_named_when_it_passes_the_first_rounds_tests_together():
+    """Neither cause of 7054 passes alone ("unexplained"); twist is the pair's leader, and twist
+    with the gradient on top of it passes both tests together (ΔBIC −175, all of the excess);
+    not with too little training evidence, nor with a held-out error that leaves most of it."""
+    evidence = _first_round_7054()
+    assert decide(evidence)[0] == "unexplained"
+    assert pair_leader(evidence) == "twist"
+    assert pair_passes(evidence, "twist", _pair_round(), "stiffness_gradient")
+    assert not pair_passes(evidence, "twist", _pair_round(bic_delta=-1.0), "stiffness_gradient")
+    assert not pair_passes(evidence, "twist", _pair_round(heldout_m=85.5e-6), "stiffness_gradient")
+    for c in evidence["candidates"]:
+        c["z"] = 2.0
+    assert pair_leader(evidence) is None
