@@ -52,10 +52,8 @@ def calibrate(
     material = model_config(config, {"material": {"preset": preset}}).material
     files = list(files or [])
     if library or where or len(files) > 1:
-        if save_model is not None:
-            raise UserError("--save-model saves the fit of one measurement FILE, not a joint fit over sets")
         with busy("calibrate", f"fitting {params} jointly to the resonance tables", json_output):
-            data, lines = run_calibrate_sets(files, library, where, hold_out, params, material)
+            data, lines = run_calibrate_sets(files, library, where, hold_out, params, material, save_model)
     elif len(files) == 1:
         with busy("calibrate", f"fitting {params} to {files[0]}", json_output):
             data, lines = run_calibrate(files[0], params, method, objective, material, engine, bootstrap,

@@ -57,13 +57,18 @@ def run_calibrate(path: Path, names: str, method: str, objective: str, material,
                                            f"{result['metric']} {e['error_before']:.4g} → {e['error_after']:.4g}"))
     lines += [f"  note: {n}" for n in result["notes"]]
     if save_model is not None:
-        spec = ModelSpec(material).with_values({n: p["value"] for n, p in result["params"].items()})
+        spec = _fitted_spec(material, result["params"])
         whisker, modes = next(iter(result["modes"].items()))
         summary = {"method": "calibrate", "metric": result["metric"], "error": result["error"],
                    "whisker": whisker, **modes}
         result["model_file"] = str(saved_model.save_model(save_model, spec, result["params"], [path], summary))
         lines.append(f"  model: {result['model_file']}")
     return _jsonable(result), lines
+
+
+def _fitted_spec(material, params: dict) -> ModelSpec:
+    """The model of ``material`` with the fitted ``params`` ({name: {value, sd, unit}})."""
+    return ModelSpec(material).with_values({n: p["value"] for n, p in params.items()})
 
 
 def parse_where(where: str | None) -> dict[str, str]:
@@ -94,8 +99,9 @@ def _tables(paths, library: bool, where: str | None) -> list:
 
 
 def run_calibrate_sets(paths, library: bool, where: str | None, hold_out: bool, names: str,
-                       material) -> tuple[dict, list[str]]:
-    result = calibrate_sets(_tables(paths, library, where), parse_names(names), material, hold_out)
+                       material, save_model: Path | None = None) -> tuple[dict, list[str]]:
+    tables = _tables(paths, library, where)
+    result = calibrate_sets(tables, parse_names(names), material, hold_out)
     lines = [f"joint fit of {result['values']} values ({len(result['fitted_records'])} whiskers): "
              f"{result['metric']} = {result['error']:.4g}, χ² = {result['chi2']:.1f}; "
              f"{material.damping_model} damping, {material.links} links"]
@@ -116,7 +122,20 @@ def run_calibrate_sets(paths, library: bool, where: str | None, hold_out: bool, 
         _with_statics(result, lines, result["params"]["E"], f"the joint fit of {', '.join(result['sets'])}",
                       material)
         _with_damping_laws(result, lines, material)
+    if save_model is not None:
+        result["model_file"] = str(_save_joint_fit(save_model, result, tables, material))
+        lines.append(f"  model: {result['model_file']}")
     return _jsonable(result), lines
+
+
+def _save_joint_fit(out: Path, result: dict, tables, material) -> Path:
+    """A joint fit's model (the material's law, its fitted parameters) to ``out``; its fit summary
+    names the first fitted whisker and that whisker's first in-plane mode under the fit."""
+    spec = _fitted_spec(material, result["params"])
+    record = next(r for r in combine(tables).records if r.whisker == result["fitted_records"][0])
+    summary = {"method": "calibrate", "metric": result["metric"], "error": result["error"],
+               "whisker": record.whisker, **modal_summary(spec, record.geometry)}
+    return saved_model.save_model(out, spec, result["params"], [t.path for t in tables], summary)
 
 
 def _with_damping_laws(data: dict, lines: list[str], material) -> None:

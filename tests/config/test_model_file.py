@@ -261,6 +261,32 @@ def test_calibrate_saves_the_model_it_fitted(tmp_path, measurement):
     assert linear_f1(ModelConfig(file=tmp_path / "cal.yaml")) == pytest.approx(out["modes"]["C2"]["f1_hz"], rel=1e-9)
 
 
+def test_a_joint_fit_of_the_library_saves_its_model_under_the_law_it_was_fitted_with(tmp_path):
+    """``calibrate --library --where trimmed=no --preset untrimmed_rayleigh --save-model``: the law
+    the library's evidence picks, E and ζ1 as fitted, both D-row tables as the data, and the fit
+    summary's f1 that of the saved model on the first fitted whisker."""
+    from pipeline.diagnosis.calibrate import modal_summary
+    from pipeline.diagnosis.parameters import ModelSpec
+    from pipeline.measurements.library import load_library
+
+    model = tmp_path / "library.yaml"
+    out = json.loads(ok("calibrate", "--library", "--where", "trimmed=no", "--preset", "untrimmed_rayleigh",
+                        "--save-model", model, "--json"))
+    assert out["model_file"] == str(model) and out["damping_laws"]["picked"] == "rayleigh"
+    content = read_model_file(model).content
+    assert content.material.damping_model == "rayleigh"
+    assert content.material.youngs_modulus_gpa * 1e9 == pytest.approx(out["params"]["E"]["value"])
+    assert content.material.damping_ratio == pytest.approx(out["params"]["zeta"]["value"])
+    assert content.material_sd.youngs_modulus_gpa * 1e9 == pytest.approx(out["params"]["E"]["sd"])
+    assert [Path(d.path).stem for d in content.provenance.data] == list(out["sets"])
+    d1 = next(r for t in load_library() if t.path.stem == "hartmann2003_Drow_vibration_table"
+              for r in t.records if r.whisker == "D1")
+    assert content.provenance.fit.whisker == "hartmann2003_Drow_vibration_table/D1"
+    material, _ = model_parts(ModelConfig(file=model))
+    assert modal_summary(ModelSpec(material), d1.geometry)["f1_hz"] == pytest.approx(content.provenance.fit.f1_hz,
+                                                                                      rel=1e-9)
+
+
 def test_diagnose_saves_its_final_model_or_the_baseline(tmp_path, measurement):
     for candidates, cause in (("follicle", "follicle"), ("gravity", "unexplained")):
         model = tmp_path / f"{candidates}.yaml"
